@@ -1,0 +1,44 @@
+"""bmg160-emu: a register-level emulator of the Bosch BMG160 gyroscope.
+
+Public names are imported lazily (PEP 562) so that ``import bmg160_emu`` stays cheap and a
+command that needs only one part of the package does not pay for the others.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+# public name -> module that defines it
+_EXPORTS = {
+    "BMG160": "bmg160_emu.chip",
+    "VirtualClock": "bmg160_emu.clock",
+    "RealTimeClock": "bmg160_emu.clock",
+    "virtual_sleep": "bmg160_emu.clock",
+    "I2CBus": "bmg160_emu.i2c_bus",
+    "FakeSMBus": "bmg160_emu.smbus",
+    "patch_smbus": "bmg160_emu.patching",
+    "patch_spidev": "bmg160_emu.patching",
+    "FakeSpiDev": "bmg160_emu.spi",
+    "Transaction": "bmg160_emu.transactions",
+    "TransactionLog": "bmg160_emu.transactions",
+    "NoiseGenerator": "bmg160_emu.noise",
+    "load_profile": "bmg160_emu.noise",
+}
+
+__all__ = sorted(_EXPORTS) + ["__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'bmg160_emu' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return __all__

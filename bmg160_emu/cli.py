@@ -1,0 +1,55 @@
+"""The ``bmg160-emu`` command line: a thin dispatcher over the library.
+
+Each sub-command lives in its own module under :mod:`bmg160_emu.commands` and exposes
+``register(subparsers)``, which adds its parser and sets ``func`` (a callable taking the
+parsed arguments and returning an exit status). Commands are discovered, so adding one never
+touches this file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from collections.abc import Sequence
+
+from bmg160_emu import __version__, commands
+
+
+class CommandError(Exception):
+    """A user-facing error: printed as one line, exit status 2, never a traceback."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="bmg160-emu",
+        description="Emulate the Bosch BMG160 gyroscope at register level.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{commands.__name__}.{info.name}")
+        module.register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except CommandError as exc:
+        print(f"bmg160-emu {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
