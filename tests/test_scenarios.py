@@ -1,0 +1,168 @@
+"""True-motion scenarios: each kind of motion gives the body rate it describes."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bmg160_emu.adcs.scenarios import (
+    Scenario,
+    ScenarioError,
+    load_scenario,
+    orbital_rate_dps,
+    scenario_from_dict,
+)
+
+
+def _one(kind: str, duration_s: float = 100.0, **keys) -> Scenario:
+    return scenario_from_dict({"duration_s": duration_s, "motion": [{"kind": kind, **keys}]})
+
+
+def test_rest_is_zero_rate_everywhere():
+    scenario = _one("rest")
+    assert np.all(scenario.rate_dps(np.linspace(0, 100, 7)) == 0.0)
+
+
+def test_a_scenario_without_motion_is_rest():
+    scenario = scenario_from_dict({"duration_s": 5.0})
+    assert np.all(scenario.rate_dps(2.5) == 0.0)
+
+
+def test_orbital_rate_below_one_lsb_is_kept_exactly_as_a_float():
+    # 0.06 deg/s is 0.98 LSB at the 2000 deg/s range (16.384 LSB per deg/s, spec 5.1):
+    # the scenario must not round it, only the chip does.
+    scenario = _one("constant", rate_dps=[0.0, -0.06, 0.0])
+    assert scenario.rate_dps(12.345)[1] == -0.06
+
+
+def test_orbital_motion_from_period_turns_360_degrees_per_orbit():
+    scenario = _one("orbital", period_s=5400.0)
+    assert np.array_equal(scenario.rate_dps(1.0), [0.0, -360.0 / 5400.0, 0.0])
+
+
+def test_orbital_rate_at_500_km_is_about_0_06_deg_per_s():
+    # Kepler: 2 pi sqrt(a^3 / mu) = 5677 s for a = 6878 km -> 0.0634 deg/s
+    assert orbital_rate_dps(500.0) == pytest.approx(360.0 / 5676.98, rel=1e-5)
+    scenario = _one("orbital", altitude_km=500.0, axis=[0, 0, 2])
+    assert scenario.rate_dps(0.0)[2] == pytest.approx(orbital_rate_dps(500.0), rel=1e-15)
+
+
+def test_slew_respects_rate_and_acceleration_limits_and_turns_the_angle():
+    scenario = _one("slew", axis=[1, 1, 0], angle_deg=60.0, max_rate_dps=4.0,
+                    max_accel_dps2=0.5, start_s=3.0)
+    t = np.arange(0.0, 40.0, 0.001)
+    rate = scenario.rate_dps(t)
+    speed = np.linalg.norm(rate, axis=1)
+    assert speed.max() == pytest.approx(4.0)
+    assert np.max(np.abs(np.diff(speed))) / 0.001 <= 0.5 + 1e-9
+    assert np.all(speed[t < 3.0] == 0.0)
+    # rectangle rule on a 1 ms grid: error below accel * dt * ramp count
+    assert np.sum(speed) * 0.001 == pytest.approx(60.0, abs=1e-3)
+    assert np.allclose(rate[speed > 0] / speed[speed > 0, None], [2**-0.5, 2**-0.5, 0.0])
+
+
+def test_short_slew_has_a_triangular_profile():
+    scenario = _one("slew", axis=[0, 0, 1], angle_deg=-4.0, max_rate_dps=10.0, max_accel_dps2=1.0)
+    slew = scenario.motions[0]
+    assert slew.peak_dps == pytest.approx(2.0)  # sqrt(angle * accel)
+    assert slew.duration_s == pytest.approx(4.0)
+    assert scenario.rate_dps(2.0)[2] == pytest.approx(-2.0)
+    assert np.all(scenario.rate_dps(np.array([4.0, 10.0])) == 0.0)
+
+
+def test_jitter_is_a_sinusoid_per_axis_with_its_phase():
+    scenario = _one("jitter", amplitude_dps=[0.1, 0.2, 0.0], frequency_hz=2.0,
+                    phase_deg=[0.0, 90.0, 0.0])
+    t = np.array([0.0, 0.125, 0.25])
+    rate = scenario.rate_dps(t)
+    assert np.allclose(rate[:, 0], [0.0, 0.1, 0.0])
+    assert np.allclose(rate[:, 1], [0.2, 0.0, -0.2])
+
+
+def test_symmetric_tumble_spins_at_constant_rate_and_asymmetric_one_conserves_momentum():
+    sphere = _one("tumble", initial_rate_dps=[10.0, -5.0, 20.0], inertia_kg_m2=[2, 2, 2])
+    assert np.allclose(sphere.rate_dps(np.array([0.0, 50.0])), [10.0, -5.0, 20.0])
+
+    inertia = np.array([0.03, 0.05, 0.02])
+    body = _one("tumble", initial_rate_dps=[10.0, -5.0, 20.0], inertia_kg_m2=inertia.tolist())
+    w = np.radians(body.rate_dps(np.linspace(0, 100, 11)))
+    momentum = np.linalg.norm(w * inertia, axis=1)
+    energy = np.sum(inertia * w**2, axis=1)
+    assert np.allclose(momentum, momentum[0], rtol=1e-8)
+    assert np.allclose(energy, energy[0], rtol=1e-8)
+    assert not np.allclose(w[5], w[0], rtol=1e-3)  # it really nutates
+
+
+def test_detumbling_decays_the_rate_with_its_time_constant():
+    scenario = _one("tumble", duration_s=200.0, initial_rate_dps=[5.0, 0.0, 0.0],
+                    inertia_kg_m2=[1, 1, 1], damping_time_s=50.0)
+    assert scenario.rate_dps(100.0)[0] == pytest.approx(5.0 * math.exp(-2.0), rel=1e-7)
+
+
+def test_table_interpolates_linearly_or_holds_and_converts_rad_per_s(tmp_path):
+    samples = [[0.0, 0.0, 0.0, 0.0], [1.0, 1.0, 2.0, 3.0], [2.0, 1.0, 2.0, 3.0]]
+    linear = _one("table", samples=samples)
+    assert np.allclose(linear.rate_dps(0.5), [0.5, 1.0, 1.5])
+    held = _one("table", samples=samples, interpolation="previous")
+    assert np.allclose(held.rate_dps(0.5), [0.0, 0.0, 0.0])
+
+    csv = tmp_path / "dynamics.csv"
+    csv.write_text("t_s,wx,wy,wz\n0,0,0,0\n10,0.1,0,0\n")
+    (tmp_path / "s.toml").write_text(
+        'duration_s = 10.0\n[[motion]]\nkind = "table"\nfile = "dynamics.csv"\nunits = "rad/s"\n'
+    )
+    from_file = load_scenario(tmp_path / "s.toml")
+    assert from_file.rate_dps(5.0)[0] == pytest.approx(math.degrees(0.05))
+    assert from_file.name == "s"
+
+
+def test_motions_add_up_within_their_windows():
+    scenario = scenario_from_dict({
+        "duration_s": 10.0,
+        "motion": [
+            {"kind": "constant", "rate_dps": [1.0, 0.0, 0.0]},
+            {"kind": "constant", "rate_dps": [0.0, 2.0, 0.0], "start_s": 2.0, "end_s": 4.0},
+        ],
+    })
+    assert np.allclose(scenario.rate_dps(np.array([1.0, 3.0, 4.0])),
+                       [[1, 0, 0], [1, 2, 0], [1, 0, 0]])
+
+
+def test_a_python_callable_is_a_scenario_and_scalar_times_give_3_vectors():
+    scenario = Scenario.from_callable(lambda t: (math.sin(t), 0.0, 0.06), duration_s=5.0)
+    assert scenario(1.0).shape == (3,)
+    assert np.allclose(scenario.rate_dps(np.array([0.0, 1.0])), [[0, 0, 0.06], [math.sin(1), 0, 0.06]])
+
+
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        ({}, "duration_s"),
+        ({"duration_s": -1}, "duration_s"),
+        ({"duration_s": 1, "motion": [{"kind": "spin"}]}, "kind must be one of"),
+        ({"duration_s": 1, "motion": [{"kind": "constant", "rate_dps": [1, 2]}]}, "3 finite"),
+        ({"duration_s": 1, "motion": [{"kind": "constant", "rate": [1, 2, 3]}]}, "unknown keys"),
+        ({"duration_s": 1, "motion": [{"kind": "slew", "axis": [0, 0, 0], "angle_deg": 1,
+                                       "max_rate_dps": 1, "max_accel_dps2": 1}]}, "zero vector"),
+        ({"duration_s": 1, "motion": [{"kind": "orbital"}]}, "altitude_km or period_s"),
+        ({"duration_s": 1, "motion": [{"kind": "table", "samples": [[1, 0, 0, 0], [0, 0, 0, 0]]}]},
+         "strictly increasing"),
+        ({"duration_s": 1, "motion": [{"kind": "tumble", "initial_rate_dps": [1, 0, 0],
+                                       "inertia_kg_m2": [1, -1, 1]}]}, "positive definite"),
+        ({"duration_s": 1, "speed": 3}, "unknown top-level keys"),
+    ],
+)
+def test_bad_scenarios_are_refused_with_the_reason(data, message):
+    with pytest.raises(ScenarioError, match=message):
+        scenario_from_dict(data)
+
+
+def test_bad_scenario_files_name_the_file(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("duration_s = [\n")
+    with pytest.raises(ScenarioError, match="broken.toml: not valid TOML"):
+        load_scenario(path)
+    with pytest.raises(ScenarioError, match="cannot read scenario"):
+        load_scenario(tmp_path / "missing.toml")
