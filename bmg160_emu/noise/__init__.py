@@ -1,9 +1,11 @@
-"""Gyroscope noise engine (N, B, K) and its identification pipeline.
+"""Gyroscope noise engine (N, B, T, K per axis) and its identification pipeline.
 
-PLACEHOLDER until the noise-engine work lands: a white-noise source behind the final
-interface, so the device model can be built against it.
+The generator is imported eagerly (the device model needs it); identification, plots and
+recording loaders are imported from their own modules so that the chip does not pay for
+allantools or matplotlib.
 """
 
-from bmg160_emu.noise.engine import NoiseGenerator, load_profile
+from bmg160_emu.noise.engine import NoiseGenerator
+from bmg160_emu.noise.profile import AxisNoise, Profile, ProfileError, load_profile
 
-__all__ = ["NoiseGenerator", "load_profile"]
+__all__ = ["AxisNoise", "NoiseGenerator", "Profile", "ProfileError", "load_profile"]

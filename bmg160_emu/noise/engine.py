@@ -1,34 +1,265 @@
-"""PLACEHOLDER white-noise generator with the interface of the real noise engine.
+"""The gyroscope noise generator: per-axis N, B, T, K (+ Q, R) streams, seeded, chunk invariant.
 
-Interface (kept by the real engine):
+Interface (used by the device model, see docs/architecture.md):
+
     gen = NoiseGenerator(profile="paper", rate_hz=200.0, seed=7, mode="physical")
-    gen.generate(n) -> ndarray (n, 3) float64, deg/s, constant bias included; chunk invariant
-    gen.set_rate(rate_hz)   # continue the same realisation at a new output data rate
+    gen.generate(n) -> ndarray (n, 3) float64, deg/s, constant bias included
+    gen.set_rate(rate_hz)   # continue the same realisation at another output data rate
+
+Why it is chunk invariant: every term of every axis draws from its own numpy Generator
+(children of one SeedSequence), so sample k always consumes the k-th normal of each stream;
+the Gauss-Markov filter (scipy.signal.lfilter) and the random-walk cumsum carry their state
+exactly (the carried offset is folded into the first increment, not added afterwards), so
+the floating-point operations per sample do not depend on how the stream is cut.
+
+Small requests are served from a short buffer of computed samples (a few microseconds per
+call); the buffer keeps its normals so that set_rate() can recompute the unserved part at the
+new rate from the exact state of the last served sample.
 """
 
 from __future__ import annotations
 
+import operator
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
 import numpy as np
+from scipy.signal import lfilter
 
-_PAPER_N = 1.779073e-2  # deg/s/sqrt(Hz), paper section 2.5
-_PAPER_BIAS = 0.116359  # deg/s, paper section 2.5
+from bmg160_emu.noise.discretization import (
+    AxisCoefficients,
+    axis_coefficients,
+    check_mode,
+    check_rate,
+)
+from bmg160_emu.noise.profile import AxisNoise, Profile, load_profile
+
+__all__ = ["NoiseGenerator", "load_profile"]
+
+_BUFFER_SAMPLES = 1024  # samples computed ahead for small requests
+_BLOCK_SAMPLES = 1 << 15  # block length of large requests (keeps the scratch arrays in cache)
+_STREAMS = ("white", "gm", "rw", "quant")
 
 
-def load_profile(name: str = "paper") -> dict:
-    if name != "paper":
-        raise ValueError(f"unknown noise profile {name!r}")
-    return {"N": [_PAPER_N] * 3, "bias": [_PAPER_BIAS] * 3}
+class _AxisStream:
+    """One axis: its random streams, its coefficients and the state after its last sample."""
+
+    def __init__(self, axis: AxisNoise, seed_seq: np.random.SeedSequence, mode: str) -> None:
+        self.axis = axis
+        children = seed_seq.spawn(len(_STREAMS))
+        self.rng = {
+            name: np.random.Generator(np.random.PCG64(s)) for name, s in zip(_STREAMS, children)
+        }
+        self.uses = {
+            "white": axis.N > 0 if mode == "physical" else True,
+            "gm": axis.B > 0 and axis.T > 0,
+            "rw": axis.K > 0,
+            "quant": axis.Q > 0,
+        }
+        # Start the Gauss-Markov term in its stationary distribution (std B): a powered sensor
+        # has been running long before the first sample.
+        self.gm_prev = axis.B * float(self.rng["gm"].standard_normal()) if self.uses["gm"] else 0.0
+        self.rw_prev = 0.0
+        self.quant_prev = float(self.rng["quant"].standard_normal()) if self.uses["quant"] else 0.0
+        self.coef: AxisCoefficients | None = None
+
+    def draw(self, n: int) -> dict[str, np.ndarray | None]:
+        out: dict[str, np.ndarray | None] = {}
+        for name in _STREAMS:
+            out[name] = self.rng[name].standard_normal(n) if self.uses[name] else None
+        return out
+
+    def compute(
+        self, normals: dict[str, np.ndarray | None], t: np.ndarray | None, out: np.ndarray
+    ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """Write this axis's samples into out (a possibly strided view); advance the state.
+
+        Returns the Gauss-Markov and random-walk components (kept by the small-request buffer).
+        """
+        c = self.coef
+        assert c is not None
+        n = out.shape[0]
+        acc = np.empty(n)
+        if normals["white"] is not None:
+            np.multiply(normals["white"], c.white_std, out=acc)
+        else:
+            acc.fill(0.0)
+        gm = rw = None
+        if normals["gm"] is not None:
+            gm, _ = lfilter(
+                [c.gm_gain], [1.0, -c.alpha], normals["gm"], zi=[c.alpha * self.gm_prev]
+            )
+            acc += gm
+            self.gm_prev = float(gm[-1])
+        if normals["rw"] is not None:
+            rw = np.multiply(normals["rw"], c.rw_step)
+            rw[0] += self.rw_prev  # carried offset folded in: same additions as one long cumsum
+            np.cumsum(rw, out=rw)
+            acc += rw
+            self.rw_prev = float(rw[-1])
+        wq = normals["quant"]
+        if wq is not None:
+            diff = np.empty(n)
+            diff[0] = wq[0] - self.quant_prev
+            np.subtract(wq[1:], wq[:-1], out=diff[1:])
+            diff *= c.quant_scale
+            acc += diff
+            self.quant_prev = float(wq[-1])
+        if t is not None and c.ramp_slope > 0:
+            acc += c.ramp_slope * t
+        np.add(acc, c.bias, out=out)
+        return gm, rw
 
 
 class NoiseGenerator:
-    def __init__(self, profile="paper", rate_hz: float = 200.0, seed=None, mode: str = "physical"):
-        self.profile = load_profile(profile) if isinstance(profile, str) else profile
-        self.rate_hz = float(rate_hz)
-        self._rng = np.random.Generator(np.random.PCG64(seed))
+    """Seeded, chunk-invariant noise of the three gyroscope axes in deg/s (bias included).
 
-    def set_rate(self, rate_hz: float) -> None:
-        self.rate_hz = float(rate_hz)
+    profile: a built-in name ("paper", "datasheet"), a TOML path, a Profile or a mapping.
+    rate_hz: output data rate, one of the BMG160's 100, 200, 400, 1000, 2000 Hz.
+    seed: int, None (fresh entropy) or numpy SeedSequence.
+    mode: "physical" (N, B, T, K scaled with dt: round-trips at every rate) or "paper" (the
+    paper's recursion, eqs. 11-17, evaluated at dt = 1/rate; its constants at 200 Hz).
+    """
+
+    def __init__(
+        self,
+        profile: str | Path | Profile | Mapping[str, Any] = "paper",
+        rate_hz: float = 200.0,
+        seed: int | np.random.SeedSequence | None = None,
+        mode: str = "physical",
+    ) -> None:
+        self.profile = load_profile(profile)
+        self.mode = check_mode(mode)
+        rate = check_rate(rate_hz)
+        seed_seq = (
+            seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        )
+        self.seed_sequence = seed_seq
+        self._axes = [
+            _AxisStream(axis, child, self.mode)
+            for axis, child in zip(self.profile.axes, seed_seq.spawn(3))
+        ]
+        self._uses_ramp = any(a.R > 0 for a in self.profile.axes)
+        self._rate_hz = 0.0
+        self._apply_rate(rate)
+        # time of sample k is t_ref + (k - k_ref) dt (first sample at t = dt)
+        self._t_ref = 0.0
+        self._k_ref = -1
+        self._k = 0  # index of the next sample handed out
+        self._buf_start = 0
+        self._buf_out = np.empty((0, 3))
+        self._buf_normals: list[dict[str, np.ndarray | None]] = []
+        self._buf_parts: list[tuple[np.ndarray | None, np.ndarray | None]] = []
+        self._buf_state_before: list[tuple[float, float, float]] = []
+
+    # -- public interface --------------------------------------------------------------------
+
+    @property
+    def rate_hz(self) -> float:
+        """Current output data rate in Hz."""
+        return self._rate_hz
+
+    @property
+    def samples_generated(self) -> int:
+        """Number of samples handed out so far (index of the next sample)."""
+        return self._k
 
     def generate(self, n: int) -> np.ndarray:
-        sigma = np.asarray(self.profile["N"]) * np.sqrt(self.rate_hz)
-        return self._rng.standard_normal((n, 3)) * sigma + np.asarray(self.profile["bias"])
+        """The next n samples, shape (n, 3), deg/s, constant bias included."""
+        try:
+            n = operator.index(n)
+        except TypeError:
+            raise TypeError(f"number of samples must be an integer, got {n!r}") from None
+        if n < 0:
+            raise ValueError(f"number of samples must not be negative, got {n}")
+        pos = self._k - self._buf_start
+        available = self._buf_out.shape[0] - pos
+        if n <= available:
+            self._k += n
+            return self._buf_out[pos : pos + n].copy()
+        out = np.empty((n, 3))
+        out[:available] = self._buf_out[pos:]
+        self._k += available
+        rest = n - available
+        if rest >= _BUFFER_SAMPLES:
+            self._compute_direct(out[available:])
+            self._k += rest
+            self._buf_start = self._k
+            self._buf_out = np.empty((0, 3))
+        else:
+            self._refill_buffer()
+            out[available:] = self._buf_out[:rest]
+            self._k += rest
+        return out
+
+    def set_rate(self, rate_hz: float) -> None:
+        """Continue the same realisation at another output data rate.
+
+        The Gauss-Markov and random-walk states of the last sample handed out carry over; the
+        coefficients (white std, alpha, gains) change from the next sample on.
+        """
+        rate = check_rate(rate_hz)
+        if rate == self._rate_hz:
+            return
+        last = self._k - 1
+        t_last = self._t_ref + (last - self._k_ref) * (1.0 / self._rate_hz)
+        pos = self._k - self._buf_start
+        pending = self._buf_out.shape[0] - pos
+        if pending > 0:
+            # rewind every axis to the state of the last sample handed out
+            for i, stream in enumerate(self._axes):
+                gm_before, rw_before, q_before = self._buf_state_before[i]
+                gm, rw = self._buf_parts[i]
+                normals = self._buf_normals[i]
+                stream.gm_prev = float(gm[pos - 1]) if (gm is not None and pos > 0) else gm_before
+                stream.rw_prev = float(rw[pos - 1]) if (rw is not None and pos > 0) else rw_before
+                wq = normals["quant"]
+                stream.quant_prev = float(wq[pos - 1]) if (wq is not None and pos > 0) else q_before
+        self._apply_rate(rate)
+        self._t_ref, self._k_ref = t_last, last
+        if pending > 0:
+            kept = [
+                {k: (v[pos:] if v is not None else None) for k, v in nm.items()}
+                for nm in self._buf_normals
+            ]
+            self._fill_buffer_from(kept, self._k, pending)
+
+    # -- internals ---------------------------------------------------------------------------
+
+    def _apply_rate(self, rate: float) -> None:
+        for stream in self._axes:
+            stream.coef = axis_coefficients(stream.axis, rate, self.mode)
+        self._rate_hz = rate
+
+    def _times(self, k0: int, n: int) -> np.ndarray | None:
+        if not self._uses_ramp:
+            return None
+        return self._t_ref + (np.arange(k0, k0 + n) - self._k_ref) * (1.0 / self._rate_hz)
+
+    def _compute_direct(self, out: np.ndarray) -> None:
+        """Compute out.shape[0] samples starting at self._k, block by block, into out."""
+        total = out.shape[0]
+        for start in range(0, total, _BLOCK_SAMPLES):
+            m = min(_BLOCK_SAMPLES, total - start)
+            t = self._times(self._k + start, m)
+            block = out[start : start + m]
+            for i, stream in enumerate(self._axes):
+                stream.compute(stream.draw(m), t, block[:, i])
+
+    def _refill_buffer(self) -> None:
+        normals = [stream.draw(_BUFFER_SAMPLES) for stream in self._axes]
+        self._fill_buffer_from(normals, self._k, _BUFFER_SAMPLES)
+
+    def _fill_buffer_from(
+        self, normals: list[dict[str, np.ndarray | None]], k0: int, m: int
+    ) -> None:
+        self._buf_start = k0
+        self._buf_out = np.empty((m, 3))
+        self._buf_normals = normals
+        self._buf_state_before = [(s.gm_prev, s.rw_prev, s.quant_prev) for s in self._axes]
+        t = self._times(k0, m)
+        self._buf_parts = [
+            stream.compute(normals[i], t, self._buf_out[:, i])
+            for i, stream in enumerate(self._axes)
+        ]

@@ -1,0 +1,125 @@
+"""Per-sample coefficients of the noise recursion for one axis at one output data rate.
+
+Each axis output is, per sample k (period dt):
+
+    white(k) = white_std * w_N(k)
+    gm(k)    = alpha * gm(k-1) + gm_gain * w_B(k)          first-order Gauss-Markov
+    rw(k)    = rw(k-1) + rw_step * w_K(k)                  random walk
+    q(k)     = Q (w_Q(k) - w_Q(k-1)) / dt                  angle quantization (optional)
+    ramp(k)  = R t_k                                       rate ramp (optional)
+    out(k)   = white + gm + rw [+ q] [+ ramp] + bias
+
+Two discretizations (docs/noise-engine.md):
+
+- "physical": white N/sqrt(dt), random walk K sqrt(dt), Gauss-Markov alpha = exp(-dt/T) with
+  gain B sqrt(1 - alpha^2) so that its stationary std is B. Identifying the output gives back
+  N, B, T, K at every rate.
+- "paper": El Fatimi et al. 2023 eqs. (11)-(17) with dt = 1/rate: the same Gauss-Markov term
+  (b_d sigma_B = B sqrt(1 - alpha^2)), random-walk step K dt sigma_K, white std
+  sigma_N = sqrt(sigma_gyro^2 - B^2 - (K dt sigma_K)^2). At 200 Hz these are the paper's
+  constants; at other rates they are the paper's formulas evaluated at that dt.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from bmg160_emu.noise.profile import AxisNoise
+
+MODES = ("physical", "paper")
+
+# Output data rates of the BMG160 (register spec section 5.3, BW register 0x10).
+SUPPORTED_RATES_HZ = (100.0, 200.0, 400.0, 1000.0, 2000.0)
+
+
+@dataclass(frozen=True)
+class AxisCoefficients:
+    """Per-sample coefficients of one axis at one sample period."""
+
+    dt: float
+    white_std: float
+    alpha: float
+    gm_gain: float
+    rw_step: float
+    quant_scale: float  # Q / dt
+    ramp_slope: float  # R, deg/s per s
+    bias: float
+
+
+def check_rate(rate_hz: float) -> float:
+    """The rate as float if the BMG160 offers it, else a clear ValueError."""
+    try:
+        rate = float(rate_hz)
+    except (TypeError, ValueError):
+        raise ValueError(f"output data rate must be a number in Hz, got {rate_hz!r}") from None
+    if rate not in SUPPORTED_RATES_HZ:
+        offered = ", ".join(f"{r:g}" for r in SUPPORTED_RATES_HZ)
+        raise ValueError(
+            f"unsupported output data rate {rate_hz!r} Hz: the BMG160 offers {offered}"
+        )
+    return rate
+
+
+def check_mode(mode: str) -> str:
+    if mode not in MODES:
+        raise ValueError(f"unknown noise mode {mode!r}: use 'physical' or 'paper'")
+    return mode
+
+
+def gauss_markov_alpha(dt: float, T: float) -> float:
+    """alpha = exp(-dt/T) (paper eq. 11); 0 when T = 0 (no correlation)."""
+    return math.exp(-dt / T) if T > 0 else 0.0
+
+
+def paper_b_d(dt: float, T: float) -> float:
+    """b_d = integral_0^dt exp(-t/T) dt = T (1 - alpha) (paper eq. 11)."""
+    return T * (1.0 - gauss_markov_alpha(dt, T))
+
+
+def paper_sigma_B(B: float, dt: float, T: float) -> float:
+    """sigma_B = B sqrt(1 - alpha^2) / b_d (paper eq. 12): the drive making std(gm) = B."""
+    alpha = gauss_markov_alpha(dt, T)
+    return B * math.sqrt(1.0 - alpha * alpha) / paper_b_d(dt, T)
+
+
+def paper_sigma_N(sigma_gyro: float, B: float, K: float, dt: float, sigma_K: float) -> float:
+    """sigma_N = sqrt(sigma_gyro^2 - B^2 - (K dt sigma_K)^2) (paper eq. 16)."""
+    radicand = sigma_gyro**2 - B**2 - (K * dt * sigma_K) ** 2
+    if radicand < 0:
+        raise ValueError(
+            f"paper mode: sigma_gyro = {sigma_gyro} deg/s is smaller than the B and K terms "
+            "it must contain (paper eq. 16)"
+        )
+    return math.sqrt(radicand)
+
+
+def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoefficients:
+    """Coefficients of one axis at rate_hz in the given mode (module docstring)."""
+    dt = 1.0 / rate_hz
+    alpha = gauss_markov_alpha(dt, axis.T)
+    gm_gain = axis.B * math.sqrt(1.0 - alpha * alpha)
+    if mode == "physical":
+        white_std = axis.N / math.sqrt(dt)
+        rw_step = axis.K * math.sqrt(dt)
+    elif mode == "paper":
+        if axis.sigma_gyro is None or axis.sigma_K is None:
+            raise ValueError(
+                "paper mode needs sigma_gyro and sigma_K in every axis of the profile "
+                "(the built-in 'paper' profile has them)"
+            )
+        rw_step = axis.K * dt * axis.sigma_K
+        white_std = paper_sigma_N(axis.sigma_gyro, axis.B, axis.K, dt, axis.sigma_K)
+    else:
+        check_mode(mode)
+        raise AssertionError  # unreachable
+    return AxisCoefficients(
+        dt=dt,
+        white_std=white_std,
+        alpha=alpha,
+        gm_gain=gm_gain,
+        rw_step=rw_step,
+        quant_scale=axis.Q / dt,
+        ramp_slope=axis.R,
+        bias=axis.bias,
+    )

@@ -1,0 +1,204 @@
+"""Noise profiles: per-axis N, B, T, K, constant bias (and optional Q, R) as TOML data.
+
+A profile is what identification of a gyroscope's output gives back and what the generator
+takes. Built-in profiles live as TOML files in ``bmg160_emu/noise/profiles/``; users pass a
+path to their own file with the same layout (one table per axis: ``[x]``, ``[y]``, ``[z]``).
+
+Units are those of the data sheets and IEEE Std 952: N deg/s/sqrt(Hz), B deg/s (stationary
+standard deviation of the first-order Gauss-Markov term), T s (its correlation time),
+K deg/s/sqrt(s), bias deg/s, Q deg (angle quantization), R deg/s/s (rate ramp).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields, replace
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+AXES = ("x", "y", "z")
+REQUIRED_FIELDS = ("N", "B", "T", "K", "bias")
+OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K")
+UNITS = {
+    "N": "deg/s/sqrt(Hz)",
+    "B": "deg/s",
+    "T": "s",
+    "K": "deg/s/sqrt(s)",
+    "bias": "deg/s",
+    "Q": "deg",
+    "R": "deg/s^2",
+    "sigma_gyro": "deg/s",
+    "sigma_K": "1/sqrt(s)",
+}
+
+
+class ProfileError(ValueError):
+    """A profile that cannot be used: unknown name, unreadable file, missing or bad field."""
+
+
+@dataclass(frozen=True)
+class AxisNoise:
+    """Noise parameters of one gyroscope axis (units in the module docstring)."""
+
+    N: float
+    B: float
+    T: float
+    K: float
+    bias: float
+    Q: float = 0.0
+    R: float = 0.0
+    # Paper mode only (El Fatimi et al. 2023, eqs. 15-16): std of the measured record and the
+    # PSD-fitted random-walk gain.
+    sigma_gyro: float | None = None
+    sigma_K: float | None = None
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A named set of per-axis noise parameters."""
+
+    name: str
+    x: AxisNoise
+    y: AxisNoise
+    z: AxisNoise
+    description: str = ""
+
+    @property
+    def axes(self) -> tuple[AxisNoise, AxisNoise, AxisNoise]:
+        return (self.x, self.y, self.z)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The profile as the mapping a TOML file holds (None fields left out)."""
+        out: dict[str, Any] = {"name": self.name, "description": self.description}
+        for axis_name, axis in zip(AXES, self.axes):
+            out[axis_name] = {k: v for k, v in asdict(axis).items() if v is not None}
+        return out
+
+
+def builtin_profile_names() -> list[str]:
+    """Names of the profiles shipped inside the package."""
+    folder = resources.files("bmg160_emu.noise").joinpath("profiles")
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper") -> Profile:
+    """Load a built-in profile by name, a user TOML file by path, or validate a mapping.
+
+    Raises ProfileError (a ValueError) with a message naming what is wrong.
+    """
+    if isinstance(name_or_path, Profile):
+        return name_or_path
+    if isinstance(name_or_path, Mapping):
+        return profile_from_mapping(name_or_path, origin="profile mapping")
+    if not isinstance(name_or_path, (str, Path)):
+        raise ProfileError(
+            f"a noise profile is a name, a path or a Profile, not {type(name_or_path).__name__}"
+        )
+    text_name = str(name_or_path)
+    builtins = builtin_profile_names()
+    if isinstance(name_or_path, str) and text_name in builtins:
+        folder = resources.files("bmg160_emu.noise").joinpath("profiles")
+        data = folder.joinpath(f"{text_name}.toml").read_text(encoding="utf-8")
+        return _parse(data, origin=f"built-in profile {text_name!r}", default_name=text_name)
+    path = Path(name_or_path)
+    if path.is_file():
+        try:
+            data = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ProfileError(f"cannot read noise profile {path}: {exc}") from None
+        return _parse(data, origin=f"profile file {path}", default_name=path.stem)
+    raise ProfileError(
+        f"unknown noise profile {text_name!r}: not a built-in profile "
+        f"({', '.join(builtins)}) nor an existing TOML file"
+    )
+
+
+def _parse(text: str, origin: str, default_name: str) -> Profile:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProfileError(f"{origin} is not valid TOML: {exc}") from None
+    data.setdefault("name", default_name)
+    return profile_from_mapping(data, origin=origin)
+
+
+def profile_from_mapping(data: Mapping[str, Any], origin: str = "profile") -> Profile:
+    """Validate a mapping with tables x, y, z (the TOML layout) and build a Profile."""
+    unknown = set(data) - {"name", "description", *AXES}
+    if unknown:
+        raise ProfileError(f"{origin}: unknown top-level key(s) {sorted(unknown)}")
+    axes = []
+    for axis_name in AXES:
+        table = data.get(axis_name)
+        if not isinstance(table, Mapping):
+            raise ProfileError(f"{origin}: missing table [{axis_name}] with N, B, T, K, bias")
+        axes.append(_axis_from_mapping(table, f"{origin} [{axis_name}]"))
+    name = data.get("name", "profile")
+    description = data.get("description", "")
+    if not isinstance(name, str) or not isinstance(description, str):
+        raise ProfileError(f"{origin}: name and description must be strings")
+    return Profile(name, *axes, description=description)
+
+
+def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
+    allowed = set(REQUIRED_FIELDS) | set(OPTIONAL_FIELDS)
+    unknown = set(table) - allowed
+    if unknown:
+        raise ProfileError(
+            f"{where}: unknown field(s) {sorted(unknown)}; allowed: {', '.join(sorted(allowed))}"
+        )
+    missing = [k for k in REQUIRED_FIELDS if k not in table]
+    if missing:
+        raise ProfileError(f"{where}: missing field(s) {', '.join(missing)}")
+    values: dict[str, float] = {}
+    for key, raw in table.items():
+        if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+            raise ProfileError(f"{where}: {key} must be a number ({UNITS[key]}), got {raw!r}")
+        value = float(raw)
+        if not math.isfinite(value):
+            raise ProfileError(f"{where}: {key} must be finite, got {value}")
+        if key != "bias" and value < 0:
+            raise ProfileError(f"{where}: {key} must not be negative, got {value} {UNITS[key]}")
+        values[key] = value
+    if values["T"] == 0 and values["B"] > 0:
+        raise ProfileError(f"{where}: T must be positive when B > 0 (correlation time in s)")
+    return AxisNoise(**values)
+
+
+def format_profile(profile: Profile, header: str = "") -> str:
+    """The profile as TOML text that load_profile reads back (units in comments)."""
+    lines = [f"# {line}" if line else "#" for line in header.splitlines()]
+    lines.append(f"name = {_toml_string(profile.name)}")
+    lines.append(f"description = {_toml_string(profile.description)}")
+    for axis_name, axis in zip(AXES, profile.axes):
+        lines.append("")
+        lines.append(f"[{axis_name}]")
+        for f in fields(AxisNoise):
+            value = getattr(axis, f.name)
+            if value is None or (f.name in ("Q", "R") and value == 0.0):
+                continue
+            lines.append(f"{f.name} = {value!r:<24}# {UNITS[f.name]}")
+    return "\n".join(lines) + "\n"
+
+
+def write_profile(profile: Profile, path: str | Path, header: str = "") -> None:
+    """Write a profile file (TOML) that load_profile and NoiseGenerator accept."""
+    Path(path).write_text(format_profile(profile, header), encoding="utf-8")
+
+
+def _toml_string(text: str) -> str:
+    escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
+    return f'"{escaped}"'
+
+
+def with_axes(profile: Profile, **axes: AxisNoise) -> Profile:
+    """A copy of the profile with some axes replaced (x=..., y=..., z=...)."""
+    return replace(profile, **axes)
