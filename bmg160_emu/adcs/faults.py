@@ -1,0 +1,424 @@
+"""Fault injection for robustness tests: what can go wrong with a gyro on a spacecraft bus.
+
+A :class:`FaultSchedule` is a list of :class:`Fault` entries, each a *trigger* (at time
+``at_s``, on the bus's ``on_transaction``-th transaction, or with ``probability`` per
+transaction, drawn from the schedule's seed) and an *effect*:
+
+| kind | layer | effect |
+| --- | --- | --- |
+| ``nack`` | bus | the transaction fails with ``OSError(EREMOTEIO)`` (121), as a NACK does |
+| ``timeout`` | bus | the transaction fails with ``OSError(ETIMEDOUT)`` (110) after ``stall_s`` |
+| ``stuck_axis`` | sample | ``axis`` repeats its last value for ``duration_s`` (None: for ever) |
+| ``bias_step`` | sample | ``step_dps`` added to ``axis`` (or to all axes) from then on |
+| ``spike`` | sample | ``amplitude_dps`` added to ``axis`` for ``samples`` output samples |
+| ``saturation`` | sample | ``axis`` at full scale (sign of ``amplitude_dps``) for ``duration_s`` |
+| ``lost_samples`` | sample | ``samples`` output periods without a new sample (no data-ready) |
+| ``seu`` | chip | bit ``bit`` of register ``register`` flips (single-event upset) |
+| ``brownout`` | chip | spontaneous reset: every register back to its reset value |
+| ``temperature_ramp`` | sample | die temperature rises by ``rate_c_per_s`` for ``duration_s``, the bias follows with ``tc_bias_dps_per_c`` |
+
+Bus faults act in ``I2CBus.transaction_hooks``, sample faults in ``BMG160.sample_hooks`` (the
+rate in the sensor frame, deg/s, before scaling to counts), chip faults between two
+transactions. Every onset is a :class:`FaultEvent` in :attr:`FaultSchedule.events`, and every
+output sample a fault touched carries its :data:`FAULT_FLAGS` bit in the rig's truth record.
+
+Triggers: ``at_s`` acts exactly at that time for sample faults and at the first transaction
+at or after it for bus and chip faults; ``on_transaction`` counts the transactions of the
+target gyro's bus as the bus numbers them; ``probability`` is drawn once per transaction
+on that bus (per transaction addressed to the gyro for bus faults) from a random stream
+that depends only on the schedule's seed and the fault's place in the list.
+"""
+
+from __future__ import annotations
+
+import errno
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+BUS_KINDS = ("nack", "timeout")
+SAMPLE_KINDS = ("stuck_axis", "bias_step", "spike", "saturation", "lost_samples",
+                "temperature_ramp")
+CHIP_KINDS = ("seu", "brownout")
+FAULT_KINDS = BUS_KINDS + SAMPLE_KINDS + CHIP_KINDS
+
+# One bit per kind in the truth record's ``fault_flags`` column.
+FAULT_FLAGS = {kind: 1 << i for i, kind in enumerate(FAULT_KINDS)}
+
+SATURATED_DPS = 1.0e6  # far beyond +-2000 deg/s: the chip clips it to +-32767 counts
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class FaultError(ValueError):
+    """A fault description that cannot be used, with the reason."""
+
+
+class GyroTarget(Protocol):
+    """What a fault needs to know about a gyro (a :class:`~bmg160_emu.adcs.rig.Gyro`)."""
+
+    index: int
+    chip: Any
+    bus: Any
+    address: int
+
+
+@dataclass
+class FaultEvent:
+    """The onset of a fault, as it happened: when, where and what."""
+
+    time_s: float
+    kind: str
+    gyro: int | None
+    transaction: int | None
+    detail: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"time_s": self.time_s, "kind": self.kind, "gyro": self.gyro,
+                "transaction": self.transaction, "detail": self.detail}
+
+
+@dataclass
+class Fault:
+    """One scheduled fault: a trigger, an effect and its parameters (see the module table)."""
+
+    kind: str
+    at_s: float | None = None
+    on_transaction: int | None = None
+    probability: float | None = None
+    gyro: int | None = None
+    duration_s: float | None = None
+    axis: int | None = None
+    step_dps: float = 0.0
+    amplitude_dps: float = 0.0
+    samples: int = 1
+    register: int | None = None
+    bit: int = 0
+    rate_c_per_s: float = 0.0
+    tc_bias_dps_per_c: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    stall_s: float = 0.0
+    max_count: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in FAULT_KINDS:
+            raise FaultError(f"fault kind must be one of {list(FAULT_KINDS)}, not {self.kind!r}")
+        triggers = [self.at_s is not None, self.on_transaction is not None,
+                    self.probability is not None]
+        if sum(triggers) != 1:
+            raise FaultError(
+                f"{self.kind}: give exactly one trigger: at_s, on_transaction or probability"
+            )
+        if self.probability is not None and not 0.0 <= self.probability <= 1.0:
+            raise FaultError(f"{self.kind}: probability must be within 0..1, not {self.probability}")
+        if self.on_transaction is not None and self.on_transaction < 0:
+            raise FaultError(f"{self.kind}: on_transaction must be >= 0")
+        if self.duration_s is not None and not self.duration_s > 0:
+            raise FaultError(f"{self.kind}: duration_s must be positive")
+        if isinstance(self.axis, str):
+            if self.axis not in AXES:
+                raise FaultError(f"{self.kind}: axis must be x, y, z or 0, 1, 2, not {self.axis!r}")
+            self.axis = AXES[self.axis]
+        if self.axis is not None and self.axis not in (0, 1, 2):
+            raise FaultError(f"{self.kind}: axis must be x, y, z or 0, 1, 2, not {self.axis!r}")
+        if self.kind in ("stuck_axis", "saturation") and self.axis is None:
+            raise FaultError(f"{self.kind}: needs an axis")
+        if self.kind in ("spike", "lost_samples") and not (
+            isinstance(self.samples, int) and self.samples >= 1
+        ):
+            raise FaultError(f"{self.kind}: samples must be a whole number >= 1")
+        if self.kind == "seu":
+            if self.register is None or not 0 <= self.register <= 0x3F:
+                raise FaultError("seu: register must be an address 0x00..0x3F")
+            if not 0 <= self.bit <= 7:
+                raise FaultError("seu: bit must be 0..7")
+        self.tc_bias_dps_per_c = np.broadcast_to(
+            np.asarray(self.tc_bias_dps_per_c, dtype=float), (3,)
+        ).copy()
+        if self.stall_s < 0:
+            raise FaultError(f"{self.kind}: stall_s must not be negative")
+
+    @property
+    def layer(self) -> str:
+        if self.kind in BUS_KINDS:
+            return "bus"
+        return "chip" if self.kind in CHIP_KINDS else "sample"
+
+    def describe(self) -> str:
+        where = "" if self.axis is None else f" axis {'xyz'[self.axis]}"
+        extra = {
+            "bias_step": f" {self.step_dps:+g} deg/s",
+            "spike": f" {self.amplitude_dps:+g} deg/s x{self.samples}",
+            "lost_samples": f" {self.samples} periods",
+            "seu": f" register 0x{self.register or 0:02x} bit {self.bit}",
+            "temperature_ramp": f" {self.rate_c_per_s:+g} degC/s",
+        }.get(self.kind, "")
+        span = "" if self.duration_s is None else f" for {self.duration_s:g} s"
+        return f"{self.kind}{where}{extra}{span}"
+
+
+_FAULT_KEYS = {f for f in Fault.__dataclass_fields__}
+
+
+def fault_from_dict(entry: dict[str, Any], where: str = "fault") -> Fault:
+    """Build a fault from its TOML table (``[[fault]]`` in a scenario file)."""
+    unknown = set(entry) - _FAULT_KEYS
+    if unknown:
+        raise FaultError(f"{where}: unknown keys {sorted(unknown)}")
+    try:
+        return Fault(**entry)
+    except FaultError as exc:
+        raise FaultError(f"{where}: {exc}") from None
+    except TypeError as exc:
+        raise FaultError(f"{where}: {exc}") from None
+
+
+@dataclass
+class _Activation:
+    start_s: float
+    end_s: float  # math.inf when open-ended
+    gyro: int
+    samples_left: int | None = None  # spike, lost_samples: a count of samples instead
+    held: np.ndarray | None = None  # stuck_axis: the value it repeats
+    started: bool = False
+
+
+class FaultSchedule:
+    """Faults to inject into a rig of gyros; seeded, so a run can be repeated exactly."""
+
+    def __init__(self, faults: Iterable[Fault | dict[str, Any]] = (), seed: int | None = 0):
+        self.faults = [f if isinstance(f, Fault) else fault_from_dict(f, f"fault {i + 1}")
+                       for i, f in enumerate(faults)]
+        self.seed = seed
+        root = np.random.SeedSequence(seed)
+        self._rngs = [np.random.default_rng(s) for s in root.spawn(len(self.faults))]
+        self.events: list[FaultEvent] = []
+        self._gyros: list[GyroTarget] = []
+        self._fired: list[int] = [0] * len(self.faults)
+        self._time_done: set[tuple[int, int]] = set()  # (fault, id(bus)) already fired
+        self._bus_windows: list[list[tuple[float, float]]] = [[] for _ in self.faults]
+        self._activations: list[list[_Activation]] = [[] for _ in self.faults]
+        self._last_rate: dict[int, np.ndarray] = {}
+        self._sample_flags: dict[int, dict[float, int]] = {}
+        self._base_temperature: dict[int, float] = {}
+
+    # ----------------------------------------------------------------- installation
+
+    def install(self, gyros: Sequence[GyroTarget]) -> None:
+        """Hook the schedule into the gyros' chips and buses (each bus once)."""
+        self._gyros = list(gyros)
+        for fault in self.faults:
+            if fault.gyro is not None and not 0 <= fault.gyro < len(self._gyros):
+                raise FaultError(
+                    f"{fault.kind}: gyro {fault.gyro} does not exist (the rig has "
+                    f"{len(self._gyros)})"
+                )
+        seen: set[int] = set()
+        for gyro in self._gyros:
+            self._sample_flags[gyro.index] = {}
+            gyro.chip.sample_hooks.append(self._sample_hook_for(gyro))
+            if id(gyro.bus) not in seen:
+                seen.add(id(gyro.bus))
+                gyro.bus.transaction_hooks.append(self._transaction_hook)
+            # time-triggered sample faults act on exact sample times, so they are known now
+        for i, fault in enumerate(self.faults):
+            if fault.layer == "sample" and fault.at_s is not None:
+                for gyro in self._targets(fault):
+                    self._activate(i, gyro, fault.at_s, None)
+
+    def _targets(self, fault: Fault) -> list[GyroTarget]:
+        if fault.gyro is None:
+            return self._gyros
+        return [self._gyros[fault.gyro]]
+
+    # ----------------------------------------------------------------- bus side
+
+    def _transaction_hook(self, bus: Any, index: int, address: int, kind: str) -> None:
+        gyros_here = [g for g in self._gyros if g.bus is bus]
+        now = _clock_time(gyros_here[0].chip) if gyros_here else 0.0
+        failure: OSError | None = None
+        for i, fault in enumerate(self.faults):
+            if fault.layer == "sample" and fault.at_s is not None:
+                continue  # placed on exact sample times at install
+            targets = [g for g in self._targets(fault) if g.bus is bus]
+            if not targets:
+                continue
+            if fault.layer == "bus":
+                addressed = [g for g in targets if g.address == address]
+                if fault.gyro is not None and not addressed:
+                    continue
+                if self._bus_fault_now(i, fault, bus, index, now) and failure is None:
+                    failure = self._bus_failure(fault, index, now, address, addressed, gyros_here)
+            elif self._triggered(i, fault, bus, index, now):
+                for gyro in targets:
+                    self._activate(i, gyro, now, index)
+        if failure is not None:
+            raise failure
+
+    def _triggered(self, i: int, fault: Fault, bus: Any, index: int, now: float) -> bool:
+        """One-shot or random trigger of a sample or chip fault at this transaction."""
+        if fault.max_count is not None and self._fired[i] >= fault.max_count:
+            return False
+        if fault.at_s is not None:
+            if (i, id(bus)) in self._time_done or now < fault.at_s:
+                return False
+            self._time_done.add((i, id(bus)))
+            return True
+        if fault.on_transaction is not None:
+            return index == fault.on_transaction
+        return bool(self._rngs[i].random() < fault.probability)
+
+    def _bus_fault_now(self, i: int, fault: Fault, bus: Any, index: int, now: float) -> bool:
+        if any(start <= now < end for start, end in self._bus_windows[i]):
+            return True
+        if not self._triggered(i, fault, bus, index, now):
+            return False
+        if fault.duration_s is not None:
+            start = now if fault.at_s is None else fault.at_s
+            self._bus_windows[i].append((start, start + fault.duration_s))
+        self._fired[i] += 1
+        return True
+
+    def _bus_failure(self, fault: Fault, index: int, now: float, address: int,
+                     addressed: list[GyroTarget], gyros_here: list[GyroTarget]) -> OSError:
+        gyro = addressed[0].index if addressed else None
+        if fault.kind == "nack":
+            code, text = errno.EREMOTEIO, "Remote I/O error"
+        else:
+            code, text = errno.ETIMEDOUT, "Connection timed out"
+            if fault.stall_s > 0 and gyros_here:
+                _stall(gyros_here[0].chip, fault.stall_s)
+        self.events.append(FaultEvent(now, fault.kind, gyro, index,
+                                      f"{fault.describe()} at address 0x{address:02x}"))
+        return OSError(code, text)
+
+    # ----------------------------------------------------------------- chip and sample side
+
+    def _activate(self, i: int, gyro: GyroTarget, now: float, index: int | None) -> None:
+        fault = self.faults[i]
+        if fault.layer == "chip":
+            self._fired[i] += 1
+            self._chip_fault(fault, gyro, now, index)
+            return
+        if index is not None:
+            self._fired[i] += 1
+        end = math.inf if fault.duration_s is None else now + fault.duration_s
+        count = fault.samples if fault.kind in ("spike", "lost_samples") else None
+        self._activations[i].append(_Activation(now, end, gyro.index, count))
+        if index is not None or fault.at_s is None:
+            self.events.append(FaultEvent(now, fault.kind, gyro.index, index, fault.describe()))
+
+    def _chip_fault(self, fault: Fault, gyro: GyroTarget, now: float, index: int | None) -> None:
+        chip = gyro.chip
+        if fault.kind == "brownout":
+            chip.power_on_reset()
+            detail = "brown-out: registers back to reset values"
+        else:
+            assert fault.register is not None
+            before = chip.peek(fault.register)
+            after = before ^ (1 << fault.bit)
+            _poke(chip, fault.register, after)
+            detail = (f"SEU register 0x{fault.register:02x} bit {fault.bit}: "
+                      f"0x{before:02x} -> 0x{chip.peek(fault.register):02x}")
+        self.events.append(FaultEvent(now, fault.kind, gyro.index, index, detail))
+
+    def _sample_hook_for(self, gyro: GyroTarget):
+        def hook(chip: Any, t: float, rate_dps: np.ndarray) -> np.ndarray | None:
+            return self._apply(gyro, t, rate_dps)
+
+        return hook
+
+    def _apply(self, gyro: GyroTarget, t: float, rate_dps: np.ndarray) -> np.ndarray | None:
+        rate = np.array(rate_dps, dtype=float)
+        flags = 0
+        lost = False
+        for i, fault in enumerate(self.faults):
+            for act in self._activations[i]:
+                if act.gyro != gyro.index or t < act.start_s:
+                    continue
+                if not act.started:
+                    act.started = True
+                    if fault.at_s is not None:  # time-triggered: log the onset at the sample
+                        self.events.append(
+                            FaultEvent(t, fault.kind, gyro.index, None, fault.describe()))
+                    if fault.kind == "stuck_axis":
+                        act.held = self._last_rate.get(gyro.index, rate).copy()
+                if act.samples_left is not None:
+                    if act.samples_left <= 0:
+                        continue
+                    act.samples_left -= 1
+                elif t >= act.end_s and fault.kind != "temperature_ramp":
+                    continue
+                flags |= FAULT_FLAGS[fault.kind]
+                lost |= self._effect(fault, act, gyro, t, rate)
+        if flags:
+            self._sample_flags[gyro.index][t] = flags
+        if lost:
+            return None
+        self._last_rate[gyro.index] = rate.copy()
+        return rate
+
+    def _effect(self, fault: Fault, act: _Activation, gyro: GyroTarget, t: float,
+                rate: np.ndarray) -> bool:
+        """Change ``rate`` in place for one sample; True when the sample is lost."""
+        axes = slice(None) if fault.axis is None else fault.axis
+        if fault.kind == "stuck_axis":
+            assert act.held is not None
+            rate[axes] = act.held[axes]
+        elif fault.kind == "bias_step":
+            rate[axes] += fault.step_dps
+        elif fault.kind == "spike":
+            rate[axes] += fault.amplitude_dps
+        elif fault.kind == "saturation":
+            rate[axes] = math.copysign(SATURATED_DPS, fault.amplitude_dps or 1.0)
+        elif fault.kind == "lost_samples":
+            return True
+        elif fault.kind == "temperature_ramp":
+            elapsed = min(t, act.end_s) - act.start_s
+            rise_c = fault.rate_c_per_s * elapsed
+            base = self._base_temperature.setdefault(gyro.index, _temperature(gyro.chip))
+            _set_temperature(gyro.chip, base + rise_c)
+            rate += fault.tc_bias_dps_per_c * rise_c
+        return False
+
+    # ----------------------------------------------------------------- truth
+
+    def flags_at(self, gyro: int, t: float) -> int:
+        """The :data:`FAULT_FLAGS` bits of the faults that touched gyro's sample at ``t``."""
+        return self._sample_flags.get(gyro, {}).get(t, 0)
+
+
+def describe_flags(flags: int) -> list[str]:
+    """Fault kinds named by a ``fault_flags`` value."""
+    return [kind for kind, bit in FAULT_FLAGS.items() if flags & bit]
+
+
+# ----------------------------------------------------------------- chip access, in one place
+
+
+def _clock_time(chip: Any) -> float:
+    clock = getattr(chip, "clock", None)
+    if clock is not None and hasattr(clock, "now"):
+        return float(clock.now())
+    return float(chip.time)
+
+
+def _stall(chip: Any, seconds: float) -> None:
+    """A timed-out transfer takes the adapter's timeout: virtual time moves on by that much."""
+    clock = getattr(chip, "clock", None)
+    if clock is not None and hasattr(clock, "advance"):
+        clock.advance(seconds)
+
+
+def _poke(chip: Any, register: int, value: int) -> None:
+    """Write register content as radiation would: no bus, no access rules."""
+    chip.poke(register, value)
+
+
+def _temperature(chip: Any) -> float:
+    return float(getattr(chip, "temperature_c", 23.0))
+
+
+def _set_temperature(chip: Any, celsius: float) -> None:
+    chip.temperature_c = celsius
