@@ -1,0 +1,451 @@
+"""Snapshots of the BMG160's 64 registers, in three text formats, and decoded differences.
+
+A dump is what a driver author compares: the ``i2cdump`` format is byte for byte what
+Debian's ``i2cdump -y -r 0x00-0x3f BUS ADDR b`` prints (so Debian's ``i2c-stub-from-dump``
+loads it into the kernel's i2c-stub), ``table`` decodes every field by name from the
+register table in :mod:`bmg160_emu.registers`, and ``json`` is for programs. Every format
+parses back into a :class:`RegisterDump`.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+
+from bmg160_emu import registers, spec_choices
+
+REGISTER_COUNT = 64  # 0x00..0x3F, the user map (spec section 3)
+DUMP_FORMATS = ("i2cdump", "table", "json")
+JSON_FORMAT_TAG = "bmg160-emu register dump"
+JSON_FORMAT_VERSION = 1
+
+# The column header i2cdump prints in byte mode (i2c-tools tools/i2cdump.c).
+I2CDUMP_HEADER = "     0  1  2  3  4  5  6  7  8  9  a  b  c  d  e  f    0123456789abcdef"
+
+
+class DumpFormatError(ValueError):
+    """A dump that cannot be read; the message names the line."""
+
+
+@dataclass(frozen=True)
+class RegisterDump:
+    """The content of registers 0x00..0x3F at one moment, with where and when it was taken."""
+
+    values: bytes
+    address: int | None = None
+    time_s: float | None = None
+    metadata: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        if len(self.values) != REGISTER_COUNT:
+            raise ValueError(f"a register dump holds {REGISTER_COUNT} bytes, not {len(self.values)}")
+        object.__setattr__(self, "values", bytes(self.values))
+
+    def __getitem__(self, register: int) -> int:
+        return self.values[register]
+
+    @classmethod
+    def from_chip(cls, chip) -> RegisterDump:
+        """Snapshot a chip without read side effects (``chip.dump()``)."""
+        with chip.lock:
+            values = bytes(chip.dump())
+            time_s = float(chip.time)
+        return cls(values, address=getattr(chip, "address", None), time_s=time_s)
+
+
+# --------------------------------------------------------------------------- decoding
+
+
+def ascii_text(text: str) -> str:
+    """The register table's labels in plain ASCII, for terminals and logs (+-500 deg/s)."""
+    return text.replace("±", "+-").replace("°/s", "deg/s").replace("°C", "deg C").replace(
+        "µs", "us"
+    ).replace("·", "*")
+
+
+@dataclass(frozen=True)
+class DecodedField:
+    """One field of a register byte: its value and what it means."""
+
+    name: str
+    raw: int
+    label: str  # the table's name for this value, or ""
+    on_off: bool  # the field is a flag whose values are named off/on
+    qualified: bool = False  # the short text needs the field name (several named fields)
+
+    @property
+    def text(self) -> str:
+        """Short form for logs: the flag name when set, the label, or name=value."""
+        if self.on_off:
+            return self.name if self.raw else ""
+        if self.label:
+            return f"{self.name} {self.label}" if self.qualified else self.label
+        return f"{self.name}={self.raw}" if self.raw else ""
+
+    @property
+    def full_text(self) -> str:
+        return f"{self.name}={self.raw}" + (f" ({self.label})" if self.label else "")
+
+
+def register_name(register: int) -> str:
+    """The spec name of a register (``RESERVED_0x01`` for reserved ones)."""
+    return registers.REGISTERS[register].name
+
+
+def register_label(register: int) -> str:
+    """``0x0F RANGE``: address and name, as every log line names a register."""
+    if not 0 <= register < REGISTER_COUNT:
+        return f"0x{register:02X} (outside the map)"
+    return f"0x{register:02X} {register_name(register)}"
+
+
+def resolve_register_name(name: str) -> int | None:
+    """Address of a spec register name (case-insensitive), or None."""
+    try:
+        return registers.address_of(name)
+    except KeyError:
+        return None
+
+
+def decode_register(register: int, value: int, sensitivity: str | None = None) -> list[DecodedField]:
+    """The fields of one register byte, decoded with the register table.
+
+    With ``sensitivity`` (``binary`` or ``nominal``, spec 5.1), the RANGE field's label also
+    gives the LSB per deg/s of that range.
+    """
+    reg = registers.REGISTERS[register]
+    named = [f for f in reg.fields if f.values and set(f.values.values()) != {"off", "on"}]
+    decoded = []
+    for f in reg.fields:
+        raw = f.extract(value)
+        on_off = set(f.values.values()) == {"off", "on"}
+        label = ascii_text(f.values.get(raw, ""))
+        if sensitivity and reg.name == "RANGE" and f.name == "range":
+            table = spec_choices.SENSITIVITY_TABLES[sensitivity]
+            code = raw if raw < len(table) else spec_choices.RESERVED_RANGE_AS_CODE
+            label += f", {table[code]:g} LSB/(deg/s)"
+        decoded.append(DecodedField(f.name, raw, label, on_off, len(named) > 1))
+    return decoded
+
+
+def describe_register(register: int, value: int, sensitivity: str | None = None) -> str:
+    """Every field by name: ``range=2 (+-500 deg/s, 65.536 LSB/(deg/s))``."""
+    fields = decode_register(register, value, sensitivity)
+    if not fields:
+        return "reserved"
+    return " ".join(f.full_text for f in fields)
+
+
+def describe_value_difference(register: int, expected: int, actual: int, mask: int = 0xFF) -> str:
+    """The fields (within ``mask``) whose value differs, expected -> actual."""
+    if not 0 <= register < REGISTER_COUNT:
+        return ""
+    reg = registers.REGISTERS[register]
+    parts = []
+    for f in reg.fields:
+        if not f.mask & mask:
+            continue
+        want, got = f.extract(expected), f.extract(actual)
+        if want != got:
+            lw, lg = (ascii_text(f.values.get(v, "")) for v in (want, got))
+            parts.append(
+                f"{f.name} expected {want}" + (f" ({lw})" if lw else "")
+                + f", got {got}" + (f" ({lg})" if lg else "")
+            )
+    return "; ".join(parts)
+
+
+# --------------------------------------------------------------------------- i2cdump
+
+
+def _i2cdump_char(value: int) -> str:
+    # i2cdump prints '.' for 0x00 and 0xff, '?' for other non-printables.
+    if value in (0x00, 0xFF):
+        return "."
+    if value < 32 or value >= 127:
+        return "?"
+    return chr(value)
+
+
+def format_i2cdump(values: bytes, first: int = 0x00, last: int | None = None) -> str:
+    """Render bytes exactly as ``i2cdump -y -r FIRST-LAST BUS ADDR b`` prints them.
+
+    ``values[i]`` is register ``i``; registers outside ``first..last`` are blanked the way
+    i2cdump blanks them, and ``None`` entries print as ``XX`` (a failed read).
+    """
+    values = list(values)
+    if last is None:
+        last = len(values) - 1
+    if not 0 <= first <= last <= 0xFF or last >= len(values):
+        raise ValueError(f"invalid register range 0x{first:02x}-0x{last:02x}")
+    lines = [I2CDUMP_HEADER]
+    for row in range(first // 16 * 16, last // 16 * 16 + 16, 16):
+        hex_part = []
+        ascii_part = []
+        for reg in range(row, row + 16):
+            if reg < first or reg > last:
+                hex_part.append("   ")
+                ascii_part.append(" ")
+            elif values[reg] is None:
+                hex_part.append("XX ")
+                ascii_part.append("X")
+            else:
+                hex_part.append(f"{values[reg]:02x} ")
+                ascii_part.append(_i2cdump_char(values[reg]))
+        lines.append(f"{row:02x}: " + "".join(hex_part) + "   " + "".join(ascii_part))
+    return "\n".join(lines) + "\n"
+
+
+_I2CDUMP_ROW = re.compile(r"^([0-9a-fA-F]{2}): ((?:(?:[0-9a-fA-F]{2}|XX| {2}) ){16})")
+
+
+def parse_i2cdump(text: str, source: str = "<dump>") -> bytes:
+    """Read an i2cdump byte-mode listing back into 64 register values.
+
+    Rows above 0x30 (a full 256-register dump) are accepted and ignored; every register
+    0x00..0x3F must be present and readable.
+    """
+    found: dict[int, int] = {}
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if not line.strip() or line.startswith(I2CDUMP_HEADER.rstrip()[:10]):
+            continue
+        match = _I2CDUMP_ROW.match(line)
+        if not match:
+            raise DumpFormatError(f"{source}:{lineno}: not an i2cdump byte-mode row: {line!r}")
+        row = int(match.group(1), 16)
+        if row % 16:
+            raise DumpFormatError(f"{source}:{lineno}: row offset 0x{row:02x} is not a multiple of 0x10")
+        cells = [match.group(2)[i : i + 2] for i in range(0, 48, 3)]
+        for i, cell in enumerate(cells):
+            reg = row + i
+            if cell == "  ":
+                continue
+            if cell == "XX":
+                if reg < REGISTER_COUNT:
+                    raise DumpFormatError(
+                        f"{source}:{lineno}: register 0x{reg:02x} was unreadable (XX)"
+                    )
+                continue
+            if reg in found:
+                raise DumpFormatError(f"{source}:{lineno}: register 0x{reg:02x} appears twice")
+            found[reg] = int(cell, 16)
+    missing = [reg for reg in range(REGISTER_COUNT) if reg not in found]
+    if missing:
+        raise DumpFormatError(
+            f"{source}: registers missing from the dump: "
+            + ", ".join(f"0x{reg:02x}" for reg in missing[:8])
+            + (" ..." if len(missing) > 8 else "")
+        )
+    return bytes(found[reg] for reg in range(REGISTER_COUNT))
+
+
+# --------------------------------------------------------------------------- json
+
+
+def format_json(dump: RegisterDump) -> str:
+    """The dump for programs: every register with its name, value and decoded fields."""
+    registers = []
+    for reg, value in enumerate(dump.values):
+        entry = {"register": f"0x{reg:02x}", "name": register_name(reg), "value": f"0x{value:02x}"}
+        entry["fields"] = {f.name: f.raw for f in decode_register(reg, value)}
+        registers.append(entry)
+    document = {
+        "format": JSON_FORMAT_TAG,
+        "version": JSON_FORMAT_VERSION,
+        "address": None if dump.address is None else f"0x{dump.address:02x}",
+        "time_s": dump.time_s,
+        "registers": registers,
+    }
+    return json.dumps(document, indent=1) + "\n"
+
+
+def _int_field(value, where: str) -> int:
+    if isinstance(value, bool):
+        raise DumpFormatError(f"{where}: expected a number, got {value!r}")
+    if isinstance(value, int):
+        return value
+    if isinstance(value, str):
+        try:
+            return int(value, 0)
+        except ValueError:
+            pass
+    raise DumpFormatError(f"{where}: expected a number, got {value!r}")
+
+
+def parse_json(text: str, source: str = "<dump>") -> RegisterDump:
+    """Read the ``json`` format back; only register numbers and values are used."""
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise DumpFormatError(f"{source}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+    if not isinstance(document, dict) or document.get("format") != JSON_FORMAT_TAG:
+        raise DumpFormatError(f"{source}: not a {JSON_FORMAT_TAG} (missing \"format\" tag)")
+    if document.get("version") != JSON_FORMAT_VERSION:
+        raise DumpFormatError(f"{source}: unsupported dump version {document.get('version')!r}")
+    entries = document.get("registers")
+    if not isinstance(entries, list):
+        raise DumpFormatError(f"{source}: \"registers\" must be a list")
+    found: dict[int, int] = {}
+    for i, entry in enumerate(entries):
+        where = f"{source}: registers[{i}]"
+        if not isinstance(entry, dict) or "register" not in entry or "value" not in entry:
+            raise DumpFormatError(f"{where}: needs \"register\" and \"value\"")
+        reg = _int_field(entry["register"], where)
+        value = _int_field(entry["value"], where)
+        if not 0 <= reg < REGISTER_COUNT or not 0 <= value <= 0xFF or reg in found:
+            raise DumpFormatError(f"{where}: register {reg:#04x} = {value:#x} is out of range or repeated")
+        found[reg] = value
+    if len(found) != REGISTER_COUNT:
+        missing = sorted(set(range(REGISTER_COUNT)) - set(found))
+        raise DumpFormatError(f"{source}: registers missing: " + ", ".join(f"0x{r:02x}" for r in missing[:8]))
+    address = document.get("address")
+    return RegisterDump(
+        bytes(found[r] for r in range(REGISTER_COUNT)),
+        address=None if address is None else _int_field(address, f"{source}: address"),
+        time_s=document.get("time_s"),
+    )
+
+
+# --------------------------------------------------------------------------- table
+
+_TABLE_ROW = re.compile(r"^0x([0-9a-fA-F]{2})\s+(\S+)\s+0x([0-9a-fA-F]{2})(?:\s|$)")
+
+
+def format_table(dump: RegisterDump, sensitivity: str | None = None) -> str:
+    """One line per register: address, name, value and every field decoded by name."""
+    sensitivity = sensitivity or dump.metadata.get("sensitivity") or spec_choices.DEFAULT_SENSITIVITY
+    where = [] if dump.address is None else [f"address=0x{dump.address:02x}"]
+    when = [] if dump.time_s is None else [f"t={dump.time_s:.9f} s"]
+    lines = ["# " + "  ".join(["bmg160-emu register dump", *where, *when, f"sensitivity={sensitivity}"])]
+    width = max(len(r.name) for r in registers.REGISTERS)
+    for reg, value in enumerate(dump.values):
+        lines.append(
+            f"0x{reg:02X} {register_name(reg):<{width}} 0x{value:02X}  "
+            + describe_register(reg, value, sensitivity)
+        )
+    return "\n".join(lines) + "\n"
+
+
+def parse_table(text: str, source: str = "<dump>") -> RegisterDump:
+    """Read the ``table`` format back (address, name and value of each line)."""
+    found: dict[int, int] = {}
+    address = time_s = None
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        if line.startswith("#"):
+            m = re.search(r"address=0x([0-9a-fA-F]{2})", line)
+            address = int(m.group(1), 16) if m else address
+            m = re.search(r"t=([0-9.eE+-]+) s", line)
+            time_s = float(m.group(1)) if m else time_s
+            continue
+        m = _TABLE_ROW.match(line)
+        if not m:
+            raise DumpFormatError(f"{source}:{lineno}: not a register table line: {line!r}")
+        reg, name, value = int(m.group(1), 16), m.group(2), int(m.group(3), 16)
+        if reg >= REGISTER_COUNT:
+            raise DumpFormatError(f"{source}:{lineno}: register 0x{reg:02X} is outside the map")
+        if name != register_name(reg):
+            raise DumpFormatError(
+                f"{source}:{lineno}: register 0x{reg:02X} is {register_name(reg)}, not {name}"
+            )
+        if reg in found:
+            raise DumpFormatError(f"{source}:{lineno}: register 0x{reg:02X} appears twice")
+        found[reg] = value
+    missing = [r for r in range(REGISTER_COUNT) if r not in found]
+    if missing:
+        raise DumpFormatError(
+            f"{source}: registers missing from the dump: " + ", ".join(f"0x{r:02X}" for r in missing[:8])
+        )
+    return RegisterDump(bytes(found[r] for r in range(REGISTER_COUNT)), address, time_s)
+
+
+# --------------------------------------------------------------------------- any format
+
+
+def format_dump(dump: RegisterDump, fmt: str = "table") -> str:
+    """Render in one of :data:`DUMP_FORMATS`."""
+    if fmt == "i2cdump":
+        return format_i2cdump(dump.values)
+    if fmt == "table":
+        return format_table(dump)
+    if fmt == "json":
+        return format_json(dump)
+    raise ValueError(f"unknown dump format {fmt!r} (one of {', '.join(DUMP_FORMATS)})")
+
+
+def detect_format(text: str) -> str:
+    """Which of the three formats a text is, from its first meaningful line."""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("{"):
+            return "json"
+        if line.rstrip() == I2CDUMP_HEADER or _I2CDUMP_ROW.match(line):
+            return "i2cdump"
+        return "table"
+    raise DumpFormatError("empty dump")
+
+
+def parse_dump(text: str, source: str = "<dump>") -> RegisterDump:
+    """Read a dump in any of the three formats (detected from the text)."""
+    try:
+        fmt = detect_format(text)
+    except DumpFormatError:
+        raise DumpFormatError(f"{source}: empty dump") from None
+    if fmt == "json":
+        return parse_json(text, source)
+    if fmt == "i2cdump":
+        return RegisterDump(parse_i2cdump(text, source))
+    return parse_table(text, source)
+
+
+# --------------------------------------------------------------------------- diff
+
+
+@dataclass(frozen=True)
+class RegisterDifference:
+    register: int
+    a: int
+    b: int
+
+    @property
+    def fields(self) -> str:
+        return describe_value_difference(self.register, self.a, self.b).replace(
+            " expected ", ": "
+        ).replace(", got ", " -> ")
+
+
+def diff_dumps(a: RegisterDump, b: RegisterDump) -> list[RegisterDifference]:
+    """The registers whose values differ, in address order."""
+    return [
+        RegisterDifference(reg, va, vb) for reg, (va, vb) in enumerate(zip(a.values, b.values)) if va != vb
+    ]
+
+
+def format_diff(
+    a: RegisterDump, b: RegisterDump, a_name: str = "A", b_name: str = "B", show_all: bool = False
+) -> str:
+    """Side by side: register, name, both values and the fields that differ, decoded."""
+    differences = {d.register: d for d in diff_dumps(a, b)}
+    width = max(len(r.name) for r in registers.REGISTERS)
+    col = max(4, len(a_name), len(b_name))
+    lines = [f"{'':6}{'register':<{width}} {a_name:>{col}} {b_name:>{col}}  fields that differ"]
+    for reg in range(REGISTER_COUNT):
+        d = differences.get(reg)
+        if d is None and not show_all:
+            continue
+        mark = "*" if d else " "
+        text = (d.fields or "reserved bits differ") if d else ""
+        lines.append(
+            f"{mark}0x{reg:02X} {register_name(reg):<{width}} {f'0x{a[reg]:02X}':>{col}} "
+            f"{f'0x{b[reg]:02X}':>{col}}  {text}".rstrip()
+        )
+    count = len(differences)
+    if count:
+        lines.append(f"{count} register{'s differ' if count != 1 else ' differs'}")
+    else:
+        lines.append("no difference")
+    return "\n".join(lines) + "\n"
