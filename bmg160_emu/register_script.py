@@ -1,0 +1,395 @@
+"""Register scripts: scripted register sessions and driver regression checks.
+
+A script is a list of line-oriented statements (the language is described in
+``docs/script-format.md``). :func:`parse_script` checks the whole script first and reports
+every mistake with its line and column, so nothing runs until the script is sound;
+:class:`ScriptRunner` then plays it against a chip through the chip's bus primitives and
+stops at the first failed expectation with the line number and the decoded difference.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+from bmg160_emu.register_dump import (
+    DUMP_FORMATS,
+    REGISTER_COUNT,
+    RegisterDump,
+    describe_value_difference,
+    format_dump,
+    register_label,
+    resolve_register_name,
+)
+
+# Durations carry a unit: simulated time is exact, and "10" alone is ambiguous.
+DURATION_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
+DEFAULT_POLL_INTERVAL_S = 1e-3  # one read per millisecond of simulated time
+MAX_BURST = 256  # no bus transfer in scope is longer (FIFO drains of 100 frames x 6 bytes use several)
+
+COMMANDS = ("write", "read", "burst", "poll", "advance", "rate", "fault", "dump")
+
+
+class ScriptSyntaxError(ValueError):
+    """Mistakes found before running; ``errors`` lists (line, column, message)."""
+
+    def __init__(self, source: str, errors: list[tuple[int, int, str]]):
+        self.source = source
+        self.errors = errors
+        super().__init__("\n".join(f"{source}:{line}:{col}: {msg}" for line, col, msg in errors))
+
+
+class ScriptFailure(AssertionError):
+    """A failed expectation while running; carries the line number."""
+
+    def __init__(self, source: str, line: int, message: str):
+        self.source = source
+        self.line = line
+        super().__init__(f"{source}:{line}: {message}")
+
+
+@dataclass(frozen=True)
+class Token:
+    text: str
+    column: int  # 1-based
+
+
+@dataclass(frozen=True)
+class Statement:
+    """One parsed statement; ``args`` holds already-resolved numbers."""
+
+    line: int
+    command: str
+    text: str
+    register: int | None = None
+    values: tuple[int, ...] = ()
+    count: int = 1
+    mask: int = 0xFF
+    bit: int | None = None
+    expected_bit: int = 1
+    seconds: float = 0.0
+    interval_s: float = DEFAULT_POLL_INTERVAL_S
+    rate_dps: tuple[float, float, float] | None = None
+    fault: tuple[str, ...] = ()
+    dump_format: str = "table"
+
+    @property
+    def has_expectation(self) -> bool:
+        return bool(self.values) and self.command in ("read", "burst")
+
+
+class _LineError(Exception):
+    def __init__(self, column: int, message: str):
+        self.column = column
+        self.message = message
+
+
+_TOKEN = re.compile(r"\S+")
+
+
+def _tokenize(line: str) -> list[Token]:
+    code = line.split("#", 1)[0]
+    return [Token(m.group(0), m.start() + 1) for m in _TOKEN.finditer(code)]
+
+
+def parse_number(token: Token, maximum: int = 0xFF, what: str = "value") -> int:
+    """An integer literal (decimal, 0x hex, 0b binary) or a register name from the table."""
+    text = token.text
+    if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", text) and not re.fullmatch(r"0[xXbB].*", text):
+        reg = resolve_register_name(text)
+        if reg is None:
+            raise _LineError(token.column, f"unknown register name {text!r}")
+        value = reg
+    else:
+        try:
+            value = int(text, 0)
+        except ValueError:
+            raise _LineError(token.column, f"bad number {text!r} for the {what}") from None
+    if not 0 <= value <= maximum:
+        raise _LineError(token.column, f"{what} {text} is outside 0..{maximum:#x}")
+    return value
+
+
+def parse_register(token: Token) -> int:
+    return parse_number(token, REGISTER_COUNT - 1, "register")
+
+
+def parse_duration(token: Token) -> float:
+    match = re.fullmatch(r"([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)([a-z]+)?", token.text)
+    if not match:
+        raise _LineError(token.column, f"bad duration {token.text!r} (e.g. 10ms, 2.5s, 1min)")
+    number, unit = match.groups()
+    if unit is None:
+        raise _LineError(token.column, f"duration {token.text!r} needs a unit: s, ms, us or min")
+    if unit not in DURATION_UNITS:
+        raise _LineError(token.column, f"unknown time unit {unit!r} (use s, ms, us or min)")
+    return float(number) * DURATION_UNITS[unit]
+
+
+def _parse_float(token: Token) -> float:
+    try:
+        value = float(token.text)
+    except ValueError:
+        raise _LineError(token.column, f"bad rate {token.text!r} (deg/s)") from None
+    if not math.isfinite(value):
+        raise _LineError(token.column, f"rate {token.text!r} must be finite")
+    return value
+
+
+class _Cursor:
+    """Walks the tokens of one statement, reporting where an argument is missing."""
+
+    def __init__(self, tokens: list[Token], end_column: int):
+        self.tokens = tokens
+        self.index = 1
+        self.end_column = end_column
+
+    def peek(self) -> Token | None:
+        return self.tokens[self.index] if self.index < len(self.tokens) else None
+
+    def take(self, what: str) -> Token:
+        token = self.peek()
+        if token is None:
+            raise _LineError(self.end_column, f"missing {what}")
+        self.index += 1
+        return token
+
+    def accept(self, word: str) -> Token | None:
+        token = self.peek()
+        if token is not None and token.text == word:
+            self.index += 1
+            return token
+        return None
+
+    def done(self) -> None:
+        token = self.peek()
+        if token is not None:
+            raise _LineError(token.column, f"unexpected {token.text!r}")
+
+
+def _parse_statement(
+    tokens: list[Token], line: int, text: str, fault_available: bool
+) -> Statement:
+    command = tokens[0].text.lower()
+    cur = _Cursor(tokens, len(text.split("#", 1)[0].rstrip()) + 1)
+    if command == "write":
+        reg = parse_register(cur.take("register"))
+        values = [parse_number(cur.take("value to write"))]
+        while cur.peek() is not None:
+            values.append(parse_number(cur.take("value")))
+        return Statement(line, command, text, register=reg, values=tuple(values))
+    if command in ("read", "burst"):
+        reg = parse_register(cur.take("register"))
+        count = 1
+        if command == "burst":
+            count = parse_number(cur.take("byte count"), MAX_BURST, "byte count")
+            if count == 0:
+                raise _LineError(tokens[2].column, "a burst reads at least one byte")
+        values: list[int] = []
+        mask = 0xFF
+        if cur.accept("=="):
+            for _ in range(count):
+                values.append(parse_number(cur.take(f"expected value ({count} needed)")))
+        if cur.accept("mask"):
+            mask = parse_number(cur.take("mask"))
+            if not values:
+                raise _LineError(tokens[-1].column, "a mask needs an expected value ('== V')")
+        cur.done()
+        return Statement(line, command, text, register=reg, count=count, values=tuple(values), mask=mask)
+    if command == "poll":
+        reg = parse_register(cur.take("register"))
+        if not cur.accept("bit"):
+            raise _LineError(cur.take("'bit'").column, "expected 'bit N' after the register")
+        bit = parse_number(cur.take("bit number"), 7, "bit number")
+        expected = 1
+        if cur.accept("=="):
+            expected = parse_number(cur.take("bit value"), 1, "bit value")
+        if not cur.accept("timeout"):
+            raise _LineError(cur.take("'timeout DURATION'").column, "expected 'timeout DURATION'")
+        timeout = parse_duration(cur.take("timeout duration"))
+        interval = DEFAULT_POLL_INTERVAL_S
+        if cur.accept("every"):
+            token = cur.take("poll interval")
+            interval = parse_duration(token)
+            if interval <= 0:
+                raise _LineError(token.column, "the poll interval must be positive")
+        cur.done()
+        return Statement(
+            line, command, text, register=reg, bit=bit, expected_bit=expected,
+            seconds=timeout, interval_s=interval,
+        )
+    if command == "advance":
+        seconds = parse_duration(cur.take("duration"))
+        cur.done()
+        return Statement(line, command, text, seconds=seconds)
+    if command == "rate":
+        rate = tuple(_parse_float(cur.take(f"{axis} rate in deg/s")) for axis in "xyz")
+        cur.done()
+        return Statement(line, command, text, rate_dps=rate)  # type: ignore[arg-type]
+    if command == "fault":
+        name = cur.take("fault name")
+        if not fault_available:
+            raise _LineError(name.column, "fault injection is not available in this version")
+        args = [name.text]
+        while cur.peek() is not None:
+            args.append(cur.take("argument").text)
+        return Statement(line, command, text, fault=tuple(args))
+    if command == "dump":
+        fmt = "table"
+        token = cur.peek()
+        if token is not None:
+            fmt = cur.take("format").text
+            if fmt not in DUMP_FORMATS:
+                raise _LineError(token.column, f"dump format must be one of {', '.join(DUMP_FORMATS)}")
+        cur.done()
+        return Statement(line, command, text, dump_format=fmt)
+    raise _LineError(tokens[0].column, f"unknown command {tokens[0].text!r} (one of {', '.join(COMMANDS)})")
+
+
+def parse_script(
+    text: str, source: str = "<script>", fault_available: bool | None = None
+) -> list[Statement]:
+    """Parse a whole script; raise :class:`ScriptSyntaxError` listing every mistake."""
+    if fault_available is None:
+        fault_available = fault_injection_available()
+    statements: list[Statement] = []
+    errors: list[tuple[int, int, str]] = []
+    for number, line in enumerate(text.splitlines(), 1):
+        tokens = _tokenize(line)
+        if not tokens:
+            continue
+        try:
+            statements.append(_parse_statement(tokens, number, line.strip(), fault_available))
+        except _LineError as exc:
+            errors.append((number, exc.column, exc.message))
+    if errors:
+        raise ScriptSyntaxError(source, errors)
+    return statements
+
+
+def fault_injection_available() -> bool:
+    """Fault statements need the chip's fault-injection module, which may not exist yet."""
+    import importlib.util
+
+    return importlib.util.find_spec("bmg160_emu.faults") is not None
+
+
+def _hex_bytes(data: Iterable[int]) -> str:
+    return " ".join(f"0x{b:02x}" for b in data)
+
+
+class ScriptRunner:
+    """Plays parsed statements against a chip through its bus primitives.
+
+    ``chip`` needs ``write``, ``read``, ``advance``, ``set_true_rate``, ``dump`` and
+    ``time`` (the contract in docs/architecture.md). ``log`` receives one readable line per
+    statement.
+    """
+
+    def __init__(self, chip, log: Callable[[str], None] = print, source: str = "<script>"):
+        self.chip = chip
+        self.log = log
+        self.source = source
+
+    def run(self, statements: list[Statement]) -> None:
+        for statement in statements:
+            self.execute(statement)
+
+    def _say(self, statement: Statement, message: str) -> None:
+        self.log(f"{statement.line:4d}  t={self.chip.time:.6f}s  {message}")
+
+    def execute(self, s: Statement) -> None:
+        chip = self.chip
+        if s.command == "write":
+            chip.write(s.register, bytes(s.values))
+            self._say(s, describe_write(s.register, bytes(s.values)))
+        elif s.command in ("read", "burst"):
+            data = chip.read(s.register, s.count)
+            self._say(s, describe_read(s.register, data))
+            if s.values:
+                self._check_read(s, data)
+        elif s.command == "poll":
+            self._poll(s)
+        elif s.command == "advance":
+            chip.advance(s.seconds)
+            self._say(s, f"advance {_seconds_text(s.seconds)}")
+        elif s.command == "rate":
+            chip.set_true_rate(s.rate_dps)
+            x, y, z = s.rate_dps
+            self._say(s, f"true rate x={x:g} y={y:g} z={z:g} deg/s")
+        elif s.command == "fault":
+            from bmg160_emu import faults  # guarded at parse time
+
+            faults.inject(chip, *s.fault)
+            self._say(s, "fault " + " ".join(s.fault))
+        elif s.command == "dump":
+            self._say(s, f"dump ({s.dump_format})")
+            text = format_dump(RegisterDump.from_chip(chip), s.dump_format)
+            for out in text.rstrip("\n").split("\n"):
+                self.log("      " + out)
+
+    def _check_read(self, s: Statement, data: bytes) -> None:
+        for offset, (got, want) in enumerate(zip(data, s.values)):
+            if got & s.mask != want & s.mask:
+                reg = min(s.register + offset, REGISTER_COUNT - 1)
+                where = register_label(reg)
+                masked = "" if s.mask == 0xFF else f" (mask 0x{s.mask:02x})"
+                detail = describe_value_difference(reg, want & s.mask, got & s.mask, s.mask)
+                raise ScriptFailure(
+                    self.source,
+                    s.line,
+                    f"{where}: expected 0x{want & s.mask:02x}, read 0x{got & s.mask:02x}"
+                    f"{masked}{': ' + detail if detail else ''}",
+                )
+
+    def _poll(self, s: Statement) -> None:
+        chip = self.chip
+        start = chip.time
+        reads = 0
+        while True:
+            value = chip.read(s.register, 1)[0]
+            reads += 1
+            if (value >> s.bit) & 1 == s.expected_bit:
+                waited = chip.time - start
+                self._say(
+                    s,
+                    f"poll {register_label(s.register)} bit {s.bit} == {s.expected_bit}: "
+                    f"after {_seconds_text(waited)} ({reads} reads, last 0x{value:02x})",
+                )
+                return
+            if chip.time - start + s.interval_s > s.seconds + 1e-12:
+                raise ScriptFailure(
+                    self.source,
+                    s.line,
+                    f"{register_label(s.register)} bit {s.bit} still {1 - s.expected_bit} after "
+                    f"{_seconds_text(s.seconds)} ({reads} reads, last 0x{value:02x})",
+                )
+            chip.advance(s.interval_s)
+
+
+def _seconds_text(seconds: float) -> str:
+    if seconds >= 1 or seconds == 0:
+        return f"{seconds:g} s"
+    if seconds >= 1e-3:
+        return f"{seconds * 1e3:g} ms"
+    return f"{seconds * 1e6:g} us"
+
+
+def describe_write(register: int, data: bytes) -> str:
+    from bmg160_emu.trace import describe_write as _describe
+
+    return _describe(register, data)
+
+
+def describe_read(register: int, data: bytes) -> str:
+    from bmg160_emu.trace import describe_read as _describe
+
+    return _describe(register, data)
+
+
+def run_script(text: str, chip, log: Callable[[str], None] = print, source: str = "<script>") -> None:
+    """Parse then run; raises ScriptSyntaxError before anything runs, ScriptFailure on a miss."""
+    statements = parse_script(text, source)
+    ScriptRunner(chip, log, source).run(statements)
