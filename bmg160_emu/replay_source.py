@@ -1,0 +1,345 @@
+"""Real data as the chip's output: a user's recording played through the register interface.
+
+A recording (CSV or NPZ: a time column and x, y, z in deg/s or raw counts) is checked line
+by line, then attached to a chip as a sample hook, so every output sample the chip produces
+carries the recorded rate at that moment and a driver reads flight or lab data through the
+RATE registers, the FIFO and the interrupt engines. The method (``docs/replay.md``):
+
+* time: the first output sample after :meth:`ReplaySource.attach` is the recording's first
+  time stamp; later output samples keep the chip's own spacing (``1/ODR``), so a recording
+  plays at its own time stamps whatever its sample rate;
+* resampling to the chip's ODR: linear interpolation between the two recorded samples that
+  bracket each output time; when the recording is at least twice as fast as the ODR, the
+  mean of the recorded samples inside each output period instead (a boxcar decimator, so
+  fast data is not aliased by picking every n-th sample);
+* after the last recorded sample the last value is held (or, with ``loop=True``, the
+  recording starts over);
+* the recorded value replaces the chip's own sample after noise and offset (it already is
+  what a chip measured), and the chip scales it to counts with its current range.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+UNITS = ("dps", "counts")
+TIME_COLUMNS = ("t_s", "t", "time", "time_s", "timestamp")
+DEFAULT_MAX_GAP_FACTOR = 3.0  # a step over 3x the median step is a gap, not jitter
+MAX_RATE_DPS = 2000.0 * 1.05  # beyond the widest range (spec 5.1) with 5% margin
+INT16 = (-32768, 32767)
+TIME_RESOLUTION_S = 0.5e-9  # half the chip clock's 1 ns step (bmg160_emu.clock)
+
+
+class ReplayDataError(ValueError):
+    """A recording that cannot be played; the message names the file and line (or row)."""
+
+
+@dataclass
+class ReplayData:
+    """Checked samples: times in seconds (n,), rates in deg/s (n, 3)."""
+
+    t_s: np.ndarray
+    rate_dps: np.ndarray
+    source: str = "<data>"
+
+    @property
+    def median_step_s(self) -> float:
+        return float(np.median(np.diff(self.t_s))) if len(self.t_s) > 1 else math.inf
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1] - self.t_s[0])
+
+
+# --------------------------------------------------------------------------- loading
+
+
+_UNIT_SUFFIXES = {
+    "_dps": "dps", "_deg_s": "dps", "[dps]": "dps", "(dps)": "dps",
+    "_counts": "counts", "_raw": "counts", "_lsb": "counts", "[lsb]": "counts", "(lsb)": "counts",
+}
+
+
+def _split_unit(name: str) -> tuple[str, str | None]:
+    """'x_dps' -> ('x', 'dps'); 'gx' -> ('gx', None)."""
+    for suffix, unit in _UNIT_SUFFIXES.items():
+        if name.endswith(suffix):
+            return name[: -len(suffix)].strip(), unit
+    return name, None
+
+
+def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, list[int]]:
+    """Index of the time column and of the x, y, z columns for ``unit``."""
+    names = [h.strip().lower() for h in header]
+    time_candidates = [i for i, n in enumerate(names) if n in TIME_COLUMNS]
+    if not time_candidates:
+        raise ReplayDataError(f"{where}: no time column (one of {', '.join(TIME_COLUMNS)})")
+    axes = []
+    for axis in "xyz":
+        bases = {axis, f"g{axis}", f"rate_{axis}", f"gyro_{axis}", f"omega_{axis}"}
+        candidates = [(i, u) for i, (b, u) in enumerate(map(_split_unit, names)) if b in bases]
+        chosen = [i for i, u in candidates if u == unit] or [i for i, u in candidates if u is None]
+        if chosen:
+            axes.append(chosen[0])
+        elif candidates:
+            i, found = candidates[0]
+            raise ReplayDataError(
+                f"{where}: unit mismatch: column {header[i].strip()!r} holds {found}, "
+                f"but unit {unit} was given"
+            )
+        else:
+            raise ReplayDataError(f"{where}: no {axis} column among {', '.join(header)}")
+    return time_candidates[0], axes
+
+
+def _check_values(t: np.ndarray, xyz: np.ndarray, unit: str, lines: list[str], max_gap_factor: float) -> None:
+    """Time must increase without gaps; values must fit the unit."""
+    if len(t) < 2:
+        raise ReplayDataError(f"{lines[0] if lines else '<data>'}: a recording needs at least two samples")
+    steps = np.diff(t)
+    bad = np.flatnonzero(~(steps > 0))
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise ReplayDataError(
+            f"{lines[i]}: time {float(t[i])!r} s is not after the previous sample's "
+            f"{float(t[i - 1])!r} s "
+            "(time must increase)"
+        )
+    median = float(np.median(steps))
+    gaps = np.flatnonzero(steps > max_gap_factor * median)
+    if gaps.size:
+        i = int(gaps[0]) + 1
+        raise ReplayDataError(
+            f"{lines[i]}: gap of {steps[i - 1]:.6g} s before this sample (the median step is "
+            f"{median:.6g} s); fill the gap or raise the allowed gap (max_gap_factor)"
+        )
+    if unit == "counts":
+        frac = np.flatnonzero(np.any(xyz != np.round(xyz), axis=1))
+        if frac.size:
+            i = int(frac[0])
+            raise ReplayDataError(
+                f"{lines[i]}: raw counts must be whole numbers, found {xyz[i].tolist()}: "
+                "deg/s data? use unit dps"
+            )
+        out = np.flatnonzero(np.any((xyz < INT16[0]) | (xyz > INT16[1]), axis=1))
+        if out.size:
+            i = int(out[0])
+            raise ReplayDataError(f"{lines[i]}: {xyz[i].tolist()} is outside the 16-bit range of raw counts")
+    else:
+        out = np.flatnonzero(np.any(np.abs(xyz) > MAX_RATE_DPS, axis=1))
+        if out.size:
+            i = int(out[0])
+            raise ReplayDataError(
+                f"{lines[i]}: {xyz[i].tolist()} deg/s is beyond the widest range (+-2000 deg/s): "
+                "raw counts? use unit counts"
+            )
+
+
+def _to_dps(xyz: np.ndarray, unit: str, lsb_per_dps: float | None, where: str) -> np.ndarray:
+    if unit == "dps":
+        return xyz.astype(float)
+    if not lsb_per_dps:
+        raise ReplayDataError(
+            f"{where}: raw counts need the sensitivity they were recorded with (lsb_per_dps, "
+            "or the range: 16.384 LSB/(deg/s) at +-2000 deg/s)"
+        )
+    return xyz / float(lsb_per_dps)
+
+
+def load_replay_data(
+    path: str | Path,
+    unit: str = "dps",
+    lsb_per_dps: float | None = None,
+    max_gap_factor: float = DEFAULT_MAX_GAP_FACTOR,
+) -> ReplayData:
+    """Read and check a CSV or NPZ recording; raise :class:`ReplayDataError` naming the line.
+
+    CSV: ``#`` comment lines, then either a header row naming a time column and x, y, z
+    columns, or no header and exactly four numeric columns ``t, x, y, z``. The files written
+    by ``bmg160-emu record`` are read as they are: the unit picks their ``*_dps`` or
+    ``*_counts`` columns and their sensitivity comes from their settings line.
+    """
+    if unit not in UNITS:
+        raise ValueError(f"unit must be one of {UNITS}, not {unit!r}")
+    path = Path(path)
+    if not path.exists():
+        raise ReplayDataError(f"{path}: no such file")
+    if path.suffix.lower() == ".npz":
+        return _load_npz(path, unit, lsb_per_dps, max_gap_factor)
+    return _load_csv(path, unit, lsb_per_dps, max_gap_factor)
+
+
+def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
+    with open(path, encoding="utf-8", newline="") as handle:
+        text_lines = handle.read().splitlines()
+    header: list[str] | None = None
+    rows: list[list[float]] = []
+    where: list[str] = []
+    t_index, axes = 0, [1, 2, 3]
+    width = 4
+    for lineno, line in enumerate(text_lines, 1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            settings = stripped[1:].strip()
+            if settings.startswith("{") and lsb_per_dps is None:
+                try:
+                    lsb_per_dps = json.loads(settings).get("lsb_per_dps")
+                except json.JSONDecodeError:
+                    pass
+            continue
+        cells = next(csv.reader([line]))
+        if header is None and not rows:
+            try:
+                [float(c) for c in cells]
+            except ValueError:
+                header = cells
+                width = len(cells)
+                t_index, axes = _pick_columns(cells, unit, f"{path}:{lineno}")
+                continue
+            width = len(cells)
+            if width != 4:
+                raise ReplayDataError(
+                    f"{path}:{lineno}: {width} columns without a header; expected 4 (t, x, y, z) "
+                    "or a header row naming the columns"
+                )
+        if len(cells) != width:
+            raise ReplayDataError(f"{path}:{lineno}: {len(cells)} columns, expected {width}")
+        try:
+            values = [float(cells[i]) for i in [t_index, *axes]]
+        except ValueError:
+            bad = next(c for c in (cells[i] for i in [t_index, *axes]) if not _is_float(c))
+            raise ReplayDataError(f"{path}:{lineno}: not a number: {bad!r}") from None
+        if not all(math.isfinite(v) for v in values):
+            raise ReplayDataError(f"{path}:{lineno}: empty or non-finite value in {line.strip()!r}")
+        rows.append(values)
+        where.append(f"{path}:{lineno}")
+    if not rows:
+        raise ReplayDataError(f"{path}: no samples")
+    table = np.array(rows)
+    t, xyz = table[:, 0], table[:, 1:4]
+    _check_values(t, xyz, unit, where, max_gap_factor)
+    return ReplayData(t, _to_dps(xyz, unit, lsb_per_dps, str(path)), str(path))
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise ReplayDataError(f"{path}: not a readable NPZ file ({exc})") from None
+    with archive as data:
+        keys = set(data.files)
+        t_key = next((k for k in TIME_COLUMNS if k in keys), None)
+        if t_key is None:
+            raise ReplayDataError(f"{path}: no time array (one of {', '.join(TIME_COLUMNS)})")
+        if "metadata" in keys and lsb_per_dps is None:
+            try:
+                lsb_per_dps = json.loads(str(data["metadata"])).get("lsb_per_dps")
+            except json.JSONDecodeError:
+                pass
+        wanted = {"dps": ("rate_dps", "gyro_dps"), "counts": ("counts", "raw")}[unit]
+        other = {"dps": ("counts", "raw"), "counts": ("rate_dps", "gyro_dps")}[unit]
+        key = next((k for k in wanted if k in keys), None)
+        if key is None:
+            if all(a in keys for a in "xyz"):
+                xyz = np.column_stack([data[a] for a in "xyz"])
+            elif any(k in keys for k in other):
+                found = next(k for k in other if k in keys)
+                raise ReplayDataError(
+                    f"{path}: unit mismatch: the file holds {found!r} but unit {unit} was given"
+                )
+            else:
+                raise ReplayDataError(
+                    f"{path}: no rate array ({', '.join(wanted)}, or x, y, z) among {sorted(keys)}"
+                )
+        else:
+            xyz = np.asarray(data[key], dtype=float)
+        t = np.asarray(data[t_key], dtype=float).reshape(-1)
+    xyz = np.asarray(xyz, dtype=float)
+    if xyz.ndim != 2 or xyz.shape[1] != 3:
+        raise ReplayDataError(f"{path}: the rate array must have 3 columns (x, y, z), not shape {xyz.shape}")
+    if len(xyz) != len(t):
+        raise ReplayDataError(f"{path}: {len(t)} time stamps but {len(xyz)} rate rows")
+    where = [f"{path}: row {i}" for i in range(len(t))]
+    finite = np.flatnonzero(~np.isfinite(np.column_stack([t, xyz])).all(axis=1))
+    if finite.size:
+        raise ReplayDataError(f"{where[int(finite[0])]}: non-finite value")
+    _check_values(t, xyz, unit, where, max_gap_factor)
+    return ReplayData(t, _to_dps(xyz, unit, lsb_per_dps, str(path)), str(path))
+
+
+# --------------------------------------------------------------------------- playing
+
+
+class ReplaySource:
+    """Plays :class:`ReplayData` as a chip's output samples (see the module docstring)."""
+
+    def __init__(self, data: ReplayData, loop: bool = False):
+        self.data = data
+        self.loop = loop
+        self._origin_chip_s: float | None = None
+        self.samples_played = 0
+
+    def recording_time(self, chip_time_s: float) -> float:
+        """The recording's time stamp that plays at chip time ``chip_time_s``."""
+        if self._origin_chip_s is None:
+            self._origin_chip_s = chip_time_s
+        tau = self.data.t_s[0] + (chip_time_s - self._origin_chip_s)
+        if self.loop and tau > self.data.t_s[-1]:
+            span = self.data.duration_s + self.data.median_step_s
+            tau = self.data.t_s[0] + (tau - self.data.t_s[0]) % span
+        return tau
+
+    def value_at(self, tau: float, period_s: float | None) -> np.ndarray:
+        """The recorded rate at recording time ``tau`` (deg/s), resampled as documented."""
+        t, rate = self.data.t_s, self.data.rate_dps
+        if period_s is not None and period_s >= 2 * self.data.median_step_s:
+            lo = np.searchsorted(t, tau - period_s, side="right")
+            hi = np.searchsorted(t, tau, side="right")
+            if hi > lo:
+                return rate[lo:hi].mean(axis=0)
+        if tau <= t[0]:
+            return rate[0].copy()
+        if tau >= t[-1]:
+            return rate[-1].copy()
+        i = int(np.searchsorted(t, tau, side="right"))
+        # A time stamp within clock resolution of a recorded one plays that sample exactly.
+        if tau - t[i - 1] <= TIME_RESOLUTION_S:
+            return rate[i - 1].copy()
+        if t[i] - tau <= TIME_RESOLUTION_S:
+            return rate[i].copy()
+        w = (tau - t[i - 1]) / (t[i] - t[i - 1])
+        return rate[i - 1] + w * (rate[i] - rate[i - 1])
+
+    def __call__(self, chip, t: float, rate_dps) -> np.ndarray:
+        """The sample hook: replace the chip's sample with the recorded one."""
+        from bmg160_emu.recording import chip_odr_hz
+
+        tau = self.recording_time(float(t))
+        self.samples_played += 1
+        return self.value_at(tau, 1.0 / chip_odr_hz(chip))
+
+    def attach(self, chip) -> ReplaySource:
+        """Start playing on ``chip`` from its next output sample."""
+        self._origin_chip_s = None
+        chip.sample_hooks.append(self)
+        return self
+
+    def detach(self, chip) -> None:
+        if self in chip.sample_hooks:
+            chip.sample_hooks.remove(self)
