@@ -1,0 +1,88 @@
+"""Transaction traces: JSON Lines writing from a TransactionLog, reading back, and decoding."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from bmg160_emu.trace import (
+    TraceFormatError,
+    TraceHeader,
+    TraceWriter,
+    describe_read,
+    describe_transaction,
+    describe_write,
+    read_trace,
+)
+from bmg160_emu.transactions import Transaction, TransactionLog
+
+
+def _session() -> list[Transaction]:
+    return [
+        Transaction(0.0, 1, 0x68, "write_byte_data", 0x0F, written=b"\x02"),
+        Transaction(0.001, 1, 0x68, "read_i2c_block_data", 0x02, read=bytes([0xF4, 0xFF, 3, 0, 40, 0])),
+        Transaction(0.002, 1, 0x68, "read_byte_data", 0x00, error="EREMOTEIO"),
+    ]
+
+
+def test_a_log_sink_writes_one_json_line_per_transaction_after_a_header(tmp_path):
+    path = tmp_path / "session.jsonl"
+    with TraceWriter(path, TraceHeader(seed=7, chip={"profile": "paper"})) as writer:
+        log = TransactionLog(sinks=[writer])
+        for transaction in _session():
+            log.append(transaction)
+    lines = path.read_text().splitlines()
+    assert len(lines) == 4
+    assert json.loads(lines[0]) == {
+        "format": "bmg160-emu trace", "version": 1, "seed": 7, "chip": {"profile": "paper"},
+    }
+    header, records = read_trace(path)
+    assert header["seed"] == 7
+    back = [Transaction.from_dict(r) for r in records]
+    assert back == _session()
+    assert [r["_line"] for r in records] == [2, 3, 4]
+
+
+def test_reading_reports_the_line_of_a_broken_record(tmp_path):
+    path = tmp_path / "broken.jsonl"
+    path.write_text(
+        json.dumps(TraceHeader().to_dict()) + "\n"
+        + json.dumps(_session()[0].to_dict()) + "\n"
+        + '{"time": 0.1, "kind": \n'
+    )
+    with pytest.raises(TraceFormatError, match=r"broken.jsonl:3:\d+: invalid JSON"):
+        read_trace(path)
+
+
+def test_a_file_without_the_header_is_not_a_trace(tmp_path):
+    path = tmp_path / "other.jsonl"
+    path.write_text(json.dumps(_session()[0].to_dict()) + "\n")
+    with pytest.raises(TraceFormatError, match=r"other.jsonl:1: not a bmg160-emu trace"):
+        read_trace(path)
+
+
+def test_a_record_without_time_is_refused(tmp_path):
+    path = tmp_path / "notime.jsonl"
+    path.write_text(json.dumps(TraceHeader().to_dict()) + '\n{"kind": "read_byte_data"}\n')
+    with pytest.raises(TraceFormatError, match=r"notime.jsonl:2: .*'time'"):
+        read_trace(path)
+
+
+def test_writes_and_bursts_are_decoded_for_a_person():
+    assert describe_write(0x0F, b"\x02") == "write 0x0F RANGE <- 0x02 (+-500 deg/s)"
+    assert describe_read(0x02, bytes([0xF4, 0xFF, 3, 0, 40, 0])) == "burst read 0x02..0x07 -> x=-12 y=3 z=40"
+    assert describe_read(0x00, b"\x0f").startswith("read 0x00 CHIP_ID -> 0x0f")
+    assert describe_write(0x10, b"\x04") == "write 0x10 BW <- 0x04 (ODR 200 Hz, 23 Hz)"
+
+
+def test_a_burst_into_fifo_data_stops_the_register_span_there():
+    text = describe_read(0x3E, bytes([0x40, 1, 2, 3]))
+    assert text.startswith("burst read 0x3E..0x3F ->")
+    assert "FIFO_DATA=0x03" in text
+
+
+def test_failed_transactions_show_the_errno_name():
+    line = describe_transaction(_session()[2].to_dict())
+    assert "read_byte_data 0x00 CHIP_ID failed: EREMOTEIO" in line
+    assert "0.002000s" in line
