@@ -1,0 +1,398 @@
+"""patch_smbus and patch_spidev: unmodified driver code reaches the emulated chips.
+
+``patch_smbus({1: {0x68: chip}})`` leaves ``smbus2.SMBus`` itself alone and emulates the
+kernel below it: smbus2's ``os.open`` of /dev/i2c-1 and its ``ioctl`` calls are routed to an
+``I2CBus``. So every way a driver can hold the class (``import smbus2``, ``from smbus2 import
+SMBus``, a subclass, an ``isinstance`` check) works, and smbus2's own argument handling is the
+real one. Other device paths still reach the real kernel. The legacy ``smbus`` module
+(python-smbus) gets a ``LegacySMBus`` class; a ``smbus`` module is injected if none is
+installed.
+
+``patch_spidev({(0, 0): chip})`` replaces ``spidev.SpiDev`` with ``FakeSpiDev`` (spidev is a C
+extension; it is usually not installed, then a ``spidev`` module is injected).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import errno
+import fcntl
+import os
+import sys
+import threading
+import types
+from collections.abc import Mapping
+from contextlib import ContextDecorator
+from typing import Any
+
+from bmg160_emu.i2c_bus import (
+    I2C_SMBUS_BLOCK_MAX,
+    I2CBus,
+    I2CMessage,
+    emulated_bus_for_path,
+    os_error,
+    register_bus,
+    unregister_bus,
+)
+from bmg160_emu.smbus import FakeSMBus
+from bmg160_emu.spi import FakeSpiDev, register_spi_device, unregister_spi_device
+
+__all__ = ["I2cDevKernel", "LegacySMBus", "patch_smbus", "patch_spidev"]
+
+# linux/i2c-dev.h ioctl requests and linux/i2c.h sizes
+I2C_SLAVE = 0x0703
+I2C_SLAVE_FORCE = 0x0706
+I2C_FUNCS = 0x0705
+I2C_RDWR = 0x0707
+I2C_PEC = 0x0708
+I2C_SMBUS = 0x0720
+I2C_SMBUS_READ = 1
+I2C_SMBUS_QUICK = 0
+I2C_SMBUS_BYTE = 1
+I2C_SMBUS_BYTE_DATA = 2
+I2C_SMBUS_WORD_DATA = 3
+I2C_SMBUS_PROC_CALL = 4
+I2C_SMBUS_BLOCK_DATA = 5
+I2C_SMBUS_I2C_BLOCK_BROKEN = 6
+I2C_SMBUS_BLOCK_PROC_CALL = 7
+I2C_SMBUS_I2C_BLOCK_DATA = 8
+I2C_M_RD = 0x0001
+I2C_M_TEN = 0x0010
+
+
+class _OpenI2CFile:
+    """What the kernel keeps per open /dev/i2c-N: the adapter, client address, PEC flag."""
+
+    def __init__(self, bus: I2CBus) -> None:
+        self.bus = bus
+        self.address = 0
+        self.pec = False
+
+
+class I2cDevKernel:
+    """The i2c-dev character device, emulated for smbus2: ``open``/``close`` of device paths
+    and the ioctls smbus2 issues (I2C_SLAVE[_FORCE], I2C_FUNCS, I2C_PEC, I2C_SMBUS, I2C_RDWR)."""
+
+    def __init__(self) -> None:
+        self.files: dict[int, _OpenI2CFile] = {}
+        self.lock = threading.Lock()
+
+    def open(self, path: Any, flags: int, mode: int = 0o777, *, dir_fd: int | None = None) -> int:
+        text = os.fsdecode(path) if isinstance(path, (str, bytes, os.PathLike)) else None
+        bus = emulated_bus_for_path(text) if text is not None else None
+        if bus is None:
+            return os.open(path, flags, mode, dir_fd=dir_fd)
+        fd = os.open(os.devnull, os.O_RDWR)  # a real, unique descriptor number
+        with self.lock:
+            self.files[fd] = _OpenI2CFile(bus)
+        return fd
+
+    def close(self, fd: int) -> None:
+        with self.lock:
+            self.files.pop(fd, None)
+        os.close(fd)
+
+    def ioctl(self, fd: Any, request: int, arg: Any = 0, mutate_flag: bool = True) -> Any:
+        key = fd if isinstance(fd, int) else None
+        handle = self.files.get(key) if key is not None else None
+        if handle is None:
+            return fcntl.ioctl(fd, request, arg, mutate_flag)
+        bus = handle.bus
+        if request in (I2C_SLAVE, I2C_SLAVE_FORCE):
+            address = int(arg)
+            if not -(2**31) <= address < 2**31:
+                raise OverflowError("signed integer is greater than maximum")
+            bus.check_address(
+                address & 0xFFFFFFFF if address < 0 else address, request == I2C_SLAVE_FORCE
+            )
+            handle.address = address
+            return 0
+        if request == I2C_FUNCS:
+            arg.value = bus.funcs
+            return 0
+        if request == I2C_PEC:
+            handle.pec = bool(arg)
+            return 0
+        if request == I2C_SMBUS:
+            self._smbus(handle, arg)
+            return 0
+        if request == I2C_RDWR:
+            self._rdwr(bus, arg)
+            return 0
+        raise os_error(errno.ENOTTY)
+
+    @staticmethod
+    def _smbus(handle: _OpenI2CFile, msg: Any) -> None:
+        bus, address, pec = handle.bus, handle.address, handle.pec
+        read = msg.read_write == I2C_SMBUS_READ
+        if msg.read_write not in (0, 1):
+            raise os_error(errno.EINVAL)
+        command, size = msg.command, msg.size
+        data = msg.data.contents if msg.data else None
+        if size == I2C_SMBUS_QUICK:
+            bus.write_quick(address, read=read)
+        elif size == I2C_SMBUS_BYTE:
+            if read:
+                data.byte = bus.read_byte(address, pec)
+            else:
+                bus.write_byte(address, command, pec)
+        elif size == I2C_SMBUS_BYTE_DATA:
+            if read:
+                data.byte = bus.read_byte_data(address, command, pec)
+            else:
+                bus.write_byte_data(address, command, data.byte, pec)
+        elif size == I2C_SMBUS_WORD_DATA:
+            if read:
+                data.word = bus.read_word_data(address, command, pec)
+            else:
+                bus.write_word_data(address, command, data.word, pec)
+        elif size == I2C_SMBUS_PROC_CALL:
+            data.word = bus.process_call(address, command, data.word, pec)
+        elif size == I2C_SMBUS_BLOCK_DATA:
+            if read:
+                _put_block(data, bus.read_block_data(address, command, pec))
+            else:
+                bus.write_block_data(address, command, _get_block(data), pec)
+        elif size == I2C_SMBUS_BLOCK_PROC_CALL:
+            _put_block(data, bus.block_process_call(address, command, _get_block(data), pec))
+        elif size in (I2C_SMBUS_I2C_BLOCK_DATA, I2C_SMBUS_I2C_BLOCK_BROKEN):
+            if read:
+                count = I2C_SMBUS_BLOCK_MAX if size == I2C_SMBUS_I2C_BLOCK_BROKEN else data.block[0]
+                _put_block(data, bus.read_i2c_block_data(address, command, count))
+            else:
+                bus.write_i2c_block_data(address, command, _get_block(data))
+        else:
+            raise os_error(errno.EINVAL)
+
+    @staticmethod
+    def _rdwr(bus: I2CBus, arg: Any) -> None:
+        count = arg.nmsgs
+        if not 0 < count <= 42 or not arg.msgs:
+            raise os_error(errno.EINVAL)
+        raw = [arg.msgs[i] for i in range(count)]
+        messages = []
+        for m in raw:
+            if m.flags & I2C_M_TEN:
+                raise os_error(errno.EINVAL)  # the emulated adapter has no 10-bit addressing
+            if m.flags & I2C_M_RD:
+                messages.append(I2CMessage(m.addr, True, b"", m.len))
+            else:
+                messages.append(I2CMessage(m.addr, False, ctypes.string_at(m.buf, m.len)))
+        bus.i2c_transfer(messages)
+        for m, message in zip(raw, messages):
+            if message.read and message.data:
+                ctypes.memmove(m.buf, message.data, len(message.data))
+
+
+def _put_block(data: Any, payload: bytes) -> None:
+    data.block[0] = len(payload)
+    for i, value in enumerate(payload, 1):
+        data.block[i] = value
+
+
+def _get_block(data: Any) -> bytes:
+    count = data.block[0]
+    return bytes(data.block[1 : min(count, I2C_SMBUS_BLOCK_MAX + 1) + 1])
+
+
+class _OsProxy(types.ModuleType):
+    """``os`` for smbus2's module namespace: open/close of emulated nodes go to the kernel
+    emulation, everything else to the real ``os``."""
+
+    def __init__(self, kernel: I2cDevKernel) -> None:
+        super().__init__("os")
+        self._kernel = kernel
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(os, name)
+
+    def open(self, path: Any, flags: int, mode: int = 0o777, *, dir_fd: int | None = None) -> int:
+        return self._kernel.open(path, flags, mode, dir_fd=dir_fd)
+
+    def close(self, fd: int) -> None:
+        self._kernel.close(fd)
+
+
+KERNEL = I2cDevKernel()
+_install_lock = threading.RLock()
+_install_count = 0
+_saved_smbus2: dict[str, Any] = {}
+
+
+def _install_smbus2_shim() -> None:
+    global _install_count
+    with _install_lock:
+        _install_count += 1
+        if _install_count > 1:
+            return
+        import smbus2.smbus2 as impl
+
+        _saved_smbus2["os"] = impl.os
+        _saved_smbus2["ioctl"] = impl.ioctl
+        impl.os = _OsProxy(KERNEL)
+        impl.ioctl = KERNEL.ioctl
+
+
+def _remove_smbus2_shim() -> None:
+    global _install_count
+    with _install_lock:
+        _install_count -= 1
+        if _install_count > 0:
+            return
+        import smbus2.smbus2 as impl
+
+        impl.os = _saved_smbus2.pop("os")
+        impl.ioctl = _saved_smbus2.pop("ioctl")
+
+
+class LegacySMBus(FakeSMBus):
+    """python-smbus's ``smbus.SMBus([bus])`` over the emulated buses: no ``force``
+    arguments, ``read_i2c_block_data(addr, cmd, len=32)``, IOError on failures."""
+
+    def __init__(self, bus: int = -1) -> None:
+        super().__init__(None if bus is None or (isinstance(bus, int) and bus < 0) else bus)
+
+    def read_i2c_block_data(
+        self, addr: int, cmd: int, len: int = 32, force: bool | None = None
+    ) -> list[int]:
+        return super().read_i2c_block_data(addr, cmd, min(len, I2C_SMBUS_BLOCK_MAX), force)
+
+    @property
+    def pec(self) -> bool:  # python-smbus exposes pec as a bool attribute
+        return bool(self._pec)
+
+    @pec.setter
+    def pec(self, value: bool) -> None:
+        self.enable_pec(bool(value))
+
+
+def _swap_references(old: Any, new: Any, skip: set[str]) -> list[tuple[Any, str, Any]]:
+    """Point every module attribute that is ``old`` at ``new``; returns what to restore."""
+    changed = []
+    for name, module in list(sys.modules.items()):
+        if module is None or name in skip:
+            continue
+        namespace = getattr(module, "__dict__", None)
+        if not isinstance(namespace, dict):
+            continue
+        for attr, value in list(namespace.items()):
+            if value is old:
+                namespace[attr] = new
+                changed.append((module, attr, old))
+    return changed
+
+
+class _ModulePatch:
+    """Install ``cls`` as ``module_name.class_name``: inject the module if it is missing, else
+    replace the class there and in every module that imported it by name."""
+
+    def __init__(self, module_name: str, class_name: str, cls: type) -> None:
+        self.module_name, self.class_name, self.cls = module_name, class_name, cls
+        self.injected: types.ModuleType | None = None
+        self.restore: list[tuple[Any, str, Any]] = []
+
+    def __enter__(self) -> None:
+        try:
+            module = __import__(self.module_name)
+        except ImportError:
+            module = None
+        if module is None or getattr(module, "__bmg160_emu_injected__", False):
+            if module is None:
+                module = types.ModuleType(
+                    self.module_name, f"{self.module_name} emulated by bmg160_emu"
+                )
+                module.__bmg160_emu_injected__ = True  # type: ignore[attr-defined]
+                sys.modules[self.module_name] = module
+                self.injected = module
+            self.restore.append((module, self.class_name, getattr(module, self.class_name, None)))
+            setattr(module, self.class_name, self.cls)
+            return
+        original = getattr(module, self.class_name)
+        self.restore = _swap_references(original, self.cls, skip=set())
+
+    def __exit__(self, *exc: object) -> None:
+        for namespace_owner, attr, old in reversed(self.restore):
+            if old is None:
+                namespace_owner.__dict__.pop(attr, None)
+            else:
+                setattr(namespace_owner, attr, old)
+        self.restore = []
+        if self.injected is not None and sys.modules.get(self.module_name) is self.injected:
+            del sys.modules[self.module_name]
+        self.injected = None
+
+
+class patch_smbus(ContextDecorator):
+    """Context manager (and decorator): ``smbus2.SMBus(n)``, ``smbus.SMBus(n)`` and
+    ``FakeSMBus(n)`` reach the emulated buses ``{n: {address: chip}}`` (or ``{n: I2CBus}``).
+
+    ``with patch_smbus({1: {0x68: chip}}) as buses:`` gives ``{1: I2CBus}`` (logs, hooks).
+    """
+
+    def __init__(
+        self, buses: Mapping[int, Mapping[int, Any] | I2CBus], *, legacy: bool = True
+    ) -> None:
+        if not isinstance(buses, Mapping):
+            raise TypeError("patch_smbus wants {bus number: {address: chip}}")
+        self.buses: dict[int, I2CBus] = {}
+        for number, devices in buses.items():
+            if isinstance(devices, I2CBus):
+                if devices.number != number:
+                    raise ValueError(f"I2CBus {devices.number} given as bus {number}")
+                self.buses[number] = devices
+            elif isinstance(devices, Mapping):
+                self.buses[number] = I2CBus(number, devices)
+            else:
+                raise TypeError(
+                    f"bus {number}: expected {{address: chip}} or an I2CBus, not {devices!r}"
+                )
+        self.legacy = legacy
+        self._legacy_patch: _ModulePatch | None = None
+
+    def __enter__(self) -> dict[int, I2CBus]:
+        for bus in self.buses.values():
+            register_bus(bus)
+        _install_smbus2_shim()
+        if self.legacy:
+            self._legacy_patch = _ModulePatch("smbus", "SMBus", LegacySMBus)
+            self._legacy_patch.__enter__()
+        return dict(self.buses)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._legacy_patch is not None:
+            self._legacy_patch.__exit__(*exc)
+            self._legacy_patch = None
+        _remove_smbus2_shim()
+        for bus in self.buses.values():
+            unregister_bus(bus)
+
+
+class patch_spidev(ContextDecorator):
+    """Context manager (and decorator): ``spidev.SpiDev(bus, device)`` and
+    ``open(bus, device)`` reach ``{(bus, device): chip}``; yields that mapping."""
+
+    def __init__(self, devices: Mapping[tuple[int, int], Any]) -> None:
+        if not isinstance(devices, Mapping):
+            raise TypeError("patch_spidev wants {(bus, device): chip}")
+        self.devices = {}
+        for key, chip in devices.items():
+            if not (
+                isinstance(key, tuple) and len(key) == 2 and all(isinstance(k, int) for k in key)
+            ):
+                raise TypeError(f"spidev device key must be (bus, device), not {key!r}")
+            self.devices[key] = chip
+        self._patch: _ModulePatch | None = None
+
+    def __enter__(self) -> dict[tuple[int, int], Any]:
+        for (bus, device), chip in self.devices.items():
+            register_spi_device(bus, device, chip)
+        self._patch = _ModulePatch("spidev", "SpiDev", FakeSpiDev)
+        self._patch.__enter__()
+        return dict(self.devices)
+
+    def __exit__(self, *exc: object) -> None:
+        if self._patch is not None:
+            self._patch.__exit__(*exc)
+            self._patch = None
+        for (bus, device), chip in self.devices.items():
+            unregister_spi_device(bus, device, chip)
