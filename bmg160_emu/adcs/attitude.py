@@ -86,7 +86,7 @@ def magnus_increments(rate_of_time: RateOfTime, t0: np.ndarray, t1: np.ndarray) 
     return quat_from_rotation_vector(rotation)
 
 
-def _chain(q0: np.ndarray, increments: np.ndarray) -> np.ndarray:
+def chain_rotations(q0: np.ndarray, increments: np.ndarray) -> np.ndarray:
     """Cumulative right products ``q0 d1 d2 ...`` (sequential, on plain floats for speed)."""
     w, x, y, z = (float(c) for c in q0)
     out = np.empty((increments.shape[0], 4))
@@ -131,7 +131,7 @@ def integrate_attitude(
     h = widths[owner] / substeps[owner]
     sub_t0 = edges[owner] + k * h
     increments = magnus_increments(rate_of_time, sub_t0, sub_t0 + h)
-    path = _chain(np.asarray(q0, dtype=float), increments)
+    path = chain_rotations(np.asarray(q0, dtype=float), increments)
     last = np.cumsum(substeps) - 1
     return path[last]
 

@@ -19,8 +19,10 @@ transaction, drawn from the schedule's seed) and an *effect*:
 
 Bus faults act in ``I2CBus.transaction_hooks``, sample faults in ``BMG160.sample_hooks`` (the
 rate in the sensor frame, deg/s, before scaling to counts), chip faults between two
-transactions. Every onset is a :class:`FaultEvent` in :attr:`FaultSchedule.events`, and every
-output sample a fault touched carries its :data:`FAULT_FLAGS` bit in the rig's truth record.
+transactions. Every onset is a :class:`FaultEvent` in :attr:`FaultSchedule.events`; a bus
+fault is the failed transaction itself in the bus's transaction log, any other fault adds a
+``fault:<kind>`` entry there (its description as the written bytes); every output sample a
+fault touched carries its :data:`FAULT_FLAGS` bit in the rig's truth record.
 
 Triggers: ``at_s`` acts exactly at that time for sample faults and at the first transaction
 at or after it for bus and chip faults; ``on_transaction`` counts the transactions of the
@@ -187,10 +189,12 @@ class _Activation:
 class FaultSchedule:
     """Faults to inject into a rig of gyros; seeded, so a run can be repeated exactly."""
 
-    def __init__(self, faults: Iterable[Fault | dict[str, Any]] = (), seed: int | None = 0):
+    def __init__(self, faults: Iterable[Fault | dict[str, Any]] = (), seed: int | None = 0,
+                 log_to_bus: bool = True):
         self.faults = [f if isinstance(f, Fault) else fault_from_dict(f, f"fault {i + 1}")
                        for i, f in enumerate(faults)]
         self.seed = seed
+        self.log_to_bus = log_to_bus
         root = np.random.SeedSequence(seed)
         self._rngs = [np.random.default_rng(s) for s in root.spawn(len(self.faults))]
         self.events: list[FaultEvent] = []
@@ -307,7 +311,7 @@ class FaultSchedule:
         count = fault.samples if fault.kind in ("spike", "lost_samples") else None
         self._activations[i].append(_Activation(now, end, gyro.index, count))
         if index is not None or fault.at_s is None:
-            self.events.append(FaultEvent(now, fault.kind, gyro.index, index, fault.describe()))
+            self._note(FaultEvent(now, fault.kind, gyro.index, index, fault.describe()), gyro)
 
     def _chip_fault(self, fault: Fault, gyro: GyroTarget, now: float, index: int | None) -> None:
         chip = gyro.chip
@@ -321,7 +325,7 @@ class FaultSchedule:
             _poke(chip, fault.register, after)
             detail = (f"SEU register 0x{fault.register:02x} bit {fault.bit}: "
                       f"0x{before:02x} -> 0x{chip.peek(fault.register):02x}")
-        self.events.append(FaultEvent(now, fault.kind, gyro.index, index, detail))
+        self._note(FaultEvent(now, fault.kind, gyro.index, index, detail), gyro)
 
     def _sample_hook_for(self, gyro: GyroTarget):
         def hook(chip: Any, t: float, rate_dps: np.ndarray) -> np.ndarray | None:
@@ -340,8 +344,8 @@ class FaultSchedule:
                 if not act.started:
                     act.started = True
                     if fault.at_s is not None:  # time-triggered: log the onset at the sample
-                        self.events.append(
-                            FaultEvent(t, fault.kind, gyro.index, None, fault.describe()))
+                        self._note(
+                            FaultEvent(t, fault.kind, gyro.index, None, fault.describe()), gyro)
                     if fault.kind == "stuck_axis":
                         act.held = self._last_rate.get(gyro.index, rate).copy()
                 if act.samples_left is not None:
@@ -377,10 +381,20 @@ class FaultSchedule:
         elif fault.kind == "temperature_ramp":
             elapsed = min(t, act.end_s) - act.start_s
             rise_c = fault.rate_c_per_s * elapsed
-            base = self._base_temperature.setdefault(gyro.index, _temperature(gyro.chip))
+            base = self._base_temperature.setdefault(gyro.index, _base_temperature(gyro))
             _set_temperature(gyro.chip, base + rise_c)
             rate += fault.tc_bias_dps_per_c * rise_c
         return False
+
+    def _note(self, event: FaultEvent, gyro: GyroTarget) -> None:
+        """Record an onset, and put it in the gyro's bus log as a ``fault:<kind>`` entry."""
+        self.events.append(event)
+        log = getattr(gyro.bus, "log", None)
+        if self.log_to_bus and log is not None and getattr(log, "enabled", True):
+            from bmg160_emu.transactions import Transaction
+
+            log.append(Transaction(event.time_s, getattr(gyro.bus, "number", 0), gyro.address,
+                                   f"fault:{event.kind}", written=event.detail.encode()))
 
     # ----------------------------------------------------------------- truth
 
@@ -412,13 +426,32 @@ def _stall(chip: Any, seconds: float) -> None:
 
 
 def _poke(chip: Any, register: int, value: int) -> None:
-    """Write register content as radiation would: no bus, no access rules."""
-    chip.poke(register, value)
+    """Change register content as radiation would: no bus, no access rules.
+
+    The chip model has no public primitive for this yet (asked for); until it has, the
+    register file is changed under the chip's lock and the computed-ahead samples are
+    dropped so that a flipped RANGE or BW bit takes effect from the next sample.
+    """
+    if hasattr(chip, "poke"):
+        chip.poke(register, value)
+        return
+    with chip.lock:
+        chip.clock.now()  # samples due before the upset keep the old configuration
+        chip.peek(register)
+        chip._regs[register] = value
+        if register == 0x10 and hasattr(chip, "_change_bandwidth"):  # BW (spec 4.9)
+            chip._change_bandwidth()
+        elif hasattr(chip, "_invalidate"):
+            chip._invalidate()
 
 
-def _temperature(chip: Any) -> float:
-    return float(getattr(chip, "temperature_c", 23.0))
+def _base_temperature(gyro: Any) -> float:
+    spec = getattr(gyro, "spec", None)
+    return float(getattr(spec, "temperature_c", 23.0))
 
 
 def _set_temperature(chip: Any, celsius: float) -> None:
-    chip.temperature_c = celsius
+    if hasattr(chip, "set_temperature"):
+        chip.set_temperature(celsius)
+    else:
+        chip.temperature_c = celsius

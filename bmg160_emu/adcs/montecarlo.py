@@ -1,0 +1,221 @@
+"""Monte Carlo: one scenario over many noise seeds, summarised as angle-error percentiles.
+
+Each run depends on its seed only (noise realisations and random faults are all drawn from
+it), so the runs can go anywhere: in this process (``scheduler="sync"``), on local cores
+through Dask's local cluster (the default), or on an existing Dask cluster given by its
+address. Results are gathered in seed order and reduced here, so the same seeds give the
+same numbers, bit for bit, whatever the scheduler.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bmg160_emu.adcs.scenarios import Scenario, load_scenario
+
+DEFAULT_PERCENTILES = (50.0, 90.0, 95.0, 99.0)
+
+RunFunction = Callable[[int], "RunResult"]
+
+
+@dataclass
+class RunResult:
+    """What one run returns: the angle error of the attitude estimate on a time grid."""
+
+    seed: int
+    times_s: np.ndarray
+    angle_error_deg: np.ndarray
+    extras: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class MonteCarloResult:
+    """Runs in seed order and their percentiles over time."""
+
+    scenario: str
+    seeds: list[int]
+    times_s: np.ndarray
+    angle_error_deg: np.ndarray  # (runs, times)
+    percentiles: dict[float, np.ndarray]
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def runs(self) -> int:
+        return len(self.seeds)
+
+    def final_percentiles(self) -> dict[float, float]:
+        return {p: float(v[-1]) for p, v in self.percentiles.items()}
+
+    def summary(self, rows: int = 10) -> str:
+        """A table of the percentiles at ``rows`` evenly spaced times, for a terminal."""
+        header = "  time_s " + "".join(f"   p{p:g}_deg" for p in self.percentiles)
+        picks = np.unique(np.linspace(0, self.times_s.size - 1, rows).round().astype(int))
+        lines = [(f"scenario {self.scenario}: {self.runs} runs, angle error of the propagated "
+                 "attitude against truth"), header]
+        for i in picks:
+            cells = "".join(f" {v[i]:11.5f}" for v in self.percentiles.values())
+            lines.append(f"{self.times_s[i]:8.2f}{cells}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "scenario": self.scenario,
+            "seeds": self.seeds,
+            "times_s": self.times_s.tolist(),
+            "percentiles_deg": {f"p{p:g}": v.tolist() for p, v in self.percentiles.items()},
+            "extras": {k: v.tolist() for k, v in self.extras.items()},
+        }
+
+    def write(self, path: str | Path) -> None:
+        """JSON with the percentile curves, or CSV (time and one column per percentile)."""
+        path = Path(path)
+        if path.suffix == ".csv":
+            names = [f"p{p:g}_deg" for p in self.percentiles]
+            table = np.column_stack([self.times_s, *self.percentiles.values()])
+            np.savetxt(path, table, delimiter=",", header=",".join(["time_s", *names]),
+                       comments="", fmt="%.9g")
+        else:
+            path.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+
+
+def reduce_runs(
+    scenario_name: str,
+    results: Sequence[RunResult],
+    percentiles: Iterable[float] = DEFAULT_PERCENTILES,
+) -> MonteCarloResult:
+    """Stack runs (already in seed order) and take percentiles across runs at each time."""
+    if not results:
+        raise ValueError("no runs to summarise")
+    times = results[0].times_s
+    for r in results:
+        if r.times_s.shape != times.shape or not np.array_equal(r.times_s, times):
+            raise ValueError(f"run with seed {r.seed} has another time grid than the first run")
+    errors = np.stack([r.angle_error_deg for r in results])
+    levels = {float(p): np.percentile(errors, p, axis=0) for p in percentiles}
+    extras = {k: np.array([r.extras.get(k, np.nan) for r in results]) for k in results[0].extras}
+    return MonteCarloResult(scenario_name, [r.seed for r in results], times, errors, levels, extras)
+
+
+def parse_seeds(text: str | None, runs: int | None) -> list[int]:
+    """Seeds from the command line: ``START`` (with runs), ``A:B`` (B excluded) or ``1,5,9``."""
+    if text is None:
+        if runs is None:
+            raise ValueError("give --runs, --seeds or both")
+        text = "0"
+    text = text.strip()
+    try:
+        if ":" in text:
+            first, _, last = text.partition(":")
+            seeds = list(range(int(first), int(last)))
+        elif "," in text:
+            seeds = [int(s) for s in text.split(",") if s.strip()]
+        else:
+            start = int(text)
+            seeds = list(range(start, start + (runs if runs is not None else 1)))
+    except ValueError:
+        raise ValueError(f"seeds must be START, A:B or a comma list of integers, not {text!r}") from None
+    if runs is not None and len(seeds) != runs and (":" in text or "," in text):
+        raise ValueError(f"--runs {runs} but --seeds {text!r} gives {len(seeds)} seeds")
+    if not seeds:
+        raise ValueError(f"no seeds in {text!r}")
+    if len(set(seeds)) != len(seeds) or min(seeds) < 0:
+        raise ValueError("seeds must be distinct non-negative integers")
+    return seeds
+
+
+def _progress(total: int, enabled: bool | None):
+    from tqdm import tqdm
+
+    # enabled None: a bar only on a terminal, so logs and CI output stay clean
+    disable = (not sys.stderr.isatty()) if enabled is None else not enabled
+    return tqdm(total=total, unit="run", desc="monte carlo", disable=disable)
+
+
+def _run_sync(run: RunFunction, seeds: Sequence[int], progress: bool | None) -> list[RunResult]:
+    results = []
+    with _progress(len(seeds), progress) as bar:
+        for seed in seeds:
+            results.append(run(seed))
+            bar.update(1)
+    return results
+
+
+def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
+              address: str | None, workers: int | None) -> list[RunResult]:
+    try:
+        from distributed import Client, LocalCluster, as_completed
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise RuntimeError(
+            "Dask is not installed: pip install 'bmg160-emu[montecarlo]', or use scheduler='sync'"
+        ) from None
+    cluster = None
+    if address is None:
+        cluster = LocalCluster(
+            n_workers=workers or os.cpu_count() or 1,
+            threads_per_worker=1,  # the runs are CPU-bound Python: one process per core
+            processes=True,
+            dashboard_address=None,
+        )
+        client = Client(cluster)
+    else:
+        try:
+            client = Client(address, timeout="10s")
+        except OSError as exc:
+            raise RuntimeError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+    try:
+        futures = client.map(run, list(seeds), pure=False)
+        by_seed: dict[int, RunResult] = {}
+        with _progress(len(seeds), progress) as bar:
+            for future in as_completed(futures):
+                result = future.result()
+                by_seed[result.seed] = result
+                bar.update(1)
+        return [by_seed[s] for s in seeds]
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def run_montecarlo(
+    scenario: Scenario | str | Path,
+    seeds: Sequence[int],
+    *,
+    scheduler: str = "local",
+    workers: int | None = None,
+    progress: bool | None = None,
+    percentiles: Iterable[float] = DEFAULT_PERCENTILES,
+    run: RunFunction | None = None,
+) -> MonteCarloResult:
+    """Run ``scenario`` once per seed and summarise the angle error over time.
+
+    ``scheduler``: ``"local"`` (Dask local cluster, ``workers`` processes, default all cores),
+    ``"sync"`` (this process, no Dask), or a Dask scheduler address such as
+    ``"tcp://10.0.0.5:8786"``. ``run`` replaces the default per-seed run
+    (:func:`bmg160_emu.adcs.evaluation.propagation_run`) by any picklable ``f(seed) ->
+    RunResult``.
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise ValueError("no seeds to run")
+    if run is None:
+        from bmg160_emu.adcs.evaluation import PropagationRun
+
+        run = PropagationRun(scenario)
+    if scheduler == "sync":
+        results = _run_sync(run, seeds, progress)
+    elif scheduler == "local":
+        results = _run_dask(run, seeds, progress, None, workers)
+    else:
+        results = _run_dask(run, seeds, progress, scheduler, workers)
+    return reduce_runs(scenario.name, results, percentiles)

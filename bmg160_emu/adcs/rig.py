@@ -1,0 +1,261 @@
+"""Several gyros on emulated I2C buses, driven by one scenario, with the truth recorded.
+
+A :class:`GyroRig` builds one :class:`~bmg160_emu.chip.BMG160` per :class:`GyroSpec` (two on
+one bus at 0x68/0x69, or on several buses), all on one virtual clock, all fed the scenario's
+true body rate through their own mounting. Each chip gets its own noise realisation: the
+master seed is split with :class:`numpy.random.SeedSequence`, so gyro ``i`` of master seed
+``s`` always gets the same noise and no two gyros share one. A fault schedule (from the
+scenario's ``[[fault]]`` tables or given) draws from the same master seed.
+
+Truth: for every output sample of every gyro the rig records the time, the true body rate
+(deg/s, before mounting and noise), the true attitude quaternion (integrated from the
+scenario, :mod:`bmg160_emu.adcs.attitude`) and the fault flags of that sample.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from bmg160_emu.adcs.attitude import IDENTITY, integrate_attitude
+from bmg160_emu.adcs.faults import Fault, FaultSchedule, describe_flags
+from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
+
+VALID_ADDRESSES = (0x68, 0x69)  # spec 2.1: SDO low / high
+
+
+def rotation_matrix_from_euler_zyx(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """Body-to-sensor matrix of the sensor frame turned by yaw (z), pitch (y), roll (x)."""
+    cz, sz = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    cy, sy = math.cos(math.radians(pitch_deg)), math.sin(math.radians(pitch_deg))
+    cx, sx = math.cos(math.radians(roll_deg)), math.sin(math.radians(roll_deg))
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    # the sensor axes in body coordinates are the columns of rz ry rx; body -> sensor is its transpose
+    return (rz @ ry @ rx).T
+
+
+def _mounting_matrix(value: Any, where: str) -> np.ndarray:
+    if value is None:
+        return np.eye(3)
+    if isinstance(value, dict):
+        if set(value) == {"euler_zyx_deg"}:
+            angles = np.asarray(value["euler_zyx_deg"], dtype=float)
+            if angles.shape != (3,):
+                raise ScenarioError(f"{where}: euler_zyx_deg must be [yaw, pitch, roll]")
+            return rotation_matrix_from_euler_zyx(*angles)
+        if set(value) == {"matrix"}:
+            value = value["matrix"]
+        else:
+            raise ScenarioError(f"{where}: mounting takes euler_zyx_deg or matrix")
+    matrix = np.asarray(value, dtype=float)
+    if matrix.shape != (3, 3) or not np.allclose(matrix @ matrix.T, np.eye(3), atol=1e-6) \
+            or np.linalg.det(matrix) < 0:
+        raise ScenarioError(f"{where}: mounting must be a proper rotation matrix (3x3)")
+    return matrix
+
+
+@dataclass
+class GyroSpec:
+    """Where one gyro sits: bus, address, mounting, and its error terms (default off)."""
+
+    name: str = "gyro"
+    bus: int = 1
+    address: int = 0x68
+    mounting: np.ndarray = field(default_factory=lambda: np.eye(3))  # body -> sensor
+    scale_factor_error: np.ndarray = field(default_factory=lambda: np.zeros(3))  # per axis, 1 = +100 %
+    misalignment_rad: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    profile: Any = "paper"  # a built-in name, a TOML path, a mapping or a Profile
+    noise: bool = True
+    noise_mode: str = "physical"
+    temperature_c: float = 23.0
+
+    def __post_init__(self) -> None:
+        if self.address not in VALID_ADDRESSES:
+            raise ScenarioError(f"{self.name}: the BMG160 answers at 0x68 or 0x69 only, "
+                                f"not 0x{self.address:02x}")
+        self.mounting = _mounting_matrix(self.mounting, self.name)
+        self.scale_factor_error = np.broadcast_to(
+            np.asarray(self.scale_factor_error, dtype=float), (3,)).copy()
+        self.misalignment_rad = np.asarray(self.misalignment_rad, dtype=float)
+        if self.misalignment_rad.shape != (3, 3):
+            raise ScenarioError(f"{self.name}: misalignment_rad must be a 3x3 matrix")
+
+
+_SPEC_KEYS = set(GyroSpec.__dataclass_fields__)
+
+
+def gyro_spec_from_dict(entry: dict[str, Any], index: int) -> GyroSpec:
+    """A gyro from its ``[[gyro]]`` table."""
+    unknown = set(entry) - _SPEC_KEYS
+    if unknown:
+        raise ScenarioError(f"gyro {index + 1}: unknown keys {sorted(unknown)}")
+    entry = {"name": f"gyro{index}", **entry}
+    return GyroSpec(**entry)
+
+
+@dataclass
+class Gyro:
+    """One emulated gyro of the rig: its place in the list, spec, chip, bus and address."""
+
+    index: int
+    spec: GyroSpec
+    chip: Any
+    bus: Any
+    seed: int
+
+    @property
+    def address(self) -> int:
+        return self.spec.address
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+
+@dataclass
+class Truth:
+    """The truth of one gyro's output samples, one row per sample."""
+
+    times_s: np.ndarray
+    rate_dps: np.ndarray  # true body rate
+    quaternion: np.ndarray  # true attitude, scalar first, body -> reference
+    fault_flags: np.ndarray
+
+    def faults_at(self, i: int) -> list[str]:
+        return describe_flags(int(self.fault_flags[i]))
+
+    def at(self, t: float) -> int:
+        """Index of the last sample at or before ``t`` (-1 if none)."""
+        return int(np.searchsorted(self.times_s, t, side="right")) - 1
+
+    def to_array(self) -> np.ndarray:
+        """Columns t, wx, wy, wz (deg/s), qw, qx, qy, qz, fault_flags."""
+        return np.column_stack([self.times_s, self.rate_dps, self.quaternion, self.fault_flags])
+
+
+class GyroRig:
+    """Gyros on emulated I2C buses, one clock, one master seed, truth out."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        gyros: Sequence[GyroSpec] | None = None,
+        seed: int = 0,
+        faults: FaultSchedule | Iterable[Fault | dict[str, Any]] | None = None,
+        q0: np.ndarray = IDENTITY,
+        clock: Any = None,
+    ) -> None:
+        from bmg160_emu.clock import VirtualClock
+        from bmg160_emu.i2c_bus import I2CBus
+
+        self.scenario = scenario
+        self.seed = int(seed)
+        self.q0 = np.asarray(q0, dtype=float)
+        if gyros is None:
+            gyros = [gyro_spec_from_dict(g, i) for i, g in enumerate(scenario.gyros)] or [GyroSpec()]
+        self.specs = list(gyros)
+        places = [(s.bus, s.address) for s in self.specs]
+        if len(set(places)) != len(places):
+            raise ScenarioError("two gyros at the same bus and address")
+        self.clock = clock if clock is not None else VirtualClock()
+        children = np.random.SeedSequence(self.seed).spawn(len(self.specs) + 1)
+        self.buses: dict[int, Any] = {}
+        self.gyros: list[Gyro] = []
+        self._times: list[list[float]] = []
+        self._rates: list[list[np.ndarray]] = []
+        for index, (spec, child) in enumerate(zip(self.specs, children)):
+            chip_seed = int(child.generate_state(1, dtype=np.uint64)[0])
+            chip = make_chip(spec, chip_seed, self.clock)
+            chip.set_true_rate(scenario.rate_dps)
+            bus = self.buses.get(spec.bus)
+            if bus is None:
+                bus = self.buses[spec.bus] = I2CBus(spec.bus)
+            bus.attach(spec.address, chip)
+            gyro = Gyro(index, spec, chip, bus, chip_seed)
+            self.gyros.append(gyro)
+            self._times.append([])
+            self._rates.append([])
+            chip.truth_hooks.append(self._truth_hook(index))
+        if isinstance(faults, FaultSchedule):
+            self.faults = faults
+        else:
+            fault_list = list(faults) if faults is not None else list(scenario.faults)
+            fault_seed = int(children[-1].generate_state(1, dtype=np.uint64)[0])
+            self.faults = FaultSchedule(fault_list, seed=fault_seed)
+        self.faults.install(self.gyros)
+
+    def _truth_hook(self, index: int):
+        times, rates = self._times[index], self._rates[index]
+
+        def hook(chip: Any, t: float, true_body_rate_dps: Any) -> None:
+            times.append(float(t))
+            rates.append(np.asarray(true_body_rate_dps, dtype=float))
+
+        return hook
+
+    # ----------------------------------------------------------------- running
+
+    @property
+    def time(self) -> float:
+        return float(self.clock.now())
+
+    def advance(self, seconds: float) -> None:
+        """Move the shared clock on; chips produce their samples as they are next accessed."""
+        self.clock.advance(seconds)
+
+    def bus(self, number: int | None = None) -> Any:
+        """The I2CBus with that number (the only one when omitted)."""
+        if number is None:
+            if len(self.buses) != 1:
+                raise ValueError(f"the rig has buses {sorted(self.buses)}: say which")
+            return next(iter(self.buses.values()))
+        return self.buses[number]
+
+    # ----------------------------------------------------------------- truth
+
+    def sample_times(self, gyro: int = 0) -> list[float]:
+        """The live list of output sample times of ``gyro`` (grows as samples are made)."""
+        return self._times[gyro]
+
+    def truth(self, gyro: int = 0) -> Truth:
+        """The truth of every output sample of ``gyro`` produced so far."""
+        times = np.array(self._times[gyro])
+        rates = np.array(self._rates[gyro]).reshape(-1, 3)
+        if times.size:
+            quaternions = integrate_attitude(self.scenario.rate_dps, times, self.q0, t0=0.0)
+        else:
+            quaternions = np.zeros((0, 4))
+        flags = np.array([self.faults.flags_at(gyro, t) for t in times], dtype=np.int64)
+        return Truth(times, rates, quaternions, flags)
+
+    def attitude_at(self, t: float) -> np.ndarray:
+        """The true attitude at any time ``t`` (integrated from 0)."""
+        return integrate_attitude(self.scenario.rate_dps, np.array([t]), self.q0, t0=0.0)[0]
+
+
+def make_chip(spec: GyroSpec, seed: int, clock: Any) -> Any:
+    """The chip model for one gyro spec (the one place that knows BMG160's options)."""
+    from bmg160_emu.chip import BMG160
+
+    options: dict[str, Any] = {
+        "seed": seed,
+        "profile": spec.profile,
+        "noise": spec.noise,
+        "noise_mode": spec.noise_mode,
+        "clock": clock,
+        "address": spec.address,
+        "temperature_c": spec.temperature_c,
+    }
+    if not np.allclose(spec.mounting, np.eye(3)):
+        options["mounting"] = spec.mounting
+    if np.any(spec.scale_factor_error):
+        options["scale_factor"] = spec.scale_factor_error
+    if np.any(spec.misalignment_rad):
+        options["misalignment"] = spec.misalignment_rad
+    return BMG160(**options)
