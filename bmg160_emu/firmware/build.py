@@ -1,0 +1,164 @@
+"""Build driver: write the parameter header, run the firmware Makefile, build the simavr harness.
+
+The firmware sources live in the repository's ``firmware/`` folder (C with avr-libc, a
+Makefile for Debian's gcc-avr). Builds go to a folder per configuration, so the header of one
+profile never clobbers another's.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+from bmg160_emu.firmware.params_header import render_params_header
+
+FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware"
+AVR_TOOLS = ("avr-gcc", "avr-objcopy", "avr-size")
+AVR_PACKAGES = "gcc-avr avr-libc binutils-avr"
+SIM_PACKAGES = "simavr libsimavr-dev libelf-dev"
+ATMEGA328P_FLASH = 32768  # bytes, data sheet
+ATMEGA328P_SRAM = 2048  # bytes, data sheet
+NORMAL_METHODS = ("polar", "box-muller")
+
+
+class FirmwareToolError(RuntimeError):
+    """A tool or source needed to build or simulate the firmware is missing or failed."""
+
+
+@dataclass(frozen=True)
+class FirmwareBuild:
+    """What a firmware build produced."""
+
+    directory: Path
+    header: Path
+    elf: Path
+    hex: Path
+    flash_bytes: int  # .text + .data
+    ram_bytes: int  # .data + .bss (static RAM; the stack comes on top)
+
+
+def missing_avr_tools() -> list[str]:
+    return [tool for tool in AVR_TOOLS if shutil.which(tool) is None]
+
+
+def simavr_available() -> bool:
+    """True if the simavr library and headers needed by the harness are installed."""
+    return (
+        shutil.which("cc") is not None
+        and Path("/usr/include/simavr/sim_avr.h").is_file()
+        and any(Path(d).glob("libsimavr.so*") for d in _library_dirs())
+    )
+
+
+def _library_dirs() -> list[str]:
+    return ["/usr/lib", "/usr/lib/x86_64-linux-gnu", "/usr/lib/aarch64-linux-gnu", "/usr/local/lib"]
+
+
+def _check_sources() -> None:
+    if not (FIRMWARE_DIR / "Makefile").is_file():
+        raise FirmwareToolError(
+            f"firmware sources not found in {FIRMWARE_DIR}: the firmware is built from a "
+            "checkout of the bmg160-emu repository (pip install -e .)"
+        )
+
+
+def _run(cmd: list[str], what: str) -> str:
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-15:])
+        raise FirmwareToolError(f"{what} failed (exit {proc.returncode}):\n{tail}")
+    return proc.stdout
+
+
+def default_build_dir(header_text: str, normal: str) -> Path:
+    key = hashlib.sha256((header_text + normal).encode()).hexdigest()[:12]
+    return FIRMWARE_DIR / "build" / key
+
+
+def build_firmware(
+    profile: str | Path = "paper",
+    address: int = 0x68,
+    mode: str = "physical",
+    seed: int = 1,
+    normal: str = "polar",
+    out_dir: str | Path | None = None,
+) -> FirmwareBuild:
+    """Write bmg160_params.h for the profile and build bmg160.elf and bmg160.hex.
+
+    Raises ValueError for a bad profile/address/mode and FirmwareToolError when gcc-avr is
+    missing or the build fails.
+    """
+    if normal not in NORMAL_METHODS:
+        raise ValueError(f"unknown normal generator {normal!r}: use polar or box-muller")
+    header_text = render_params_header(profile=profile, address=address, mode=mode, seed=seed)
+    missing = missing_avr_tools()
+    if missing:
+        raise FirmwareToolError(
+            f"{', '.join(missing)} not found: install the Debian packages {AVR_PACKAGES} "
+            "(apt-get install gcc-avr avr-libc binutils-avr)"
+        )
+    _check_sources()
+    directory = Path(out_dir) if out_dir is not None else default_build_dir(header_text, normal)
+    directory.mkdir(parents=True, exist_ok=True)
+    header = directory / "bmg160_params.h"
+    if not header.is_file() or header.read_text(encoding="utf-8") != header_text:
+        header.write_text(header_text, encoding="utf-8")  # unchanged header: no rebuild
+    flags = "-DBMG_NORMAL_BOX_MULLER" if normal == "box-muller" else ""
+    _run(
+        [
+            "make", "--no-print-directory", "-C", str(FIRMWARE_DIR),
+            f"BUILD_DIR={directory.resolve()}", f"PARAMS_DIR={directory.resolve()}",
+            f"NORMAL={flags}", f"{directory.resolve()}/bmg160.hex",
+        ],
+        "firmware build",
+    )  # fmt: skip
+    elf = directory / "bmg160.elf"
+    flash, ram = elf_memory_use(elf)
+    return FirmwareBuild(directory, header, elf, directory / "bmg160.hex", flash, ram)
+
+
+def elf_memory_use(elf: str | Path) -> tuple[int, int]:
+    """(flash bytes, static RAM bytes) of a firmware ELF, from avr-size's section sizes."""
+    out = _run(["avr-size", "-A", str(elf)], "avr-size")
+    sizes: dict[str, int] = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and parts[0].startswith(".") and parts[1].isdigit():
+            sizes[parts[0]] = int(parts[1])
+    flash = sizes.get(".text", 0) + sizes.get(".data", 0)
+    ram = sizes.get(".data", 0) + sizes.get(".bss", 0) + sizes.get(".noinit", 0)
+    return flash, ram
+
+
+def build_simulator(out_dir: str | Path | None = None) -> Path:
+    """Build the simavr harness (firmware/sim/bmg160_sim.c) and return its path."""
+    if not simavr_available():
+        raise FirmwareToolError(
+            f"simavr development files not found: install the Debian packages {SIM_PACKAGES}"
+        )
+    _check_sources()
+    directory = Path(out_dir) if out_dir is not None else FIRMWARE_DIR / "build" / "sim"
+    directory.mkdir(parents=True, exist_ok=True)
+    target = directory.resolve() / "bmg160_sim"
+    _run(
+        ["make", "--no-print-directory", "-C", str(FIRMWARE_DIR),
+         f"BUILD_DIR={directory.resolve()}", str(target)],
+        "simavr harness build",
+    )  # fmt: skip
+    return target
+
+
+def elf_symbols(elf: str | Path) -> dict[str, tuple[int, int]]:
+    """Data-memory symbols of the ELF: name -> (SRAM address, size in bytes)."""
+    out = _run(["avr-nm", "-S", str(elf)], "avr-nm")
+    symbols: dict[str, tuple[int, int]] = {}
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 4 and parts[2] in "bBdD":
+            address = int(parts[0], 16)
+            if address >= 0x800000:  # avr-gcc's data-space offset
+                symbols[parts[3]] = (address - 0x800000, int(parts[1], 16))
+    return symbols

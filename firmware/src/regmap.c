@@ -1,0 +1,196 @@
+/* Register semantics of the BMG160 as implemented on the ATmega328P.
+ *
+ * Reset values and write masks come from the generated header (the project's
+ * register table); this file holds the behaviour: MSB shadowing (spec 6.2),
+ * FIFO status and data (6.5), BW bit 7 (4.9), triggers (5.4), soft reset (6.6)
+ * and power-mode write rules (6.7). A register with write mask 0 that is not
+ * handled below reads its reset value and ignores writes. */
+#include <avr/pgmspace.h>
+#include <string.h>
+
+#include "config.h"
+#include "fifo.h"
+#include "regmap.h"
+#include "sampler.h"
+#include "bmg160_params.h"
+
+#define REG_RATE_X_LSB 0x02
+#define REG_RATE_Z_MSB 0x07
+#define REG_INT_STATUS_1 0x0A
+#define REG_FIFO_STATUS 0x0E
+#define REG_RANGE 0x0F
+#define REG_BW 0x10
+#define REG_LPM1 0x11
+#define REG_LPM2 0x12
+#define REG_RATE_HBW 0x13
+#define REG_BGW_SOFTRESET 0x14
+#define REG_INT_EN_0 0x15
+#define REG_FIFO_WM_EN 0x1E
+#define REG_INT_RST_LATCH 0x21
+#define REG_FIFO_CONFIG_0 0x3D
+#define REG_FIFO_CONFIG_1 0x3E
+
+#define SOFTRESET_KEY 0xB6 /* spec 4.13 */
+
+uint8_t bmg_regs[64];          /* the register file (peeked by the simulator) */
+static uint8_t rate_now[6];    /* newest sample, LSB/MSB for X, Y, Z */
+static uint8_t msb_shadow[3];
+static uint8_t msb_locked;     /* bit per axis: LSB read, MSB latched */
+
+static void apply_power_mode(enum bmg_power_mode old_mode);
+
+uint8_t regmap_bw_code(void) { return bmg_regs[REG_BW] & 0x07; }
+
+uint8_t regmap_range_code(void) { return bmg_regs[REG_RANGE] & 0x07; }
+
+enum bmg_power_mode regmap_power_mode(void)
+{
+	/* Priority rule of spec 6.7. */
+	uint8_t lpm1 = bmg_regs[REG_LPM1], lpm2 = bmg_regs[REG_LPM2];
+	if (lpm1 & 0x20)
+		return BMG_MODE_DEEP_SUSPEND;
+	if (lpm1 & 0x80)
+		return (lpm2 & 0x80) ? BMG_MODE_FAST_POWER_UP : BMG_MODE_SUSPEND;
+	if (lpm2 & 0x40)
+		return BMG_MODE_POWER_SAVE;
+	return BMG_MODE_NORMAL;
+}
+
+static uint8_t mode_samples(enum bmg_power_mode mode)
+{
+	return mode == BMG_MODE_NORMAL || mode == BMG_MODE_POWER_SAVE;
+}
+
+void regmap_reset(void)
+{
+	memcpy_P(bmg_regs, bmg_reset_values, sizeof bmg_regs);
+	memset(rate_now, 0, sizeof rate_now);
+	msb_locked = 0;
+	fifo_clear();
+	fifo_clear_overrun();
+	sampler_set_bw(regmap_bw_code());
+	sampler_restart(BMG_STARTUP_MS);
+}
+
+void regmap_publish(const int16_t counts[3])
+{
+	for (uint8_t i = 0; i < 3; i++) {
+		rate_now[2 * i] = (uint8_t)counts[i];
+		rate_now[2 * i + 1] = (uint8_t)((uint16_t)counts[i] >> 8);
+	}
+	memcpy(&bmg_regs[REG_RATE_X_LSB], rate_now, 6);
+	fifo_push(counts, bmg_regs[REG_FIFO_CONFIG_1] >> 6);
+	sampler_mark_published();
+}
+
+static uint8_t int_status_1(void)
+{
+	uint8_t status = 0;
+	uint8_t en = bmg_regs[REG_INT_EN_0];
+	if ((en & 0x80) && sampler_data_pulse())
+		status |= 0x80; /* data_int, a short non-latched pulse (spec 6.3) */
+	if (en & 0x40) {
+		uint8_t frames = fifo_frame_count();
+		uint8_t level = (bmg_regs[REG_FIFO_WM_EN] & 0x80)
+			? (bmg_regs[REG_FIFO_CONFIG_0] & 0x7F) : FIFO_CAPACITY;
+		if (frames >= level)
+			status |= 0x10; /* fifo_int at watermark, or full (spec 6.5) */
+	}
+	return status;
+}
+
+uint8_t regmap_read(uint8_t reg)
+{
+	if (reg >= BMG_REG_COUNT)
+		return 0x00; /* outside the user map (spec 2.4) */
+	if (reg >= REG_RATE_X_LSB && reg <= REG_RATE_Z_MSB) {
+		uint8_t axis = (uint8_t)((reg - REG_RATE_X_LSB) >> 1);
+		uint8_t bit = (uint8_t)(1 << axis);
+		uint8_t shadowing = !(bmg_regs[REG_RATE_HBW] & 0x40);
+		if (!(reg & 1)) { /* LSB: latch the matching MSB */
+			if (shadowing) {
+				msb_shadow[axis] = rate_now[2 * axis + 1];
+				msb_locked |= bit;
+			}
+			return rate_now[2 * axis];
+		}
+		if (msb_locked & bit) {
+			msb_locked &= (uint8_t)~bit;
+			if (shadowing)
+				return msb_shadow[axis];
+		}
+		return rate_now[2 * axis + 1];
+	}
+	switch (reg) {
+	case REG_INT_STATUS_1:
+		return int_status_1();
+	case REG_FIFO_STATUS:
+		return (uint8_t)((fifo_overrun() << 7) | fifo_frame_count());
+	case BMG_FIFO_DATA:
+		return fifo_read_byte(bmg_regs[REG_FIFO_CONFIG_0], bmg_regs[REG_FIFO_CONFIG_1]);
+	default:
+		return bmg_regs[reg];
+	}
+}
+
+static uint8_t write_allowed(uint8_t reg, enum bmg_power_mode mode)
+{
+	switch (mode) {
+	case BMG_MODE_DEEP_SUSPEND:
+		return reg == REG_LPM1 || reg == REG_BGW_SOFTRESET;
+	case BMG_MODE_SUSPEND:
+	case BMG_MODE_FAST_POWER_UP:
+		return reg == REG_LPM1 || reg == REG_LPM2 || reg == REG_BGW_SOFTRESET;
+	default:
+		return 1;
+	}
+}
+
+void regmap_write(uint8_t reg, uint8_t value)
+{
+	enum bmg_power_mode mode = regmap_power_mode();
+	uint8_t mask;
+
+	if (reg >= BMG_REG_COUNT || !write_allowed(reg, mode))
+		return;
+	if (reg == REG_BGW_SOFTRESET) {
+		if (value == SOFTRESET_KEY)
+			regmap_reset();
+		return;
+	}
+	mask = pgm_read_byte(&bmg_write_masks[reg]);
+	bmg_regs[reg] = (uint8_t)((bmg_regs[reg] & ~mask) | (value & mask));
+	switch (reg) {
+	case REG_BW:
+		sampler_set_bw(regmap_bw_code());
+		break;
+	case REG_LPM1:
+	case REG_LPM2:
+		apply_power_mode(mode);
+		break;
+	case REG_FIFO_CONFIG_0:
+		fifo_clear();
+		break;
+	case REG_FIFO_CONFIG_1:
+		fifo_clear();
+		fifo_clear_overrun();
+		break;
+	default:
+		break;
+	}
+}
+
+static void apply_power_mode(enum bmg_power_mode old_mode)
+{
+	enum bmg_power_mode mode = regmap_power_mode();
+	if (old_mode == BMG_MODE_DEEP_SUSPEND && mode != BMG_MODE_DEEP_SUSPEND) {
+		regmap_reset(); /* leaving deep suspend is a reset (spec 6.7) */
+		return;
+	}
+	if (mode_samples(mode) == mode_samples(old_mode))
+		return;
+	if (mode_samples(mode))
+		sampler_restart(old_mode == BMG_MODE_FAST_POWER_UP ? BMG_FAST_WAKE_MS : BMG_STARTUP_MS);
+	else
+		sampler_stop();
+}
