@@ -407,6 +407,33 @@ class BMG160:
             if now >= self._next_ns:
                 self._catch_up(now)
 
+    def poke(self, reg: int, value: int) -> None:
+        """Set a register's content directly, as an upset bit would: no access rules, no
+        trigger actions; the data path follows from the next sample (fault injection)."""
+        reg = self._check_reg(reg)
+        if not 0 <= value <= 0xFF:
+            raise ValueError("register value must be 0..255")
+        if reg >= FIRST_OUTSIDE_MAP:
+            return
+        with self.lock:
+            now = self._now()
+            if 2 <= reg <= 7:
+                cur = bytearray(self._cur)
+                cur[reg - 2] = value
+                self._cur = bytes(cur)
+                return
+            mode = self.power_mode
+            old = self._regs[reg]
+            self._regs[reg] = value
+            if reg == BW and (old ^ value) & 7:
+                self._change_bandwidth()
+            elif reg in (LPM1, LPM2):
+                self._power_transition(mode, reg, value, now)
+            elif reg in (RANGE, RATE_HBW) or OFC1 <= reg <= TRIM_GP0:
+                self._invalidate()
+            if reg in _ENGINE_REGS or reg == FIFO_CONFIG_1:
+                self._engine_config_changed(now)
+
     def power_on_reset(self) -> None:
         """Every register back to reset values, as after a brown-out; data after start-up."""
         with self.lock:
