@@ -261,10 +261,17 @@ class FakeSMBus:
             raise ValueError(f"Desired block length over {I2C_SMBUS_BLOCK_MAX} bytes")
         if self.address != i2c_addr or self._force_last != (self.force if force is None else force):
             self._set_address(i2c_addr, force=force)
-        count = operator.index(length) & 0xFF
         bus = self._i2c
         if bus is None:
             raise _closed()
+        if (
+            length.__class__ is int
+            and register.__class__ is int
+            and 0 <= register <= 0xFF
+            and length >= 0
+        ):  # the hot path: plain ints in range
+            return list(bus.read_i2c_block_data(self._client, register, length))
+        count = operator.index(length) & 0xFF
         data = bus.read_i2c_block_data(self._client, operator.index(register) & 0xFF, count)
         if count == length:
             return list(data)

@@ -21,7 +21,7 @@ from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from bmg160_emu.i2c_bus import os_error
-from bmg160_emu.transactions import Transaction, TransactionLog
+from bmg160_emu.transactions import TransactionLog
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -357,17 +357,8 @@ class FakeSpiDev:
             wire_rx = wire_rx.translate(_REVERSED)
         rx = _swap_words(wire_rx, size)
         if self.log.enabled:
-            self.log.append(
-                Transaction(
-                    time,
-                    self.name,
-                    None,
-                    kind,
-                    register,
-                    tx or b"",
-                    rx if tx is None or not host_3wire else b"",
-                )
-            )
+            heard = rx if tx is None or not host_3wire else b""
+            self.log.record(time, self.name, None, kind, register, tx or b"", heard)
         return rx
 
     def readbytes(self, length: int) -> list[int]:

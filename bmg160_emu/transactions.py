@@ -115,21 +115,41 @@ class Transaction:
 class TransactionLog:
     """The transactions of one bus, oldest first.
 
-    ``maxlen`` bounds memory for long sessions (oldest entries drop out; ``total`` keeps
-    counting). ``enabled = False`` stops recording (sinks still see nothing then).
+    Entries are stored as plain tuples (cheap, and ignored by the garbage collector) and
+    handed out as :class:`Transaction` objects. ``maxlen`` bounds memory for long sessions
+    (oldest entries drop out; ``total`` keeps counting). ``enabled = False`` stops recording.
+    ``sinks`` are called with each new :class:`Transaction` (e.g. a trace writer).
     """
 
     def __init__(self, maxlen: int | None = 100_000, sinks: Iterable[Sink] = ()) -> None:
-        self._entries: deque[Transaction] = deque(maxlen=maxlen)
+        self._entries: deque[tuple] = deque(maxlen=maxlen)
         self.sinks: list[Sink] = list(sinks)
         self.enabled = True
         self.total = 0
 
-    def append(self, transaction: Transaction) -> None:
-        self._entries.append(transaction)
+    def record(
+        self,
+        time: float,
+        bus: int | str,
+        address: int | None,
+        kind: str,
+        register: int | None = None,
+        written: bytes = b"",
+        read: bytes = b"",
+        error: str | None = None,
+    ) -> None:
+        """Append one transaction given by its fields (the front ends' fast path)."""
+        entry = (time, bus, address, kind, register, written, read, error)
+        self._entries.append(entry)
         self.total += 1
-        for sink in self.sinks:
-            sink(transaction)
+        if self.sinks:
+            transaction = Transaction(*entry)
+            for sink in self.sinks:
+                sink(transaction)
+
+    def append(self, transaction: Transaction) -> None:
+        t = transaction
+        self.record(t.time, t.bus, t.address, t.kind, t.register, t.written, t.read, t.error)
 
     def clear(self) -> None:
         self._entries.clear()
@@ -138,10 +158,10 @@ class TransactionLog:
         return len(self._entries)
 
     def __iter__(self) -> Iterator[Transaction]:
-        return iter(list(self._entries))
+        return (Transaction(*entry) for entry in list(self._entries))
 
     def __getitem__(self, index: int) -> Transaction:
-        return self._entries[index]
+        return Transaction(*self._entries[index])
 
     def __bool__(self) -> bool:
         return bool(self._entries)
@@ -157,7 +177,7 @@ class TransactionLog:
         """The transactions matching every given criterion."""
         return [
             t
-            for t in list(self._entries)
+            for t in self
             if (kind is None or t.kind == kind)
             and (address is None or t.address == address)
             and (register is None or t.register == register)
@@ -165,15 +185,15 @@ class TransactionLog:
         ]
 
     def kinds(self) -> list[str]:
-        return [t.kind for t in list(self._entries)]
+        return [entry[3] for entry in list(self._entries)]
 
     def to_dicts(self) -> list[dict[str, Any]]:
-        return [t.to_dict() for t in list(self._entries)]
+        return [t.to_dict() for t in self]
 
     def __str__(self) -> str:
         if not self._entries:
             return "(no transactions)"
-        return "\n".join(str(t) for t in list(self._entries))
+        return "\n".join(str(t) for t in self)
 
     def __repr__(self) -> str:
         return f"<TransactionLog {len(self._entries)} of {self.total} transactions>"
