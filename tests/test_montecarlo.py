@@ -1,0 +1,138 @@
+"""Monte Carlo over noise seeds: same seeds, same numbers, whatever the scheduler."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bmg160_emu.adcs.montecarlo import (
+    MonteCarloResult,
+    RunResult,
+    parse_seeds,
+    reduce_runs,
+    run_montecarlo,
+)
+from bmg160_emu.adcs.scenarios import scenario_from_dict
+from bmg160_emu.cli import main
+
+WHITE = {ax: {"N": 1.779073e-2, "B": 0.0, "T": 1.0, "K": 0.0, "bias": 0.0} for ax in "xyz"}
+
+SCENARIO_TOML = """
+name = "short slew"
+duration_s = 3.0
+
+[[motion]]
+kind = "slew"
+axis = [0, 0, 1]
+angle_deg = 2.0
+max_rate_dps = 2.0
+max_accel_dps2 = 4.0
+start_s = 1.0
+
+[readout]
+range_dps = 250
+bias = "profile"
+grid_s = 0.5
+"""
+
+
+def _short():
+    return scenario_from_dict({"duration_s": 3.0, "motion": [
+        {"kind": "constant", "rate_dps": [0.0, -0.06, 0.0]}],
+        "readout": {"grid_s": 0.5, "bias": "profile"}})
+
+
+def test_same_seeds_give_identical_results_in_process_and_on_a_dask_local_cluster():
+    seeds = [3, 4, 5, 6]
+    in_process = run_montecarlo(_short(), seeds, scheduler="sync", progress=False)
+    on_dask = run_montecarlo(_short(), seeds, scheduler="local", workers=2, progress=False)
+    assert on_dask.seeds == seeds
+    assert np.array_equal(in_process.angle_error_deg, on_dask.angle_error_deg)
+    for p in in_process.percentiles:
+        assert np.array_equal(in_process.percentiles[p], on_dask.percentiles[p])
+    other = run_montecarlo(_short(), [7, 8, 9, 10], scheduler="sync", progress=False)
+    assert not np.array_equal(other.angle_error_deg, in_process.angle_error_deg)
+
+
+def test_angle_error_of_white_noise_grows_like_n_sqrt_t():
+    # Per axis the angle error is N sqrt(t) (angle random walk); its 3-D magnitude is
+    # Maxwell-distributed with median 1.5382 N sqrt(t). With 30 runs the sample median has a
+    # relative standard error of about 1.2533 * 0.44 / sqrt(30) = 10 %: accept 35 %.
+    scenario = scenario_from_dict({"duration_s": 6.5, "gyro": [{"profile": WHITE}],
+                                   "readout": {"grid_s": 1.0, "bias": "profile"}})
+    result = run_montecarlo(scenario, range(30), scheduler="sync", progress=False)
+    elapsed = result.times_s - 0.5  # the estimator starts after the 0.5 s settling time
+    expected = 1.5382 * 1.779073e-2 * np.sqrt(elapsed)
+    assert np.allclose(result.percentiles[50.0], expected, rtol=0.35)
+    # and it grows: the last median is about sqrt(6) times the first
+    assert result.percentiles[50.0][-1] / result.percentiles[50.0][0] > 0.6 * math.sqrt(6)
+
+
+def test_percentiles_are_taken_across_runs_at_each_time():
+    times = np.array([1.0, 2.0])
+    runs = [RunResult(s, times, np.array([s, 10.0 * s])) for s in range(1, 102)]
+    result = reduce_runs("x", runs, percentiles=[50, 90])
+    assert np.allclose(result.percentiles[50.0], [51.0, 510.0])
+    assert np.allclose(result.percentiles[90.0], [91.0, 910.0])
+    with pytest.raises(ValueError, match="another time grid"):
+        reduce_runs("x", [runs[0], RunResult(9, np.array([1.0]), np.array([0.0]))])
+
+
+def test_results_are_written_as_csv_or_json(tmp_path):
+    times = np.array([1.0, 2.0])
+    result = reduce_runs("x", [RunResult(s, times, np.array([s, s + 1.0])) for s in range(5)])
+    assert isinstance(result, MonteCarloResult)
+    result.write(tmp_path / "mc.csv")
+    table = np.loadtxt(tmp_path / "mc.csv", delimiter=",", skiprows=1)
+    assert np.allclose(table[:, 0], times)
+    assert np.allclose(table[:, 1], [2.0, 3.0])  # median of 0..4 and 1..5
+    result.write(tmp_path / "mc.json")
+    assert '"p50"' in (tmp_path / "mc.json").read_text()
+
+
+@pytest.mark.parametrize(
+    "text, runs, seeds",
+    [(None, 3, [0, 1, 2]), ("10", 2, [10, 11]), ("4:7", None, [4, 5, 6]), ("1,5,9", None, [1, 5, 9])],
+)
+def test_seeds_from_the_command_line(text, runs, seeds):
+    assert parse_seeds(text, runs) == seeds
+
+
+@pytest.mark.parametrize("text, runs", [("a:b", None), ("4:7", 5), ("3,3", None), ("5:5", None)])
+def test_bad_seeds_are_refused(text, runs):
+    with pytest.raises(ValueError):
+        parse_seeds(text, runs)
+
+
+def test_command_prints_percentiles_and_writes_curves(tmp_path, capsys):
+    scenario = tmp_path / "slew.toml"
+    scenario.write_text(SCENARIO_TOML)
+    out = tmp_path / "curves.csv"
+    status = main(["montecarlo", str(scenario), "--runs", "3", "--seeds", "20",
+                   "--scheduler", "sync", "--output", str(out), "--no-progress"])
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "short slew: 3 runs" in printed and "p95_deg" in printed
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    assert table.shape[1] == 5 and np.all(table[:, 1:] >= 0)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["missing.toml", "--runs", "2", "--scheduler", "sync"], "cannot read scenario"),
+        (["{scenario}", "--runs", "0"], "--runs must be at least 1"),
+        (["{scenario}", "--seeds", "x"], "seeds must be"),
+        (["{scenario}", "--runs", "2", "--percentiles", "150"], "within 0..100"),
+        (["{scenario}", "--runs", "1", "--output", "a.txt"], ".json or .csv"),
+    ],
+)
+def test_command_errors_are_one_line_and_exit_2(tmp_path, capsys, args, message):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(SCENARIO_TOML)
+    status = main(["montecarlo", *[a.format(scenario=scenario) for a in args]])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert message in err and "Traceback" not in err
