@@ -22,6 +22,7 @@ from bmg160_emu.register_dump import (
     register_label,
     register_name,
 )
+from bmg160_emu.transactions import Transaction, errno_name
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
@@ -135,6 +136,8 @@ def describe_transaction(record: dict) -> str:
     error = _get(record, "error")
     written = _as_bytes(_get(record, "written", "data_out", "write"))
     read = _as_bytes(_get(record, "read", "data_in", "result"))
+    if kind == "spi_xfer" and written and not error:
+        return head + _describe_spi_frame(written, read) + f"  [{kind}]"
     if error:
         target = f" {register_label(register)}" if isinstance(register, int) and register < REGISTER_COUNT else ""
         return head + f"{kind}{target} failed: {error}"
@@ -149,18 +152,84 @@ def describe_transaction(record: dict) -> str:
     return head + f"{kind} {written.hex(' ')}".rstrip()
 
 
+def _describe_spi_frame(mosi: bytes, miso: bytes) -> str:
+    """An SPI frame (spec 2.2): command byte, then read data, or write data and pairs."""
+    command, register = mosi[0], mosi[0] & 0x7F
+    if command & 0x80:
+        return "SPI " + describe_read(register, miso[1:]) if len(mosi) > 1 else "SPI read command only"
+    if len(mosi) < 2:
+        return f"SPI write command 0x{register:02X} without data"
+    parts = [describe_write(register, mosi[1:2])]
+    rest = mosi[2:]
+    for i in range(0, len(rest) - 1, 2):  # further (address, data) pairs in the same frame
+        parts.append(describe_write(rest[i] & 0x7F, rest[i + 1 : i + 2]))
+    return "SPI " + "; ".join(parts)
+
+
 # --------------------------------------------------------------------------- JSON Lines
+
+
+# Chip constructor settings a trace header may carry (JSON-able; see BMG160.__init__).
+CHIP_SETTING_KEYS = (
+    "address", "profile", "noise", "noise_mode", "sensitivity", "temperature_c", "hold_data_int",
+)
 
 
 @dataclass
 class TraceHeader:
-    """What replay needs to rebuild the chip: seed, profile, options, starting time."""
+    """What replay needs to rebuild the chips: master seed and, per chip, its constructor
+    settings, true rate and the register writes made before the trace began."""
 
     seed: int | None = None
-    chip: dict = field(default_factory=dict)
+    chips: list[dict] = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        return {"format": TRACE_FORMAT_TAG, "version": TRACE_FORMAT_VERSION, "seed": self.seed, "chip": self.chip}
+        return {
+            "format": TRACE_FORMAT_TAG,
+            "version": TRACE_FORMAT_VERSION,
+            "seed": self.seed,
+            "chips": self.chips,
+        }
+
+    @classmethod
+    def from_dict(cls, document: dict) -> TraceHeader:
+        return cls(document.get("seed"), list(document.get("chips") or []))
+
+    def add_chip(
+        self,
+        settings: dict | None = None,
+        true_rate_dps: Iterable[float] | None = None,
+        setup_writes: Iterable[tuple[int, bytes]] = (),
+    ) -> None:
+        """Describe one chip: ``settings`` are BMG160 keyword arguments (JSON-able ones)."""
+        settings = dict(settings or {})
+        unknown = set(settings) - set(CHIP_SETTING_KEYS)
+        if unknown:
+            raise ValueError(f"chip settings a trace cannot carry: {sorted(unknown)}")
+        entry: dict[str, Any] = {"settings": settings}
+        if true_rate_dps is not None:
+            entry["true_rate_dps"] = [float(v) for v in true_rate_dps]
+        writes = [[int(reg), list(bytes(data))] for reg, data in setup_writes]
+        if writes:
+            entry["setup_writes"] = writes
+        self.chips.append(entry)
+
+    def build_chips(self) -> dict[int, Any]:
+        """Fresh chips as the header describes them, sharing one VirtualClock at t = 0."""
+        from bmg160_emu.chip import BMG160
+        from bmg160_emu.clock import VirtualClock
+
+        clock = VirtualClock()
+        chips: dict[int, Any] = {}
+        for entry in self.chips or [{"settings": {}}]:
+            settings = dict(entry.get("settings", {}))
+            chip = BMG160(self.seed, clock=clock, **settings)
+            if entry.get("true_rate_dps") is not None:
+                chip.set_true_rate(tuple(entry["true_rate_dps"]))
+            for reg, data in entry.get("setup_writes", []):
+                chip.write(reg, bytes(data))
+            chips[chip.address] = chip
+        return chips
 
 
 def _json_default(value: Any) -> Any:
@@ -230,6 +299,8 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
                     raise TraceFormatError(f"{path}:{lineno}: not a {TRACE_FORMAT_TAG} (header line missing)")
                 if obj.get("version") != TRACE_FORMAT_VERSION:
                     raise TraceFormatError(f"{path}:{lineno}: unsupported trace version {obj.get('version')!r}")
+                if not isinstance(obj.get("chips", []), list):
+                    raise TraceFormatError(f"{path}:{lineno}: header 'chips' must be a list")
                 header = obj
                 continue
             for key in ("kind",):
@@ -248,3 +319,178 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
 def iter_descriptions(records: Iterable[dict]) -> Iterator[str]:
     for record in records:
         yield describe_transaction(record)
+
+
+# --------------------------------------------------------------------------- replay
+
+
+@dataclass
+class Divergence:
+    """The first transaction whose replay differs from the trace."""
+
+    line: int
+    time_s: float
+    expected: str
+    actual: str
+
+    def __str__(self) -> str:
+        return (
+            f"line {self.line} (t={self.time_s:.6f} s): the trace has\n    {self.expected}\n"
+            f"  the replay gives\n    {self.actual}"
+        )
+
+
+@dataclass
+class ReplayResult:
+    transactions: int
+    divergence: Divergence | None
+
+    @property
+    def ok(self) -> bool:
+        return self.divergence is None
+
+
+def _errno_code(name: str) -> int:
+    import errno
+
+    code = getattr(errno, name, None)
+    if isinstance(code, int):
+        return code
+    try:
+        return int(name)
+    except ValueError:
+        return errno.EIO
+
+
+class _Replayer:
+    """Runs recorded transactions through the same front ends on fresh chips."""
+
+    def __init__(self, chips: dict[int, Any]):
+        from bmg160_emu.i2c_bus import I2CBus
+        from bmg160_emu.spi import FakeSpiDev
+
+        self.chips = chips
+        self.clock_chip = next(iter(chips.values()))
+        self._buses: dict[Any, Any] = {}
+        self._spi: dict[Any, Any] = {}
+        self._I2CBus = I2CBus
+        self._FakeSpiDev = FakeSpiDev
+        self._pending_error: str | None = None
+
+    def bus(self, number: Any):
+        if number not in self._buses:
+            bus = self._I2CBus(number if isinstance(number, int) else 0, devices=self.chips)
+            bus.transaction_hooks.append(self._inject_recorded_error)
+            self._buses[number] = bus
+        return self._buses[number]
+
+    def spi(self, name: Any):
+        if name not in self._spi:
+            self._spi[name] = self._FakeSpiDev(self.clock_chip)
+        return self._spi[name]
+
+    def _inject_recorded_error(self, bus, index, address, kind) -> None:
+        # A failed transaction came from outside the chip (a NACK, a timeout, a fault hook):
+        # fail the replayed one the same way so the chip sees the same traffic.
+        if self._pending_error is not None:
+            name, self._pending_error = self._pending_error, None
+            raise OSError(_errno_code(name), name)
+
+    def run(self, t: Transaction) -> tuple[bytes, str | None]:
+        """Replay one transaction; (bytes read, errno name or None)."""
+        now = self.clock_chip.time
+        if t.time > now:
+            self.clock_chip.advance(t.time - now)
+        self._pending_error = t.error if t.address is not None else None
+        try:
+            return self._dispatch(t), None
+        except OSError as exc:
+            return b"", errno_name(exc.errno or 0)
+        finally:
+            self._pending_error = None
+
+    def _dispatch(self, t: Transaction) -> bytes:
+        kind, reg, w, expected = t.kind, t.register, t.written, t.read
+        if kind.startswith("spi_"):
+            spi = self.spi(t.bus)
+            if kind == "spi_read":
+                return bytes(spi.readbytes(len(expected)))
+            if kind == "spi_write":
+                spi.writebytes(list(w))
+                return b""
+            return bytes(spi.xfer2(list(w)))
+        bus, a = self.bus(t.bus), t.address
+        if kind == "read_byte_data":
+            return bytes([bus.read_byte_data(a, reg)])
+        if kind == "write_byte_data":
+            bus.write_byte_data(a, reg, w[0])
+            return b""
+        if kind == "read_word_data":
+            return bus.read_word_data(a, reg).to_bytes(2, "little")
+        if kind == "write_word_data":
+            bus.write_word_data(a, reg, int.from_bytes(w[:2], "little"))
+            return b""
+        if kind == "read_i2c_block_data":
+            return bytes(bus.read_i2c_block_data(a, reg, len(expected)))
+        if kind == "write_i2c_block_data":
+            bus.write_i2c_block_data(a, reg, w)
+            return b""
+        if kind == "read_byte":
+            return bytes([bus.read_byte(a)])
+        if kind == "write_byte":
+            bus.write_byte(a, reg)
+            return b""
+        if kind in ("write_quick", "read_quick"):
+            bus.write_quick(a, kind == "read_quick")
+            return b""
+        if kind == "process_call":
+            return bus.process_call(a, reg, int.from_bytes(w[:2], "little")).to_bytes(2, "little")
+        if kind == "read_block_data":
+            data = bus.read_block_data(a, reg)
+            return bytes([len(data)]) + data
+        if kind == "write_block_data":
+            bus.write_block_data(a, reg, w[1:])
+            return b""
+        if kind == "block_process_call":
+            data = bus.block_process_call(a, reg, w[1:])
+            return bytes([len(data)]) + data
+        if kind == "i2c_write":
+            bus.i2c_write(a, (bytes([reg]) if reg is not None else b"") + w)
+            return b""
+        if kind == "i2c_read":
+            return bytes(bus.i2c_read(a, len(expected)))
+        raise TraceFormatError(f"cannot replay a transaction of kind {kind!r}")
+
+
+def _outcome_text(t: Transaction, read: bytes, error: str | None) -> str:
+    record = t.to_dict()
+    record.update(read=list(read), error=error)
+    return describe_transaction(record).strip()
+
+
+def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayResult:
+    """Replay a trace against fresh chips; report the first transaction that differs.
+
+    The chips are built from the header (same master seed, same settings, same set-up
+    writes, virtual clock from 0); before each transaction the clock is advanced to the
+    recorded time, so every sample is the same as in the original session.
+    """
+    if isinstance(header, dict):
+        header = TraceHeader.from_dict(header)
+    replayer = _Replayer(header.build_chips())
+    count = 0
+    for record in records:
+        line = int(record.get("_line", count + 2))
+        t = Transaction.from_dict(record)
+        if t.time < replayer.clock_chip.time - 1e-12:
+            return ReplayResult(count, Divergence(
+                line, t.time, f"a transaction at t={t.time:.9f} s",
+                f"the clock is already at {replayer.clock_chip.time:.9f} s (time went backwards)",
+            ))
+        read, error = replayer.run(t)
+        count += 1
+        if read != t.read or error != t.error:
+            return ReplayResult(count, Divergence(
+                line, t.time, _outcome_text(t, t.read, t.error), _outcome_text(t, read, error)
+            ))
+    return ReplayResult(count, None)

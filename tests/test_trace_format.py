@@ -28,14 +28,18 @@ def _session() -> list[Transaction]:
 
 def test_a_log_sink_writes_one_json_line_per_transaction_after_a_header(tmp_path):
     path = tmp_path / "session.jsonl"
-    with TraceWriter(path, TraceHeader(seed=7, chip={"profile": "paper"})) as writer:
+    header = TraceHeader(seed=7)
+    header.add_chip({"profile": "paper", "address": 0x68}, (1.0, 0.0, 0.0), [(0x0F, b"\x02")])
+    with TraceWriter(path, header) as writer:
         log = TransactionLog(sinks=[writer])
         for transaction in _session():
             log.append(transaction)
     lines = path.read_text().splitlines()
     assert len(lines) == 4
     assert json.loads(lines[0]) == {
-        "format": "bmg160-emu trace", "version": 1, "seed": 7, "chip": {"profile": "paper"},
+        "format": "bmg160-emu trace", "version": 1, "seed": 7,
+        "chips": [{"settings": {"profile": "paper", "address": 0x68},
+                   "true_rate_dps": [1.0, 0.0, 0.0], "setup_writes": [[0x0F, [2]]]}],
     }
     header, records = read_trace(path)
     assert header["seed"] == 7
