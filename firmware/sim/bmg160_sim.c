@@ -29,6 +29,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "avr_twi.h"
 #include "avr_uart.h"
@@ -419,7 +420,15 @@ int main(int argc, char **argv)
 	if (scl_hz < 1000 || scl_hz > 1000000)
 		die("--scl must be 1000..1000000 Hz");
 	scl_cycles = (uint32_t)(F_CPU / scl_hz);
-	load(elf);
+	{
+		/* simavr prints its loader messages on stdout: keep stdout for answers */
+		int saved = dup(1);
+		dup2(2, 1);
+		load(elf);
+		fflush(stdout);
+		dup2(saved, 1);
+		close(saved);
+	}
 	if (capture_s >= 0) {
 		if (!uart_path)
 			die("--capture needs --uart FILE");

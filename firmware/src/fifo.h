@@ -12,5 +12,7 @@ uint8_t fifo_read_byte(uint8_t config0, uint8_t config1);
 uint8_t fifo_frame_count(void);
 uint8_t fifo_overrun(void);
 void fifo_clear_overrun(void);
+/* After a transaction: the empty pattern starts again at a word boundary. */
+void fifo_end_transaction(void);
 
 #endif

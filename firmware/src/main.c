@@ -14,6 +14,7 @@
 
 #include "config.h"
 #include "fifo.h"
+#include "millis.h"
 #include "noise.h"
 #include "regmap.h"
 #include "sampler.h"
@@ -71,9 +72,15 @@ static void produce_sample(uint32_t index)
 	int16_t counts[3];
 	uint8_t range = regmap_range_code();
 
+	int16_t offsets[3];
+
 	noise_sample(regmap_bw_code(), rate_dps);
-	for (uint8_t i = 0; i < 3; i++)
+	regmap_offsets(offsets);
+	for (uint8_t i = 0; i < 3; i++) {
+		/* offset LSB = one LSB of the +-2000 deg/s range (spec 6.9) */
+		rate_dps[i] += offsets[i] * (1.0f / pgm_read_float(&bmg_sensitivity_lsb_per_dps[0]));
 		counts[i] = to_counts(rate_dps[i], range);
+	}
 	cli();
 	if (twi_busy()) {
 		memcpy(pending_counts, counts, sizeof counts);
@@ -96,6 +103,7 @@ static void stream_banner(void)
 int main(void)
 {
 	uart_init();
+	millis_init();
 	noise_init();
 	sampler_init();
 	regmap_reset();

@@ -12,6 +12,7 @@
 #include "fifo.h"
 #include "regmap.h"
 #include "sampler.h"
+#include "millis.h"
 #include "bmg160_params.h"
 
 #define REG_RATE_X_LSB 0x02
@@ -27,6 +28,11 @@
 #define REG_INT_EN_0 0x15
 #define REG_FIFO_WM_EN 0x1E
 #define REG_INT_RST_LATCH 0x21
+#define REG_A_FOC 0x32
+#define REG_TRIM_NVM_CTRL 0x33
+#define REG_OFC1 0x36
+#define REG_TRIM_GP0 0x3A
+#define REG_BIST 0x3C
 #define REG_FIFO_CONFIG_0 0x3D
 #define REG_FIFO_CONFIG_1 0x3E
 
@@ -36,12 +42,25 @@ uint8_t bmg_regs[64];          /* the register file (peeked by the simulator) */
 static uint8_t rate_now[6];    /* newest sample, LSB/MSB for X, Y, Z */
 static uint8_t msb_shadow[3];
 static uint8_t msb_locked;     /* bit per axis: LSB read, MSB latched */
+static uint16_t bist_start_ms;
+static uint8_t bist_triggered;
+#define BIST_TIME_MS 5          /* self-test duration (spec 6.8, under the 10 ms BAPI waits) */
 
-static void apply_power_mode(enum bmg_power_mode old_mode);
+static void apply_power_mode(enum bmg_power_mode old_mode, uint8_t reg, uint8_t value);
 
 uint8_t regmap_bw_code(void) { return bmg_regs[REG_BW] & 0x07; }
 
 uint8_t regmap_range_code(void) { return bmg_regs[REG_RANGE] & 0x07; }
+
+static int16_t sign_extend12(uint16_t v) { return (int16_t)(v << 4) >> 4; }
+
+void regmap_offsets(int16_t offsets[3])
+{
+	uint8_t ofc1 = bmg_regs[REG_OFC1], gp0 = bmg_regs[REG_TRIM_GP0];
+	offsets[0] = sign_extend12((uint16_t)(bmg_regs[0x37] << 4 | (ofc1 >> 6) << 2 | (gp0 >> 2 & 3)));
+	offsets[1] = sign_extend12((uint16_t)(bmg_regs[0x38] << 4 | (ofc1 >> 3 & 7) << 1 | (gp0 >> 1 & 1)));
+	offsets[2] = sign_extend12((uint16_t)(bmg_regs[0x39] << 4 | (ofc1 & 7) << 1 | (gp0 & 1)));
+}
 
 enum bmg_power_mode regmap_power_mode(void)
 {
@@ -66,6 +85,7 @@ void regmap_reset(void)
 	memcpy_P(bmg_regs, bmg_reset_values, sizeof bmg_regs);
 	memset(rate_now, 0, sizeof rate_now);
 	msb_locked = 0;
+	bist_triggered = 0;
 	fifo_clear();
 	fifo_clear_overrun();
 	sampler_set_bw(regmap_bw_code());
@@ -93,6 +113,8 @@ static uint8_t int_status_1(void)
 		uint8_t frames = fifo_frame_count();
 		uint8_t level = (bmg_regs[REG_FIFO_WM_EN] & 0x80)
 			? (bmg_regs[REG_FIFO_CONFIG_0] & 0x7F) : FIFO_CAPACITY;
+		if (!level)
+			level = 1; /* a watermark of 0 fires from one frame */
 		if (frames >= level)
 			status |= 0x10; /* fifo_int at watermark, or full (spec 6.5) */
 	}
@@ -126,6 +148,12 @@ uint8_t regmap_read(uint8_t reg)
 		return int_status_1();
 	case REG_FIFO_STATUS:
 		return (uint8_t)((fifo_overrun() << 7) | fifo_frame_count());
+	case REG_BIST: {
+		uint8_t value = sampler_valid() ? 0x10 : 0x00; /* rate_ok */
+		if (bist_triggered && (uint16_t)(millis() - bist_start_ms) >= BIST_TIME_MS)
+			value |= 0x02; /* bist_rdy, never bist_fail */
+		return value;
+	}
 	case BMG_FIFO_DATA:
 		return fifo_read_byte(bmg_regs[REG_FIFO_CONFIG_0], bmg_regs[REG_FIFO_CONFIG_1]);
 	default:
@@ -166,7 +194,26 @@ void regmap_write(uint8_t reg, uint8_t value)
 		break;
 	case REG_LPM1:
 	case REG_LPM2:
-		apply_power_mode(mode);
+		apply_power_mode(mode, reg, value);
+		break;
+	case REG_INT_RST_LATCH:
+		if (value & 0x40) { /* offset_reset: offsets to 0 (spec 4.19, 6.9) */
+			bmg_regs[REG_OFC1] = 0;
+			bmg_regs[REG_OFC1 + 1] = 0;
+			bmg_regs[REG_OFC1 + 2] = 0;
+			bmg_regs[REG_OFC1 + 3] = 0;
+			bmg_regs[REG_TRIM_GP0] &= 0xF0;
+		}
+		break;
+	case REG_TRIM_NVM_CTRL:
+		if (value & 0x08) /* nvm_load: the factory image, all zeros (spec 6.10) */
+			memset(&bmg_regs[REG_OFC1], 0, 6);
+		break;
+	case REG_BIST:
+		if (value & 0x01) {
+			bist_start_ms = millis();
+			bist_triggered = 1;
+		}
 		break;
 	case REG_FIFO_CONFIG_0:
 		fifo_clear();
@@ -180,11 +227,18 @@ void regmap_write(uint8_t reg, uint8_t value)
 	}
 }
 
-static void apply_power_mode(enum bmg_power_mode old_mode)
+static void apply_power_mode(enum bmg_power_mode old_mode, uint8_t reg, uint8_t value)
 {
 	enum bmg_power_mode mode = regmap_power_mode();
-	if (old_mode == BMG_MODE_DEEP_SUSPEND && mode != BMG_MODE_DEEP_SUSPEND) {
-		regmap_reset(); /* leaving deep suspend is a reset (spec 6.7) */
+	if (mode == old_mode)
+		return;
+	if (old_mode == BMG_MODE_DEEP_SUSPEND) {
+		/* Leaving deep suspend is a reset, then the LPM1 write is kept (spec 6.7). */
+		regmap_reset();
+		if (reg == REG_LPM1)
+			bmg_regs[REG_LPM1] = value & pgm_read_byte(&bmg_write_masks[REG_LPM1]);
+		if (!mode_samples(regmap_power_mode()))
+			sampler_stop();
 		return;
 	}
 	if (mode_samples(mode) == mode_samples(old_mode))

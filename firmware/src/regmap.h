@@ -19,6 +19,8 @@ uint8_t regmap_read(uint8_t reg);
 void regmap_write(uint8_t reg, uint8_t value);
 uint8_t regmap_bw_code(void);
 uint8_t regmap_range_code(void);
+/* The 12-bit offset of each axis (spec 4.24), in LSB of the +-2000 deg/s range. */
+void regmap_offsets(int16_t offsets[3]);
 enum bmg_power_mode regmap_power_mode(void);
 /* Put one new sample (counts, X Y Z) into the rate registers and the FIFO. */
 void regmap_publish(const int16_t counts[3]);

@@ -109,6 +109,8 @@ void sampler_mark_published(void)
 	pulse_valid = 1;
 }
 
+uint8_t sampler_valid(void) { return running && !startup_ticks; }
+
 uint8_t sampler_data_pulse(void)
 {
 	if (!pulse_valid)

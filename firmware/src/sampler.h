@@ -26,6 +26,8 @@ uint8_t sampler_take_due(uint32_t *newest_index);
 uint8_t sampler_has_due(void);
 /* True while the new-data pulse of the last published sample lasts. */
 uint8_t sampler_data_pulse(void);
+/* True once the data path runs and its start-up time has passed (BIST rate_ok). */
+uint8_t sampler_valid(void);
 void sampler_mark_published(void);
 
 #endif

@@ -8,6 +8,7 @@
 #include <util/twi.h>
 
 #include "config.h"
+#include "fifo.h"
 #include "regmap.h"
 #include "twi_slave.h"
 
@@ -20,7 +21,8 @@ volatile uint32_t twi_transactions; /* completed transactions, for benchmarks */
 
 static inline void advance(void)
 {
-	if (pointer != BMG_FIFO_DATA)
+	/* stays on FIFO_DATA (spec 2.4); saturates at 0xFF past the map */
+	if (pointer != BMG_FIFO_DATA && pointer != 0xFF)
 		pointer++;
 }
 
@@ -62,6 +64,7 @@ ISR(TWI_vect)
 	case TW_SR_STOP:
 		busy = 0;
 		twi_transactions++;
+		fifo_end_transaction();
 		twi_transaction_ended();
 		break;
 	case TW_BUS_ERROR:
