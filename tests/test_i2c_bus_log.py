@@ -1,0 +1,79 @@
+"""The transaction log: what a test asserts on and a person prints; JSON-ready records."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from _standin_chip import RegisterFileChip
+
+from bmg160_emu.i2c_bus import I2CBus
+from bmg160_emu.transactions import Transaction, TransactionLog
+
+
+def test_each_transaction_is_recorded_with_time_address_kind_register_and_bytes():
+    chip = RegisterFileChip()
+    bus = I2CBus(3, {0x68: chip})
+    chip.advance(0.25)
+    bus.write_byte_data(0x68, 0x0F, 0x02)
+    bus.read_i2c_block_data(0x68, 0x02, 2)
+    first, second = bus.log
+    assert (first.time, first.bus, first.address, first.kind) == (0.25, 3, 0x68, "write_byte_data")
+    assert (first.register, first.written, first.read, first.error) == (0x0F, b"\x02", b"", None)
+    assert (second.kind, second.register, second.read) == ("read_i2c_block_data", 0x02, b"\x02\x03")
+
+
+def test_to_dict_survives_json_and_from_dict_gives_the_same_transaction():
+    t = Transaction(1.5, 1, 0x68, "read_i2c_block_data", 2, b"", b"\x01\xff", None)
+    again = Transaction.from_dict(json.loads(json.dumps(t.to_dict())))
+    assert again == t
+
+
+def test_from_dict_accepts_hex_strings_and_names_a_missing_field():
+    t = Transaction.from_dict({"time": 0, "kind": "i2c_write", "written": "02 03"})
+    assert t.written == b"\x02\x03"
+    with pytest.raises(ValueError, match="kind"):
+        Transaction.from_dict({"time": 0})
+
+
+def test_printing_the_log_shows_one_line_per_transaction_with_bytes_in_hex():
+    log = TransactionLog()
+    log.record(0.0, 1, 0x68, "read_byte_data", 0x00, b"", b"\x0f")
+    log.record(0.0, 1, 0x50, "read_byte_data", 0x00, error="EREMOTEIO")
+    lines = str(log).splitlines()
+    assert len(lines) == 2
+    assert "0x68" in lines[0] and "-> 0f" in lines[0]
+    assert "FAILED EREMOTEIO" in lines[1]
+
+
+def test_filter_selects_by_kind_address_register_and_failure():
+    log = TransactionLog()
+    log.record(0.0, 1, 0x68, "read_byte_data", 0x00)
+    log.record(0.0, 1, 0x69, "write_byte_data", 0x0F, b"\x01")
+    log.record(0.0, 1, 0x50, "read_byte_data", 0x00, error="EREMOTEIO")
+    assert [t.address for t in log.filter(kind="read_byte_data")] == [0x68, 0x50]
+    assert [t.address for t in log.filter(register=0x0F)] == [0x69]
+    assert [t.address for t in log.filter(failed=True)] == [0x50]
+
+
+def test_maxlen_keeps_the_newest_and_total_keeps_counting():
+    log = TransactionLog(maxlen=2)
+    for i in range(5):
+        log.record(float(i), 1, 0x68, "read_byte", None)
+    assert [t.time for t in log] == [3.0, 4.0]
+    assert log.total == 5
+
+
+def test_sinks_receive_each_new_transaction():
+    got = []
+    log = TransactionLog(sinks=[got.append])
+    log.record(0.0, 1, 0x68, "write_quick")
+    assert got == [Transaction(0.0, 1, 0x68, "write_quick")]
+
+
+def test_disabled_log_records_nothing():
+    chip = RegisterFileChip()
+    bus = I2CBus(1, {0x68: chip})
+    bus.log.enabled = False
+    bus.read_byte_data(0x68, 0)
+    assert len(bus.log) == 0
