@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from bmg160_emu.register_dump import (
@@ -72,7 +72,7 @@ class Statement:
     seconds: float = 0.0
     interval_s: float = DEFAULT_POLL_INTERVAL_S
     rate_dps: tuple[float, float, float] | None = None
-    fault: tuple[str, ...] = ()
+    fault: tuple[tuple[str, object], ...] = ()  # (kind, kind), then (key, value) pairs
     dump_format: str = "table"
 
     @property
@@ -229,13 +229,10 @@ def _parse_statement(
         cur.done()
         return Statement(line, command, text, rate_dps=rate)  # type: ignore[arg-type]
     if command == "fault":
-        name = cur.take("fault name")
+        name = cur.take("fault kind")
         if not fault_available:
             raise _LineError(name.column, "fault injection is not available in this version")
-        args = [name.text]
-        while cur.peek() is not None:
-            args.append(cur.take("argument").text)
-        return Statement(line, command, text, fault=tuple(args))
+        return Statement(line, command, text, fault=_parse_fault(name, cur))
     if command == "dump":
         fmt = "table"
         token = cur.peek()
@@ -270,28 +267,122 @@ def parse_script(
 
 
 def fault_injection_available() -> bool:
-    """Fault statements need the chip's fault-injection module, which may not exist yet."""
+    """Fault statements need the fault-injection module (bmg160_emu.adcs.faults)."""
     import importlib.util
 
-    return importlib.util.find_spec("bmg160_emu.faults") is not None
+    try:
+        return importlib.util.find_spec("bmg160_emu.adcs.faults") is not None
+    except ModuleNotFoundError:
+        return False
 
 
-def _hex_bytes(data: Iterable[int]) -> str:
-    return " ".join(f"0x{b:02x}" for b in data)
+_FAULT_TRIGGERS = ("at_s", "on_transaction", "probability")
+
+
+def _fault_value(key: str, token: Token, text: str) -> object:
+    if key == "register":
+        return parse_register(Token(text, token.column + len(key) + 1))
+    if key == "axis" and text in ("x", "y", "z"):
+        return text
+    try:
+        return int(text, 0)
+    except ValueError:
+        pass
+    try:
+        value = float(text)
+    except ValueError:
+        raise _LineError(token.column + len(key) + 1, f"bad value {text!r} for {key}") from None
+    if not math.isfinite(value):
+        raise _LineError(token.column + len(key) + 1, f"{key} must be finite")
+    return value
+
+
+def _parse_fault(kind: Token, cur: _Cursor) -> tuple[tuple[str, object], ...]:
+    """``fault KIND key=value ...``: a bmg160_emu.adcs.faults.Fault, checked now.
+
+    Without a trigger key the fault starts at the statement's time (``at_s`` is filled in
+    when it runs)."""
+    from bmg160_emu.adcs.faults import FAULT_KINDS, Fault, FaultError
+
+    if kind.text not in FAULT_KINDS:
+        raise _LineError(kind.column, f"unknown fault kind {kind.text!r} (one of {', '.join(FAULT_KINDS)})")
+    pairs: list[tuple[str, object]] = [("kind", kind.text)]
+    fields = set(Fault.__dataclass_fields__) - {"kind", "gyro"}
+    while cur.peek() is not None:
+        token = cur.take("key=value")
+        key, sep, text = token.text.partition("=")
+        if not sep or not text:
+            raise _LineError(token.column, f"expected key=value, not {token.text!r}")
+        if key not in fields:
+            raise _LineError(token.column, f"unknown fault parameter {key!r} (one of {', '.join(sorted(fields))})")
+        pairs.append((key, _fault_value(key, token, text)))
+    trial = dict(pairs)
+    if not any(k in trial for k in _FAULT_TRIGGERS):
+        trial["at_s"] = 0.0
+    try:
+        Fault(**trial)
+    except (FaultError, TypeError) as exc:
+        raise _LineError(kind.column, str(exc)) from None
+    return tuple(pairs)
+
+
+class I2CRegisterPort:
+    """Register access through an I2C front end, as an smbus2 driver does it: one register
+    with ``read_byte_data``/``write_byte_data``, bursts with the I2C block kinds (a write
+    of the register address then a read for bursts over 32 bytes). Every access is a
+    transaction in the bus log, so a script session can be traced."""
+
+    def __init__(self, bus, address: int):
+        self.bus = bus
+        self.address = address
+
+    def write(self, register: int, data: bytes) -> None:
+        if len(data) == 1:
+            self.bus.write_byte_data(self.address, register, data[0])
+        else:
+            self.bus.write_i2c_block_data(self.address, register, data)
+
+    def read(self, register: int, count: int) -> bytes:
+        from bmg160_emu.i2c_bus import I2C_SMBUS_BLOCK_MAX, I2CMessage
+
+        if count == 1:
+            return bytes([self.bus.read_byte_data(self.address, register)])
+        if count <= I2C_SMBUS_BLOCK_MAX:
+            return bytes(self.bus.read_i2c_block_data(self.address, register, count))
+        messages = [I2CMessage.write(self.address, [register]), I2CMessage.read_message(self.address, count)]
+        return bytes(self.bus.i2c_transfer(messages)[1].data)
 
 
 class ScriptRunner:
-    """Plays parsed statements against a chip through its bus primitives.
+    """Plays parsed statements against a chip.
 
-    ``chip`` needs ``write``, ``read``, ``advance``, ``set_true_rate``, ``dump`` and
-    ``time`` (the contract in docs/architecture.md). ``log`` receives one readable line per
+    Register accesses go through ``port`` (an object with ``write(reg, data)`` and
+    ``read(reg, n)``); by default an :class:`I2CRegisterPort` on a fresh ``I2CBus``
+    (``runner.bus``) with the chip at its address. Time, true rate and dumps use the
+    chip's own primitives (docs/architecture.md). ``log`` receives one readable line per
     statement.
     """
 
-    def __init__(self, chip, log: Callable[[str], None] = print, source: str = "<script>"):
+    def __init__(
+        self,
+        chip,
+        log: Callable[[str], None] = print,
+        source: str = "<script>",
+        port=None,
+        bus=None,
+    ):
         self.chip = chip
         self.log = log
         self.source = source
+        self.bus = bus
+        if port is None:
+            if bus is None:
+                from bmg160_emu.i2c_bus import I2CBus
+
+                bus = self.bus = I2CBus(1, {chip.address: chip})
+            port = I2CRegisterPort(bus, chip.address)
+        self.port = port
+        self.faults: list = []
 
     def run(self, statements: list[Statement]) -> None:
         for statement in statements:
@@ -301,12 +392,23 @@ class ScriptRunner:
         self.log(f"{statement.line:4d}  t={self.chip.time:.6f}s  {message}")
 
     def execute(self, s: Statement) -> None:
+        try:
+            self._execute(s)
+        except OSError as exc:  # a bus error the script did not expect (e.g. an injected NACK)
+            from bmg160_emu.transactions import errno_name
+
+            name = errno_name(exc.errno) if exc.errno else str(exc)
+            raise ScriptFailure(
+                self.source, s.line, f"bus error during {s.command}: {name} ({exc.strerror})"
+            ) from None
+
+    def _execute(self, s: Statement) -> None:
         chip = self.chip
         if s.command == "write":
-            chip.write(s.register, bytes(s.values))
+            self.port.write(s.register, bytes(s.values))
             self._say(s, describe_write(s.register, bytes(s.values)))
         elif s.command in ("read", "burst"):
-            data = chip.read(s.register, s.count)
+            data = self.port.read(s.register, s.count)
             self._say(s, describe_read(s.register, data))
             if s.values:
                 self._check_read(s, data)
@@ -320,43 +422,57 @@ class ScriptRunner:
             x, y, z = s.rate_dps
             self._say(s, f"true rate x={x:g} y={y:g} z={z:g} deg/s")
         elif s.command == "fault":
-            from bmg160_emu import faults  # guarded at parse time
-
-            faults.inject(chip, *s.fault)
-            self._say(s, "fault " + " ".join(s.fault))
+            self._inject(s)
         elif s.command == "dump":
             self._say(s, f"dump ({s.dump_format})")
             text = format_dump(RegisterDump.from_chip(chip), s.dump_format)
             for out in text.rstrip("\n").split("\n"):
                 self.log("      " + out)
 
+    def _inject(self, s: Statement) -> None:
+        from types import SimpleNamespace
+
+        from bmg160_emu.adcs.faults import Fault, FaultSchedule
+
+        params = dict(s.fault)
+        if not any(k in params for k in _FAULT_TRIGGERS):
+            params["at_s"] = self.chip.time
+        fault = Fault(**params)
+        if self.bus is None and fault.layer == "bus":
+            raise ScriptFailure(self.source, s.line, "bus faults need the script to run on a bus")
+        target = SimpleNamespace(index=0, chip=self.chip, bus=self.bus, address=self.chip.address)
+        schedule = FaultSchedule([fault], seed=getattr(self.chip, "seed", None) or 0)
+        schedule.install([target])
+        self.faults.append(schedule)
+        self._say(s, f"fault {fault.describe()}")
+
     def _check_read(self, s: Statement, data: bytes) -> None:
         for offset, (got, want) in enumerate(zip(data, s.values)):
             if got & s.mask != want & s.mask:
                 reg = min(s.register + offset, REGISTER_COUNT - 1)
-                where = register_label(reg)
                 masked = "" if s.mask == 0xFF else f" (mask 0x{s.mask:02x})"
                 detail = describe_value_difference(reg, want & s.mask, got & s.mask, s.mask)
                 raise ScriptFailure(
                     self.source,
                     s.line,
-                    f"{where}: expected 0x{want & s.mask:02x}, read 0x{got & s.mask:02x}"
-                    f"{masked}{': ' + detail if detail else ''}",
+                    f"{register_label(reg)}: expected 0x{want & s.mask:02x}, read "
+                    f"0x{got & s.mask:02x}{masked}{': ' + detail if detail else ''}",
                 )
 
     def _poll(self, s: Statement) -> None:
+        """Read every ``interval`` of simulated time until the bit has the value, or fail
+        once the timeout has passed."""
         chip = self.chip
         start = chip.time
         reads = 0
         while True:
-            value = chip.read(s.register, 1)[0]
+            value = self.port.read(s.register, 1)[0]
             reads += 1
             if (value >> s.bit) & 1 == s.expected_bit:
-                waited = chip.time - start
                 self._say(
                     s,
-                    f"poll {register_label(s.register)} bit {s.bit} == {s.expected_bit}: "
-                    f"after {_seconds_text(waited)} ({reads} reads, last 0x{value:02x})",
+                    f"poll {register_label(s.register)} bit {s.bit} == {s.expected_bit}: after "
+                    f"{_seconds_text(chip.time - start)} ({reads} reads, last 0x{value:02x})",
                 )
                 return
             if chip.time - start + s.interval_s > s.seconds + 1e-12:
@@ -389,7 +505,11 @@ def describe_read(register: int, data: bytes) -> str:
     return _describe(register, data)
 
 
-def run_script(text: str, chip, log: Callable[[str], None] = print, source: str = "<script>") -> None:
+def run_script(
+    text: str, chip, log: Callable[[str], None] = print, source: str = "<script>", bus=None
+) -> ScriptRunner:
     """Parse then run; raises ScriptSyntaxError before anything runs, ScriptFailure on a miss."""
     statements = parse_script(text, source)
-    ScriptRunner(chip, log, source).run(statements)
+    runner = ScriptRunner(chip, log, source, bus=bus)
+    runner.run(statements)
+    return runner
