@@ -1,0 +1,74 @@
+"""Virtual and real-time clocks, and virtual_sleep (time.sleep advances virtual time)."""
+
+import time
+
+import pytest
+
+from bmg160_emu.chip import BMG160
+from bmg160_emu.clock import RealTimeClock, VirtualClock, virtual_sleep
+
+
+def test_virtual_clock_moves_only_when_advanced():
+    clock = VirtualClock()
+    assert clock.now() == 0.0
+    clock.advance(0.25)
+    assert clock.now_ns() == 250_000_000
+
+
+def test_virtual_clock_refuses_negative_or_non_finite_steps():
+    clock = VirtualClock()
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError):
+            clock.advance(bad)
+    with pytest.raises(TypeError):
+        clock.advance(None)
+
+
+def test_real_time_clock_follows_monotonic_time():
+    clock = RealTimeClock()
+    t0 = clock.now()
+    time.sleep(0.02)
+    assert 0.015 < clock.now() - t0 < 1.0
+
+
+def test_virtual_sleep_turns_time_sleep_into_virtual_time():
+    chip = BMG160(noise=False)
+    start = time.monotonic()
+    with virtual_sleep(chip):
+        time.sleep(100.0)
+    assert time.monotonic() - start < 5.0
+    assert chip.time == pytest.approx(100.0)
+
+
+def test_virtual_sleep_can_patch_monotonic_clocks_too():
+    clock = VirtualClock()
+    with virtual_sleep(clock, patch_clocks=True):
+        t0 = time.monotonic()
+        p0 = time.perf_counter()
+        time.sleep(2.5)
+        assert time.monotonic() - t0 == pytest.approx(2.5)
+        assert time.perf_counter() - p0 == pytest.approx(2.5)
+    assert time.sleep is not None and clock.now() == pytest.approx(2.5)
+
+
+def test_virtual_sleep_restores_time_sleep():
+    real = time.sleep
+    with virtual_sleep(VirtualClock()):
+        assert time.sleep is not real
+    assert time.sleep is real
+
+
+def test_virtual_sleep_needs_a_virtual_clock():
+    with pytest.raises(TypeError):
+        with virtual_sleep(RealTimeClock()):
+            pass
+
+
+def test_driver_that_sleeps_between_reads_sees_new_samples():
+    chip = BMG160(noise=False, true_rate=lambda t: (t * 100.0, 0.0, 0.0))
+    seen = []
+    with virtual_sleep(chip):
+        for _ in range(5):
+            seen.append(chip.read(0x02, 2))
+            time.sleep(0.01)
+    assert len(set(seen)) == 5
