@@ -26,6 +26,7 @@
 
 static int16_t pending_counts[3];
 static volatile uint8_t pending;
+static uint8_t pending_epoch;
 
 static int16_t to_counts(float rate_dps, uint8_t range_code)
 {
@@ -40,7 +41,8 @@ static int16_t to_counts(float rate_dps, uint8_t range_code)
 void twi_transaction_ended(void)
 {
 	if (pending) {
-		regmap_publish(pending_counts);
+		if (pending_epoch == sampler_epoch)
+			regmap_publish(pending_counts);
 		pending = 0;
 	}
 }
@@ -66,7 +68,7 @@ static void stream_sample(uint32_t index, const float rate_dps[3])
 		sampler_stats.uart_dropped++;
 }
 
-static void produce_sample(uint32_t index)
+static void produce_sample(uint32_t index, uint8_t epoch)
 {
 	float rate_dps[3];
 	int16_t counts[3];
@@ -82,9 +84,14 @@ static void produce_sample(uint32_t index)
 		counts[i] = to_counts(rate_dps[i], range);
 	}
 	cli();
+	if (epoch != sampler_epoch) {
+		sei(); /* the data path stopped or restarted meanwhile: drop it */
+		return;
+	}
 	if (twi_busy()) {
 		memcpy(pending_counts, counts, sizeof counts);
 		pending = 1;
+		pending_epoch = epoch;
 	} else {
 		regmap_publish(counts);
 	}
@@ -114,7 +121,7 @@ int main(void)
 
 	for (;;) {
 		uint32_t newest;
-		uint8_t due;
+		uint8_t due, epoch;
 		cli();
 		if (!sampler_has_due()) {
 			sleep_enable();
@@ -124,12 +131,12 @@ int main(void)
 			continue;
 		}
 		sei();
-		due = sampler_take_due(&newest);
+		due = sampler_take_due(&newest, &epoch);
 		if (due > BACKLOG_LIMIT) {
 			sampler_stats.missed += due - 1;
 			due = 1;
 		}
 		while (due)
-			produce_sample(newest - --due);
+			produce_sample(newest - --due, epoch);
 	}
 }

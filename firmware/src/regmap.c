@@ -177,7 +177,7 @@ static uint8_t write_allowed(uint8_t reg, enum bmg_power_mode mode)
 void regmap_write(uint8_t reg, uint8_t value)
 {
 	enum bmg_power_mode mode = regmap_power_mode();
-	uint8_t mask;
+	uint8_t mask, old;
 
 	if (reg >= BMG_REG_COUNT || !write_allowed(reg, mode))
 		return;
@@ -187,10 +187,14 @@ void regmap_write(uint8_t reg, uint8_t value)
 		return;
 	}
 	mask = pgm_read_byte(&bmg_write_masks[reg]);
+	old = bmg_regs[reg];
 	bmg_regs[reg] = (uint8_t)((bmg_regs[reg] & ~mask) | (value & mask));
 	switch (reg) {
 	case REG_BW:
-		sampler_set_bw(regmap_bw_code());
+		if ((old ^ bmg_regs[REG_BW]) & 0x07) {
+			sampler_discard_backlog();
+			sampler_set_bw(regmap_bw_code());
+		}
 		break;
 	case REG_LPM1:
 	case REG_LPM2:
@@ -216,9 +220,11 @@ void regmap_write(uint8_t reg, uint8_t value)
 		}
 		break;
 	case REG_FIFO_CONFIG_0:
+		sampler_discard_backlog();
 		fifo_clear();
 		break;
 	case REG_FIFO_CONFIG_1:
+		sampler_discard_backlog();
 		fifo_clear();
 		fifo_clear_overrun();
 		break;

@@ -15,6 +15,7 @@
 static const uint16_t odr_hz[8] = {2000, 2000, 1000, 400, 200, 100, 200, 100};
 
 volatile struct sampler_stats sampler_stats;
+volatile uint8_t sampler_epoch;
 static volatile uint16_t startup_ticks;   /* periods still to wait before sampling */
 static volatile uint8_t running;
 static volatile uint8_t due;
@@ -60,6 +61,7 @@ void sampler_restart(uint16_t delay_ms)
 		startup_ticks = periods ? (uint16_t)periods : 1;
 		due = 0;
 		running = 1;
+		sampler_epoch++;
 		pulse_valid = 0;
 	}
 }
@@ -69,6 +71,7 @@ void sampler_stop(void)
 	ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
 		running = 0;
 		due = 0;
+		sampler_epoch++;
 		pulse_valid = 0;
 	}
 }
@@ -89,13 +92,14 @@ void sampler_set_bw(uint8_t bw_code)
 	}
 }
 
-uint8_t sampler_take_due(uint32_t *newest_index)
+uint8_t sampler_take_due(uint32_t *newest_index, uint8_t *epoch)
 {
 	uint8_t n;
 	ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
 		n = due;
 		due = 0;
 		*newest_index = sampler_stats.index;
+		*epoch = sampler_epoch;
 	}
 	return n;
 }
@@ -107,6 +111,14 @@ void sampler_mark_published(void)
 	pulse_start = TCNT1;
 	pulse_tick = tick_low;
 	pulse_valid = 1;
+}
+
+void sampler_discard_backlog(void)
+{
+	ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+		due = 0;
+		sampler_epoch++;
+	}
 }
 
 uint8_t sampler_valid(void) { return running && !startup_ticks; }

@@ -11,6 +11,9 @@ struct sampler_stats {
 };
 
 extern volatile struct sampler_stats sampler_stats;
+/* Changes whenever the data path stops or restarts: a sample computed before that must
+ * not be published after it (suspend freezes the registers, reset clears them). */
+extern volatile uint8_t sampler_epoch;
 
 void sampler_init(void);
 /* Restart the data path: the first new sample comes delay_ms after now. */
@@ -19,9 +22,12 @@ void sampler_restart(uint16_t delay_ms);
 void sampler_stop(void);
 /* Follow a new BW code from the next period on. */
 void sampler_set_bw(uint8_t bw_code);
+/* Forget periods elapsed but not yet published (their sample predates a configuration
+ * write that must not see it, e.g. a FIFO reset or an ODR change). */
+void sampler_discard_backlog(void);
 /* Periods elapsed and not yet processed (read and cleared atomically), and the
  * index of the newest of them. */
-uint8_t sampler_take_due(uint32_t *newest_index);
+uint8_t sampler_take_due(uint32_t *newest_index, uint8_t *epoch);
 /* Non-zero if a period is waiting (call with interrupts disabled before sleeping). */
 uint8_t sampler_has_due(void);
 /* True while the new-data pulse of the last published sample lasts. */
