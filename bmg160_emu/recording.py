@@ -87,7 +87,7 @@ def chip_odr_hz(chip) -> float:
 
 def chip_lsb_per_dps(chip) -> float:
     """The chip's current sensitivity in LSB per deg/s (spec 5.1; binary or nominal table)."""
-    for name in ("lsb_per_dps", "sensitivity_lsb_per_dps"):
+    for name in ("sensitivity", "lsb_per_dps"):
         value = getattr(chip, name, None)
         if value is not None:
             return float(value() if callable(value) else value)

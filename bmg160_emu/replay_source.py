@@ -308,9 +308,10 @@ class ReplaySource:
     def value_at(self, tau: float, period_s: float | None) -> np.ndarray:
         """The recorded rate at recording time ``tau`` (deg/s), resampled as documented."""
         t, rate = self.data.t_s, self.data.rate_dps
-        if period_s is not None and period_s >= 2 * self.data.median_step_s:
-            lo = np.searchsorted(t, tau - period_s, side="right")
-            hi = np.searchsorted(t, tau, side="right")
+        res = TIME_RESOLUTION_S
+        if period_s is not None and period_s + res >= 2 * self.data.median_step_s:
+            lo = np.searchsorted(t, tau - period_s + res, side="right")
+            hi = np.searchsorted(t, tau + res, side="right")
             if hi > lo:
                 return rate[lo:hi].mean(axis=0)
         if tau <= t[0]:
