@@ -138,7 +138,7 @@ def chips_from_args(args: argparse.Namespace) -> dict[int, BMG160]:
                 temperature_c=getattr(args, "temperature", 23.0),
                 strict=getattr(args, "strict", False),
             )
-        except (ValueError, KeyError) as exc:
+        except (ValueError, KeyError, OSError) as exc:
             from bmg160_emu.cli import CommandError
 
             raise CommandError(str(exc)) from None
