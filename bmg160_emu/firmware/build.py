@@ -162,3 +162,26 @@ def elf_symbols(elf: str | Path) -> dict[str, tuple[int, int]]:
             if address >= 0x800000:  # avr-gcc's data-space offset
                 symbols[parts[3]] = (address - 0x800000, int(parts[1], 16))
     return symbols
+
+
+# BW code with the 200 Hz ODR and the lowest filter that keeps it, for each ODR (spec 5.3).
+BW_CODE_FOR_ODR = {100: 5, 200: 4, 400: 3, 1000: 2, 2000: 1}
+
+
+def capture_uart(
+    build: FirmwareBuild, seconds: float, output: str | Path, odr_hz: int = 200
+) -> Path:
+    """Run the firmware in simavr for ``seconds`` of simulated time at ``odr_hz`` and write
+    its UART stream to ``output`` (the BW register is set over I2C after boot)."""
+    if odr_hz not in BW_CODE_FOR_ODR:
+        raise ValueError(f"ODR must be one of {sorted(BW_CODE_FOR_ODR)} Hz, not {odr_hz!r}")
+    if not seconds > 0:
+        raise ValueError(f"capture length must be positive, not {seconds!r} s")
+    simulator = build_simulator()
+    address = 0x69 if "BMG_I2C_ADDRESS 0x69" in build.header.read_text() else 0x68
+    _run(
+        [str(simulator), str(build.elf), "--capture", repr(float(seconds)), "--uart",
+         str(output), "--bw", str(BW_CODE_FOR_ODR[odr_hz]), "--address", hex(address)],
+        "firmware capture",
+    )  # fmt: skip
+    return Path(output)

@@ -1,0 +1,125 @@
+"""``bmg160-emu firmware``: build the ATmega328P firmware, or capture its UART stream in simavr."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+EPILOG = """\
+examples:
+  bmg160-emu firmware build --profile paper
+  bmg160-emu firmware build --profile paper --address 0x69 --out build/gyro69
+  bmg160-emu firmware capture --seconds 60 --odr 200 --output stream.txt
+
+'build' writes bmg160_params.h (noise coefficients, register table, I2C address) and builds
+bmg160.elf and bmg160.hex with Debian's gcc-avr. Flash the HEX onto an Arduino Uno/Nano:
+  avrdude -p m328p -c arduino -P /dev/ttyUSB0 -b 115200 -U flash:w:bmg160.hex:i
+(-b 57600 for a Nano with the old bootloader). 'capture' runs the firmware in simavr and
+writes its UART sample stream (docs/firmware.md).
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "firmware",
+        help="build the ATmega328P firmware or capture its output in simavr",
+        description="The BMG160 firmware for an ATmega328P board: I2C slave at 0x68/0x69 "
+        "with on-chip noise and a UART sample stream.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    actions = parser.add_subparsers(dest="firmware_action", metavar="ACTION")
+    build = actions.add_parser(
+        "build",
+        help="write the parameter header and build ELF/HEX",
+        description="Write bmg160_params.h for a noise profile and build bmg160.elf/.hex.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _common(build)
+    build.set_defaults(func=run_build)
+    capture = actions.add_parser(
+        "capture",
+        help="run the firmware in simavr and write its UART stream",
+        description="Build (if needed) and run the firmware in simavr for a simulated time, "
+        "writing its UART sample stream to a file.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _common(capture)
+    capture.add_argument("--seconds", type=float, required=True, help="simulated seconds")
+    capture.add_argument("--odr", type=int, default=200, help="output data rate in Hz (200)")
+    capture.add_argument("--output", required=True, help="file for the UART stream")
+    capture.set_defaults(func=run_capture)
+    parser.set_defaults(func=lambda args: _missing_action(parser))
+
+
+def _common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--profile", default="paper", help="noise profile name or TOML file")
+    parser.add_argument(
+        "--address", default="0x68", help="7-bit I2C address: 0x68 (SDO low) or 0x69 (SDO high)"
+    )
+    parser.add_argument(
+        "--mode", default="physical", choices=("physical", "paper"), help="noise discretization"
+    )
+    parser.add_argument("--seed", type=int, default=1, help="seed of the on-chip generator")
+    parser.add_argument(
+        "--normal",
+        default="polar",
+        choices=("polar", "box-muller"),
+        help="normal generator: Marsaglia polar (default) or the paper's trigonometric form",
+    )
+    parser.add_argument("--out", default=None, help="build folder (default firmware/build/...)")
+
+
+def _missing_action(parser: argparse.ArgumentParser) -> int:
+    parser.print_help()
+    return 2
+
+
+def _build(args: argparse.Namespace):
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.firmware.build import FirmwareToolError, build_firmware
+
+    try:
+        address = int(args.address, 0)
+    except ValueError:
+        raise CommandError(f"--address {args.address!r} is not a number (use 0x68 or 0x69)")
+    try:
+        return build_firmware(
+            profile=args.profile,
+            address=address,
+            mode=args.mode,
+            seed=args.seed,
+            normal=args.normal,
+            out_dir=args.out,
+        )
+    except (ValueError, FirmwareToolError) as exc:
+        raise CommandError(str(exc).replace("\n", " | ")) from None
+
+
+def run_build(args: argparse.Namespace) -> int:
+    from bmg160_emu.firmware.build import ATMEGA328P_FLASH, ATMEGA328P_SRAM
+
+    build = _build(args)
+    print(f"header: {build.header}")
+    print(f"elf:    {build.elf}")
+    print(f"hex:    {build.hex}")
+    print(
+        f"flash:  {build.flash_bytes} of {ATMEGA328P_FLASH} bytes; static RAM: "
+        f"{build.ram_bytes} of {ATMEGA328P_SRAM} bytes (the stack uses the rest)"
+    )
+    return 0
+
+
+def run_capture(args: argparse.Namespace) -> int:
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.firmware.build import FirmwareToolError, capture_uart
+
+    build = _build(args)
+    try:
+        path = capture_uart(build, args.seconds, Path(args.output), odr_hz=args.odr)
+    except (ValueError, FirmwareToolError) as exc:
+        raise CommandError(str(exc).replace("\n", " | ")) from None
+    print(f"wrote {path} ({args.seconds:g} simulated s at {args.odr} Hz)")
+    return 0
