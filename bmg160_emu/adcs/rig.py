@@ -169,6 +169,7 @@ class GyroRig:
         self.gyros: list[Gyro] = []
         self._times: list[list[float]] = []
         self._rates: list[list[np.ndarray]] = []
+        self._truth_cache: dict[int, Truth] = {}
         for index, (spec, child) in enumerate(zip(self.specs, children)):
             chip_seed = int(child.generate_state(1, dtype=np.uint64)[0])
             chip = make_chip(spec, chip_seed, self.clock)
@@ -224,15 +225,34 @@ class GyroRig:
         return self._times[gyro]
 
     def truth(self, gyro: int = 0) -> Truth:
-        """The truth of every output sample of ``gyro`` produced so far."""
-        times = np.array(self._times[gyro])
-        rates = np.array(self._rates[gyro]).reshape(-1, 3)
-        if times.size:
-            quaternions = integrate_attitude(self.scenario.rate_dps, times, self.q0, t0=0.0)
+        """The truth of every output sample of ``gyro`` produced so far.
+
+        Extended incrementally: asking after every poll costs only the new samples.
+        """
+        cached = self._truth_cache.get(gyro)
+        done = 0 if cached is None else cached.times_s.size
+        new_times = np.array(self._times[gyro][done:], dtype=float)
+        if cached is not None and new_times.size == 0:
+            return cached
+        new_rates = np.array(self._rates[gyro][done:], dtype=float).reshape(-1, 3)
+        if cached is None or done == 0:
+            q_start, t_start = self.q0, 0.0
         else:
-            quaternions = np.zeros((0, 4))
-        flags = np.array([self.faults.flags_at(gyro, t) for t in times], dtype=np.int64)
-        return Truth(times, rates, quaternions, flags)
+            q_start, t_start = cached.quaternion[-1], float(cached.times_s[-1])
+        if new_times.size:
+            new_q = integrate_attitude(self.scenario.rate_dps, new_times, q_start, t0=t_start)
+        else:
+            new_q = np.zeros((0, 4))
+        new_flags = np.array([self.faults.flags_at(gyro, t) for t in new_times], dtype=np.int64)
+        if cached is None:
+            truth = Truth(new_times, new_rates, new_q, new_flags)
+        else:
+            truth = Truth(np.concatenate([cached.times_s, new_times]),
+                          np.concatenate([cached.rate_dps, new_rates]),
+                          np.concatenate([cached.quaternion, new_q]),
+                          np.concatenate([cached.fault_flags, new_flags]))
+        self._truth_cache[gyro] = truth
+        return truth
 
     def attitude_at(self, t: float) -> np.ndarray:
         """The true attitude at any time ``t`` (integrated from 0)."""
