@@ -44,9 +44,9 @@ NEVER = 1 << 62  # "no sample due": compared with clock times in ns
 NORMAL, DEEP_SUSPEND, SUSPEND, FAST_POWER_UP, POWER_SAVE = (
     "normal", "deep suspend", "suspend", "fast power-up", "advanced power saving")
 _SAMPLING_MODES = (NORMAL, POWER_SAVE)  # 6.7: power saving samples as normal (unconfirmed)
-_BLOCK = 512  # samples computed ahead
+_BLOCK = 1024  # samples computed ahead
 _MAX_BLOCK = 65536  # when catching up a long gap
-_NOISE_CHUNK = 1024
+_NOISE_CHUNK = 256  # least noise drawn at once (the generator buffers small requests)
 VALID_ADDRESSES = (0x68, 0x69)
 
 # Register addresses used by name below (spec 3).
@@ -402,8 +402,7 @@ class BMG160:
         if ns < 0:
             ns = seconds_to_ns(seconds)
         with self.lock:
-            self.clock.advance_ns(ns)
-            now = self.clock.now_ns()
+            now = self.clock.advance_ns(ns)
             if now >= self._next_ns:
                 self._catch_up(now)
 

@@ -33,6 +33,8 @@ class Clock(Protocol):
 
     def now(self) -> float: ...
 
+    def advance_ns(self, ns: int) -> int: ...
+
     def sleep(self, seconds: float) -> None: ...
 
 
@@ -51,11 +53,13 @@ class VirtualClock:
     def now(self) -> float:
         return self._ns / NS_PER_S
 
-    def advance_ns(self, ns: int) -> None:
+    def advance_ns(self, ns: int) -> int:
+        """Move time forward by ``ns`` nanoseconds; return the new time in ns."""
         if ns < 0:
             raise ValueError("virtual time cannot go backwards")
         with self._lock:
             self._ns += ns
+            return self._ns
 
     def advance(self, seconds: float) -> None:
         """Move time forward by ``seconds`` (>= 0)."""
@@ -81,11 +85,12 @@ class RealTimeClock:
     def now(self) -> float:
         return self.now_ns() / NS_PER_S
 
-    def advance_ns(self, ns: int) -> None:
-        """Real time cannot be pushed: wait instead."""
+    def advance_ns(self, ns: int) -> int:
+        """Real time cannot be pushed: wait instead; return the time in ns after waiting."""
         if ns < 0:
             raise ValueError("time cannot go backwards")
         time.sleep(ns / NS_PER_S)
+        return self.now_ns()
 
     def advance(self, seconds: float) -> None:
         self.advance_ns(seconds_to_ns(seconds))
