@@ -1,0 +1,66 @@
+"""Allan-variance building blocks: closed forms, confidence bounds, IEEE read-offs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bmg160_emu.noise.allan import (
+    FLICKER_ADEV_FACTOR,
+    composite_avar,
+    gauss_markov_avar,
+    gauss_markov_avar_unit,
+    overlapping_adev,
+)
+from bmg160_emu.noise.identification import ieee_readoffs
+
+
+def test_flicker_factor_is_sqrt_2ln2_over_pi():
+    assert FLICKER_ADEV_FACTOR == pytest.approx(0.6643, abs=1e-4)  # IEEE 952: B = min / 0.664
+
+
+def test_gauss_markov_avar_limits():
+    T = 33.9
+    tau = np.array([1e-6, 1e-3 * T, 1e-3 * T * 1.0001, 1e4 * T])
+    g = gauss_markov_avar_unit(tau, T)
+    # tau << T: looks like a random walk with K^2 = 2 q^2 / T  ->  2 tau / (3 T)
+    assert g[0] == pytest.approx(2 * tau[0] / (3 * T), rel=1e-6)
+    # the series and the closed form agree where they meet
+    assert g[1] == pytest.approx(g[2], rel=1e-3)
+    # tau >> T: white-like, 2 T / tau
+    assert g[3] == pytest.approx(2 * T / tau[3], rel=1e-3)
+
+
+def test_gauss_markov_avar_peak_sits_near_two_t():
+    # the closed form's maximum over tau is at tau ~ 1.89 T (value 0.4 q^2 within a few %)
+    tau = np.geomspace(0.1, 100, 4000)
+    g = gauss_markov_avar(1.0, 1.0, tau)
+    assert tau[np.argmax(g)] == pytest.approx(1.89, rel=0.02)
+
+
+def test_white_noise_adev_is_n_over_sqrt_tau_inside_its_confidence_band():
+    rng = np.random.default_rng(1)
+    rate, N = 200.0, 0.02
+    x = rng.standard_normal(200_000) * N * math.sqrt(rate)
+    curve = overlapping_adev(x, rate)
+    expected = np.sqrt(composite_avar(curve.taus, N, 0.0, 0.0, 0.0))
+    inside = (curve.ci_low <= expected) & (expected <= curve.ci_high)
+    # 68.3 % bands on ~16 points: about 11 inside; fewer than 7 would be a > 3 sigma event
+    assert inside.sum() >= 7
+    assert np.all(curve.ci_low < curve.adev) and np.all(curve.adev < curve.ci_high)
+
+
+def test_readoffs_find_the_slope_lines_of_a_synthetic_curve():
+    from bmg160_emu.noise.allan import AllanCurve
+
+    N, K = 0.02, 4e-4
+    taus = 0.005 * 2.0 ** np.arange(22)
+    adev = np.sqrt(N**2 / taus + K**2 * taus / 3)
+    ones = np.ones_like(taus)
+    curve = AllanCurve(taus, adev, ones, ones * 100, adev * 0.9, adev * 1.1, 0.683)
+    ro = ieee_readoffs(curve)
+    assert ro["N_at_tau_1s"]["value"] == pytest.approx(N, rel=0.01)
+    assert ro["K_at_tau_3s"]["value"] == pytest.approx(K, rel=0.05)
+    assert ro["B_flicker"]["value"] == pytest.approx(adev.min() / FLICKER_ADEV_FACTOR)

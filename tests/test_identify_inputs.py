@@ -1,0 +1,130 @@
+"""Record inputs for identification: CSV, .npy, .npz, rate from a time column, clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bmg160_emu.noise.identification import IdentificationError, identify
+from bmg160_emu.noise.rate_record import RecordError, load_rate_record
+
+
+@pytest.fixture
+def samples():
+    return np.random.default_rng(0).standard_normal((2000, 3)) * 0.25
+
+
+def write_csv(path, rows, header=None, comments=()):
+    lines = [f"# {c}" for c in comments]
+    if header:
+        lines.append(",".join(header))
+    lines += [",".join(repr(float(v)) for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_csv_with_time_column_gives_the_rate(tmp_path, samples):
+    t = np.arange(samples.shape[0]) / 400.0
+    path = tmp_path / "rec.csv"
+    write_csv(path, np.column_stack([t, samples]), ["t_s", "x_dps", "y_dps", "z_dps"], ["made"])
+    rec = load_rate_record(path)
+    assert rec.rate_hz == pytest.approx(400.0)
+    assert rec.axis_names == ("x", "y", "z")
+    np.testing.assert_allclose(rec.rate_dps, samples)
+
+
+def test_csv_without_header_needs_the_rate(tmp_path, samples):
+    path = tmp_path / "plain.csv"
+    write_csv(path, samples[:, :1])
+    with pytest.raises(RecordError, match="give the sample rate"):
+        load_rate_record(path)
+    rec = load_rate_record(path, rate_hz=200.0)
+    assert rec.rate_dps.shape == (2000, 1) and rec.rate_hz == 200.0
+
+
+def test_chip_recording_layout_picks_the_dps_columns(tmp_path, samples):
+    # the layout of `bmg160-emu record`: counts and truth columns beside the deg/s ones,
+    # truth left empty when unknown
+    path = tmp_path / "chip.csv"
+    lines = [
+        "# bmg160-emu recording v1",
+        "t_s,x_counts,y_counts,z_counts,x_dps,y_dps,z_dps,true_x_dps,true_y_dps,true_z_dps",
+    ]
+    for i, row in enumerate(samples):
+        lines.append(
+            f"{i / 200.0!r},1,2,3,{float(row[0])!r},{float(row[1])!r},{float(row[2])!r},,,"
+        )
+    path.write_text("\n".join(lines) + "\n")
+    rec = load_rate_record(path)
+    np.testing.assert_allclose(rec.rate_dps, samples)
+    assert rec.rate_hz == pytest.approx(200.0)
+
+
+def test_time_column_must_increase(tmp_path, samples):
+    t = np.arange(samples.shape[0]) / 200.0
+    t[10] = t[8]
+    path = tmp_path / "bad.csv"
+    write_csv(path, np.column_stack([t, samples]), ["time", "x", "y", "z"])
+    with pytest.raises(RecordError, match="not strictly increasing.*sample 10"):
+        load_rate_record(path)
+
+
+def test_given_rate_must_agree_with_the_time_column(tmp_path, samples):
+    t = np.arange(samples.shape[0]) / 200.0
+    path = tmp_path / "rec.csv"
+    write_csv(path, np.column_stack([t, samples]), ["t", "x", "y", "z"])
+    with pytest.raises(RecordError, match="disagrees with the time column"):
+        load_rate_record(path, rate_hz=100.0)
+
+
+def test_npy_and_npz_inputs(tmp_path, samples):
+    np.save(tmp_path / "a.npy", samples)
+    assert load_rate_record(tmp_path / "a.npy", rate_hz=200.0).rate_dps.shape == (2000, 3)
+    np.savez(tmp_path / "b.npz", rate_dps=samples, t_s=np.arange(2000) / 1000.0)
+    rec = load_rate_record(tmp_path / "b.npz")
+    assert rec.rate_hz == pytest.approx(1000.0)
+    np.savez(tmp_path / "c.npz", x=samples[:, 0], y=samples[:, 1])
+    assert load_rate_record(tmp_path / "c.npz", rate_hz=200.0).axis_names == ("x", "y")
+    np.savez(tmp_path / "d.npz", a=samples, b=samples)
+    with pytest.raises(RecordError, match="cannot tell which arrays"):
+        load_rate_record(tmp_path / "d.npz", rate_hz=200.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        ("x.json", "{}", r"must end in \.csv, \.npy or \.npz"),
+        ("e.csv", "# only a comment\n", "no data rows"),
+        ("w.csv", "1,2,3,4\n5,6,7,8\n", "1 to 3 axes"),
+        ("s.csv", "t,x\n0,1\n0.1,abc\n", "unreadable CSV data"),
+    ],
+)
+def test_bad_files_are_clear_errors(tmp_path, name, content, message):
+    path = tmp_path / name
+    path.write_text(content)
+    with pytest.raises(RecordError, match=message):
+        load_rate_record(path, rate_hz=200.0)
+
+
+def test_missing_file_is_a_clear_error(tmp_path):
+    with pytest.raises(RecordError, match="no such record file"):
+        load_rate_record(tmp_path / "nope.npy", rate_hz=200.0)
+
+
+def test_empty_and_short_records_say_how_long_is_needed():
+    with pytest.raises(IdentificationError, match="empty.*N needs at least 1000 samples"):
+        identify(np.empty((0, 3)), 200.0)
+    with pytest.raises(IdentificationError, match="too short: 999 samples.*about 100 T.*K needs"):
+        identify(np.zeros((999, 1)), 200.0)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_samples_are_rejected(samples, bad):
+    samples[123, 1] = bad
+    with pytest.raises(IdentificationError, match="NaN or infinite.*sample 123 of column 1"):
+        identify(samples, 200.0)
+
+
+@pytest.mark.parametrize("rate", [0, -5, float("nan"), "200"])
+def test_bad_rate_is_rejected(samples, rate):
+    with pytest.raises(IdentificationError, match="sample rate"):
+        identify(samples, rate)
