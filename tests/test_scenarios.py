@@ -166,3 +166,36 @@ def test_bad_scenario_files_name_the_file(tmp_path):
         load_scenario(path)
     with pytest.raises(ScenarioError, match="cannot read scenario"):
         load_scenario(tmp_path / "missing.toml")
+
+
+def test_the_example_scenario_files_load_and_describe_their_motion():
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parent.parent / "examples" / "scenarios"
+    scenarios = {p.stem: load_scenario(p) for p in sorted(folder.glob("*.toml"))}
+    assert {"rest", "orbit_pointing", "slew", "detumble", "dynamics_table"} <= set(scenarios)
+    assert np.all(scenarios["rest"].rate_dps(30.0) == 0.0)
+    # the detumbling controller damps the tumble: 60 s = 3 time constants
+    detumble = scenarios["detumble"]
+    ratio = np.linalg.norm(detumble.rate_dps(60.0)) / np.linalg.norm(detumble.rate_dps(0.0))
+    assert 0.02 < ratio < 0.1
+    assert len(detumble.gyros) == 2
+    assert [f["kind"] for f in scenarios["dynamics_table"].faults] == ["nack", "stuck_axis"]
+
+
+def test_a_tumble_is_extended_on_demand_beyond_its_duration():
+    # the chip computes samples ahead of time, past the scenario's end
+    scenario = _one("tumble", duration_s=2.0, initial_rate_dps=[10.0, -5.0, 20.0],
+                    inertia_kg_m2=[1, 2, 3])
+    late = scenario.rate_dps(500.0)
+    inertia = np.array([1.0, 2.0, 3.0])
+    momentum = np.linalg.norm(np.radians(late) * inertia)
+    assert momentum == pytest.approx(np.linalg.norm(np.radians([10, -5, 20]) * inertia), rel=1e-7)
+
+
+def test_a_table_file_with_text_in_its_rows_is_refused(tmp_path):
+    (tmp_path / "bad.csv").write_text("t,x,y,z\n0,0,0,0\n1,0,zero,0\n")
+    (tmp_path / "s.toml").write_text(
+        'duration_s = 1.0\n[[motion]]\nkind = "table"\nfile = "bad.csv"\n')
+    with pytest.raises(ScenarioError, match="line 3: not numbers"):
+        load_scenario(tmp_path / "s.toml")

@@ -159,55 +159,49 @@ class Tumble(Motion):
 
     With ``damping_time_s`` a rate-damping torque ``-I w / damping_time_s`` (an ideal
     detumbling controller) makes the angular momentum decay exponentially while the body
-    keeps nutating. Solved once, with dense output, over the active window.
+    keeps nutating. Solved with dense output, in pieces as far ahead as asked.
     """
 
     initial_rate_dps: np.ndarray = field(default_factory=lambda: np.zeros(3))
     inertia_kg_m2: np.ndarray = field(default_factory=lambda: np.eye(3))
     damping_time_s: float | None = None
-    horizon_s: float = 0.0
+    horizon_s: float = 60.0
 
     def __post_init__(self) -> None:
+        self._inverse = np.linalg.inv(self.inertia_kg_m2)
+        self._damping = 0.0 if self.damping_time_s is None else 1.0 / self.damping_time_s
+        # dense-output pieces (t_lo, t_hi, solution), extended on demand: the chip asks for
+        # rates ahead of time, beyond the scenario's duration
+        self._pieces: list[tuple[float, float, Any]] = []
+        self._extend(self.start_s + max(self.horizon_s, 1.0))
+
+    def _euler(self, _t: float, w: np.ndarray) -> np.ndarray:
+        return self._inverse @ (-np.cross(w, self.inertia_kg_m2 @ w)) - self._damping * w
+
+    def _extend(self, until_s: float) -> None:
         from scipy.integrate import solve_ivp
 
-        inertia = self.inertia_kg_m2
-        inverse = np.linalg.inv(inertia)
-        damping = 0.0 if self.damping_time_s is None else 1.0 / self.damping_time_s
-
-        def euler(_t: float, w: np.ndarray) -> np.ndarray:
-            iw = inertia @ w
-            return inverse @ (-np.cross(w, iw)) - damping * w
-
-        stop = self.end_s if self.end_s is not None else self.start_s + self.horizon_s
-        self._stop = stop
-        w0 = np.radians(self.initial_rate_dps)
-        if stop > self.start_s:
-            solution = solve_ivp(
-                euler,
-                (self.start_s, stop),
-                w0,
-                method="DOP853",
-                dense_output=True,
-                rtol=1e-11,
-                atol=1e-14,
-            )
-            if not solution.success:  # pragma: no cover - smooth ODE
-                raise ScenarioError(f"tumble: Euler's equations failed: {solution.message}")
-            self._solution = solution.sol
+        if self._pieces:
+            _, t0, last = self._pieces[-1]
+            w0 = last(t0)
         else:
-            self._solution = None
-        self._w0 = w0
+            t0, w0 = self.start_s, np.radians(self.initial_rate_dps)
+        stop = max(until_s, t0 + max(self.horizon_s, 1.0))
+        solution = solve_ivp(self._euler, (t0, stop), w0, method="DOP853", dense_output=True,
+                             rtol=1e-11, atol=1e-14)
+        if not solution.success:  # pragma: no cover - smooth ODE
+            raise ScenarioError(f"tumble: Euler's equations failed: {solution.message}")
+        self._pieces.append((t0, stop, solution.sol))
 
     def _rate(self, t: np.ndarray) -> np.ndarray:
-        if self._solution is None:
-            return np.broadcast_to(np.degrees(self._w0), (t.size, 3)).copy()
-        inside = np.clip(t, self.start_s, self._stop)
-        if np.any(t > self._stop + 1e-9):
-            raise ScenarioError(
-                f"tumble was solved up to t = {self._stop} s; the scenario asks for t = "
-                f"{float(t.max())} s (raise duration_s or end_s)"
-            )
-        return np.degrees(self._solution(inside).T.reshape(t.size, 3))
+        if t.size and t.max() > self._pieces[-1][1]:
+            self._extend(float(t.max()))
+        out = np.empty((t.size, 3))
+        for lo, hi, solution in self._pieces:
+            mask = (t >= lo) & (t <= hi)
+            if mask.any():
+                out[mask] = solution(t[mask]).T
+        return np.degrees(out)
 
 
 @dataclass
@@ -361,6 +355,28 @@ def _inertia(value: Any, where: str) -> np.ndarray:
     return array
 
 
+def _read_csv_table(path: Path, where: str) -> np.ndarray:
+    """Rows of numbers; '#' comments, blank lines and one header line of names are skipped."""
+    rows: list[list[float]] = []
+    header_skipped = False
+    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+        text = line.split("#", 1)[0].strip()
+        if not text:
+            continue
+        try:
+            rows.append([float(cell) for cell in text.split(",")])
+        except ValueError:
+            if rows or header_skipped:
+                raise ScenarioError(
+                    f"{where}: {path.name} line {number}: not numbers: {text!r}") from None
+            header_skipped = True
+    if not rows:
+        raise ScenarioError(f"{where}: {path.name} holds no rows of numbers")
+    if len({len(r) for r in rows}) != 1:
+        raise ScenarioError(f"{where}: {path.name}: rows of different lengths")
+    return np.array(rows)
+
+
 def _load_table(entry: dict[str, Any], where: str, base: Path | None) -> np.ndarray:
     if "samples" in entry:
         data = np.asarray(entry["samples"], dtype=float)
@@ -373,10 +389,7 @@ def _load_table(entry: dict[str, Any], where: str, base: Path | None) -> np.ndar
         if path.suffix == ".npy":
             data = np.load(path)
         else:
-            try:
-                data = np.loadtxt(path, delimiter=",", comments="#", ndmin=2)
-            except ValueError:  # a header line of column names
-                data = np.loadtxt(path, delimiter=",", comments="#", ndmin=2, skiprows=1)
+            data = _read_csv_table(path, where)
     else:
         raise ScenarioError(f"{where}: a table needs 'samples' or 'file'")
     if data.ndim != 2 or data.shape[1] != 4:
@@ -451,7 +464,7 @@ def motion_from_dict(
             initial_rate_dps=_vector(entry.get("initial_rate_dps"), f"{where}: initial_rate_dps"),
             inertia_kg_m2=_inertia(entry.get("inertia_kg_m2", [1.0, 1.0, 1.0]), where),
             damping_time_s=damping,
-            horizon_s=duration_s + 1.0,
+            horizon_s=duration_s + 10.0,
             **window,
         )
     # table
