@@ -73,6 +73,12 @@ class DecodedField:
     label: str  # the table's name for this value, or ""
     on_off: bool  # the field is a flag whose values are named off/on
     qualified: bool = False  # the short text needs the field name (several named fields)
+    width: int = 1  # bits
+
+    @property
+    def value_text(self) -> str:
+        """A whole byte reads best in hex (0xb6), a narrow field in decimal."""
+        return f"0x{self.raw:02x}" if self.width >= 8 else str(self.raw)
 
     @property
     def text(self) -> str:
@@ -80,12 +86,13 @@ class DecodedField:
         if self.on_off:
             return self.name if self.raw else ""
         if self.label:
-            return f"{self.name} {self.label}" if self.qualified else self.label
-        return f"{self.name}={self.raw}" if self.raw else ""
+            bare_quantity = self.label[0].isdigit()  # "2 ms" alone does not say what it is
+            return f"{self.name} {self.label}" if self.qualified or bare_quantity else self.label
+        return f"{self.name}={self.value_text}" if self.raw else ""
 
     @property
     def full_text(self) -> str:
-        return f"{self.name}={self.raw}" + (f" ({self.label})" if self.label else "")
+        return f"{self.name}={self.value_text}" + (f" ({self.label})" if self.label else "")
 
 
 def register_name(register: int) -> str:
@@ -125,7 +132,7 @@ def decode_register(register: int, value: int, sensitivity: str | None = None) -
             table = spec_choices.SENSITIVITY_TABLES[sensitivity]
             code = raw if raw < len(table) else spec_choices.RESERVED_RANGE_AS_CODE
             label += f", {table[code]:g} LSB/(deg/s)"
-        decoded.append(DecodedField(f.name, raw, label, on_off, len(named) > 1))
+        decoded.append(DecodedField(f.name, raw, label, on_off, len(named) > 1, f.msb - f.lsb + 1))
     return decoded
 
 

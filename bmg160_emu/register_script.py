@@ -472,7 +472,7 @@ class ScriptRunner:
                 self._say(
                     s,
                     f"poll {register_label(s.register)} bit {s.bit} == {s.expected_bit}: after "
-                    f"{_seconds_text(chip.time - start)} ({reads} reads, last 0x{value:02x})",
+                    f"{_seconds_text(chip.time - start)} ({_reads(reads)}, last 0x{value:02x})",
                 )
                 return
             if chip.time - start + s.interval_s > s.seconds + 1e-12:
@@ -480,9 +480,13 @@ class ScriptRunner:
                     self.source,
                     s.line,
                     f"{register_label(s.register)} bit {s.bit} still {1 - s.expected_bit} after "
-                    f"{_seconds_text(s.seconds)} ({reads} reads, last 0x{value:02x})",
+                    f"{_seconds_text(s.seconds)} ({_reads(reads)}, last 0x{value:02x})",
                 )
             chip.advance(s.interval_s)
+
+
+def _reads(count: int) -> str:
+    return "1 read" if count == 1 else f"{count} reads"
 
 
 def _seconds_text(seconds: float) -> str:

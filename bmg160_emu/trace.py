@@ -494,3 +494,29 @@ def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayR
                 line, t.time, _outcome_text(t, t.read, t.error), _outcome_text(t, read, error)
             ))
     return ReplayResult(count, None)
+
+
+def header_from_chip_args(args: Any) -> TraceHeader:
+    """The trace header for chips built by ``chips_from_args`` from the same options."""
+    from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS
+
+    header = TraceHeader(getattr(args, "seed", None))
+    for address in list(dict.fromkeys(getattr(args, "addresses", None) or [0x68])):
+        writes = []
+        if getattr(args, "range_dps", None) is not None:
+            writes.append((0x0F, bytes([RANGE_CODE_BY_DPS[args.range_dps]])))
+        if getattr(args, "bandwidth", None) is not None:
+            writes.append((0x10, bytes([args.bandwidth])))
+        header.add_chip(
+            {
+                "address": address,
+                "profile": getattr(args, "profile", "paper"),
+                "noise": not getattr(args, "no_noise", False),
+                "noise_mode": getattr(args, "noise_mode", "physical"),
+                "sensitivity": getattr(args, "sensitivity", "binary"),
+                "temperature_c": getattr(args, "temperature", 23.0),
+            },
+            getattr(args, "true_rate", None),
+            writes,
+        )
+    return header

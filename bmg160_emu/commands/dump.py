@@ -1,0 +1,79 @@
+"""``bmg160-emu dump``: the chip's 64 registers as i2cdump prints them, decoded, or as JSON."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+
+EPILOG = """\
+examples:
+  bmg160-emu dump                                   # decoded table after power-up
+  bmg160-emu dump --format i2cdump > bmg160.dump    # sudo i2c-stub-from-dump 0x68 bmg160.dump
+  bmg160-emu dump --range 500 --after bringup.script --format json
+
+The i2cdump format is byte for byte what `i2cdump -y -r 0x00-0x3f BUS 0x68 b` prints.
+The dump reads no register through the bus: it has no read side effects (FIFO, shadowing).
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "dump",
+        help="print the chip's 64 registers (i2cdump, decoded table or JSON)",
+        description="Print registers 0x00..0x3F of an emulated BMG160, optionally after "
+        "running a register script, in i2cdump's layout, as a decoded table, or as JSON.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--format", choices=("i2cdump", "table", "json"), default="table",
+        help="output format (default: table)",
+    )
+    parser.add_argument(
+        "--after", type=Path, metavar="SCRIPT", default=None,
+        help="run this register script first (its log goes to stderr)",
+    )
+    parser.add_argument("-o", "--output", type=Path, default=None, help="write to FILE")
+    add_chip_options(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.register_dump import RegisterDump, format_dump
+    from bmg160_emu.register_script import ScriptFailure, ScriptSyntaxError, run_script
+
+    chips = chips_from_args(args)
+    chip = next(iter(chips.values()))
+    if args.after is not None:
+        from bmg160_emu.i2c_bus import I2CBus
+
+        try:
+            text = args.after.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise CommandError(f"cannot read {args.after}: {exc.strerror}") from None
+
+        def log(line: str) -> None:
+            print(line, file=sys.stderr)
+
+        try:
+            run_script(text, chip, log, str(args.after), bus=I2CBus(1, chips))
+        except ScriptSyntaxError as exc:
+            raise CommandError(str(exc)) from None
+        except ScriptFailure as exc:
+            print(f"script failed: {exc}", file=sys.stderr)
+            return 1
+    dump = RegisterDump.from_chip(chip)
+    dump.metadata["sensitivity"] = getattr(args, "sensitivity", None)
+    text = format_dump(dump, args.format)
+    if args.output is not None:
+        try:
+            args.output.write_text(text, encoding="utf-8")
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.output}: {exc.strerror}") from None
+    else:
+        sys.stdout.write(text)
+    return 0

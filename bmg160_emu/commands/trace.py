@@ -1,0 +1,67 @@
+"""``bmg160-emu trace``: decode a transaction trace for a person, or replay it."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+EPILOG = """\
+examples:
+  bmg160-emu script bringup.script --seed 7 --trace session.jsonl
+  bmg160-emu trace session.jsonl
+  bmg160-emu trace session.jsonl --replay
+
+Decoded lines read like "write 0x0F RANGE <- 0x02 (+-500 deg/s)" and
+"burst read 0x02..0x07 -> x=-12 y=3 z=40". --replay rebuilds the chips from the trace's
+header (same seed, same settings), replays every transaction at its recorded time and
+reports the first one whose result differs (exit 1), or that none does (exit 0).
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "trace",
+        help="decode a JSON Lines transaction trace, or replay it against a fresh chip",
+        description="Print a transaction trace (docs/trace-format.md) decoded register by "
+        "register, or replay it against fresh chips and report the first divergence.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("file", type=Path, metavar="FILE", help="trace file (.jsonl)")
+    parser.add_argument("--replay", action="store_true", help="replay and compare instead of printing")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.trace import TraceFormatError, describe_transaction, read_trace, replay_trace
+
+    try:
+        header, records = read_trace(args.file)
+    except OSError as exc:
+        raise CommandError(f"cannot read {args.file}: {exc.strerror}") from None
+    except (TraceFormatError, UnicodeDecodeError) as exc:
+        raise CommandError(str(exc)) from None
+    if not args.replay:
+        for record in records:
+            try:
+                text = describe_transaction(record)
+            except (ValueError, TypeError, KeyError) as exc:
+                raise CommandError(f"{args.file}:{record['_line']}: cannot decode: {exc}") from None
+            try:
+                print(text)
+            except BrokenPipeError:  # the reader (head, less) has gone: stop quietly
+                sys.stdout = open(os.devnull, "w")  # noqa: SIM115
+                return 0
+        return 0
+    try:
+        result = replay_trace(header, records)
+    except (TraceFormatError, ValueError, TypeError) as exc:
+        raise CommandError(f"{args.file}: cannot replay: {exc}") from None
+    if result.ok:
+        print(f"no divergence: {result.transactions} transactions replayed")
+        return 0
+    print(f"divergence at {args.file}:{result.divergence}", file=sys.stderr)
+    return 1

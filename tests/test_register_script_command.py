@@ -1,0 +1,63 @@
+"""``bmg160-emu script`` from the command line: log, exit statuses, trace output."""
+
+from __future__ import annotations
+
+import pytest
+
+from bmg160_emu.cli import main
+from bmg160_emu.trace import read_trace, replay_trace
+
+SCRIPT = """\
+read CHIP_ID == 0x0F
+write RANGE 0x02
+write BW 0x04
+advance 20ms
+burst RATE_X_LSB 6
+"""
+
+
+def _script(tmp_path, text: str = SCRIPT):
+    path = tmp_path / "s.script"
+    path.write_text(text)
+    return path
+
+
+def test_help_has_an_example(capsys):
+    with pytest.raises(SystemExit):
+        main(["script", "--help"])
+    assert "bmg160-emu script bringup.script" in capsys.readouterr().out
+
+
+def test_a_passing_script_exits_0_and_logs_every_statement(tmp_path, capsys):
+    assert main(["script", str(_script(tmp_path)), "--seed", "3"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 6 and out[-1].startswith("ok: 5 statements")
+    assert "burst read 0x02..0x07 -> x=" in out[4]
+
+
+def test_a_failed_expectation_exits_1_with_the_line(tmp_path, capsys):
+    path = _script(tmp_path, "write RANGE 0x01\nread RANGE == 0x02\n")
+    assert main(["script", str(path), "-q"]) == 1
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "s.script:2: 0x0F RANGE: expected 0x02, read 0x01" in captured.err
+
+
+def test_syntax_errors_exit_2_listing_every_mistake(tmp_path, capsys):
+    path = _script(tmp_path, "read CHIP_ID ==\nadvance 3 parsecs\nwrite RANGE 2\n")
+    assert main(["script", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "2 error(s) in the script, nothing was run" in err
+    assert "s.script:1:16: missing expected value" in err and "s.script:2:9:" in err
+
+
+def test_a_traced_script_session_replays_without_divergence(tmp_path, capsys):
+    trace = tmp_path / "s.jsonl"
+    args = ["script", str(_script(tmp_path)), "--seed", "8", "--range", "500",
+            "--true-rate", "5", "0", "-1", "--trace", str(trace), "-q"]
+    assert main(args) == 0
+    header, records = read_trace(trace)
+    assert len(records) == 4  # the advance statement is not a transaction
+    assert replay_trace(header, records).ok
+    assert main(["trace", str(trace), "--replay"]) == 0
+    assert "no divergence: 4 transactions replayed" in capsys.readouterr().out
