@@ -157,6 +157,8 @@ class FakeSMBus:
             if self.fd is None:
                 raise _closed()
             address = operator.index(address)
+            if not -(2**31) <= address < 2**31:  # fcntl.ioctl passes the address as a C int
+                raise OverflowError("signed integer is greater than maximum")
             bus = self._i2c
             assert bus is not None
             if force is True:
