@@ -1,0 +1,116 @@
+"""``bmg160-emu record``: what the chip outputs at its ODR, with the true rate beside it."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+
+EPILOG = """\
+examples:
+  bmg160-emu record --duration 10min --rate 200 --seed 7 -o static.csv
+  bmg160-emu record --duration 1h --range 250 --rate 200 -o static.npz
+  bmg160-emu record --truth examples/slew.toml --rate 400 -o slew.csv
+  bmg160-emu identify static.npz ...   # the noise pipeline reads the deg/s columns
+
+Every output sample is read as a driver reads it (one 6-byte burst from RATE_X_LSB after
+each new sample); the file holds time, raw counts, deg/s (counts / sensitivity) and the
+true body rate. --rate picks the BW code the Linux driver uses for that output data rate
+(100->0x07, 200->0x06, 400->0x03, 1000->0x02, 2000->0x01); --bandwidth picks any code.
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "record",
+        help="record the chip's output at its ODR (counts, deg/s, true rate) to CSV or NPZ",
+        description="Run an emulated BMG160 for a while and record every output sample as a "
+        "driver reads it, beside the true rate it was fed.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--duration", default=None, metavar="TIME",
+        help="chip time to record: 10min, 30s, 1.5h, 250ms (default: the scenario's duration)",
+    )
+    parser.add_argument(
+        "--rate", type=int, default=None, metavar="HZ", choices=(100, 200, 400, 1000, 2000),
+        help="output data rate in Hz: 100, 200, 400, 1000 or 2000",
+    )
+    parser.add_argument(
+        "--truth", type=Path, default=None, metavar="SCENARIO",
+        help="true motion from a scenario file (TOML, docs/scenarios.md)",
+    )
+    parser.add_argument("-o", "--output", type=Path, required=True, help="OUT.csv or OUT.npz")
+    add_chip_options(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.recording import (
+        BW_CODE_BY_ODR_HZ,
+        parse_duration_text,
+        record,
+        write_recording,
+    )
+
+    if args.output.suffix.lower() not in (".csv", ".npz"):
+        raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
+    if args.rate is not None and args.bandwidth is not None:
+        raise CommandError("give --rate or --bandwidth, not both")
+    if args.truth is not None and args.true_rate is not None:
+        raise CommandError("give --truth or --true-rate, not both")
+    if getattr(args, "realtime", False):
+        raise CommandError("record runs in virtual time; --realtime is not supported here")
+    scenario = None
+    if args.truth is not None:
+        from bmg160_emu.adcs.scenarios import ScenarioError, load_scenario
+
+        try:
+            scenario = load_scenario(args.truth)
+        except (ScenarioError, OSError) as exc:
+            raise CommandError(f"{args.truth}: {exc}") from None
+    if args.duration is not None:
+        try:
+            duration = parse_duration_text(args.duration)
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+    elif scenario is not None:
+        duration = scenario.duration_s
+    else:
+        raise CommandError("--duration is needed (or a --truth scenario with its own duration)")
+    if args.rate is not None:
+        args.bandwidth = BW_CODE_BY_ODR_HZ[args.rate]
+    chip = next(iter(chips_from_args(args).values()))
+    if scenario is not None:
+        chip.set_true_rate(scenario)
+
+    progress = None
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=round(duration * chip.odr_hz), unit="sample", file=sys.stderr)
+
+        def progress(done: int, total: int) -> None:
+            if done % 1000 == 0 or done == total:
+                bar.n = done
+                bar.refresh()
+
+    try:
+        rec = record(chip, duration, progress)
+    except (ValueError, RuntimeError) as exc:
+        raise CommandError(str(exc)) from None
+    if scenario is not None:
+        rec.metadata["truth"] = str(args.truth)
+    try:
+        write_recording(rec, args.output)
+    except OSError as exc:
+        raise CommandError(f"cannot write {args.output}: {exc.strerror}") from None
+    print(
+        f"recorded {len(rec)} samples at {rec.odr_hz:g} Hz ({duration:g} s of chip time, "
+        f"+-{rec.metadata['range_dps']} deg/s, {rec.lsb_per_dps:g} LSB/(deg/s)) to {args.output}"
+    )
+    return 0

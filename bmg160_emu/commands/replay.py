@@ -1,0 +1,102 @@
+"""``bmg160-emu replay``: a recording of real data as the chip's output."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
+
+EPILOG = """\
+examples:
+  bmg160-emu replay flight.csv --bandwidth 4 -o through-chip.csv
+  bmg160-emu replay bench.npz --unit counts --data-range 500 --script driver-check.script
+  bmg160-emu record --duration 30s --rate 200 -o a.csv && \\
+    bmg160-emu replay a.csv --unit counts --bandwidth 6 -o b.csv     # same samples
+
+DATA is CSV (a time column and x, y, z; a header row names them, or exactly 4 columns
+t, x, y, z) or NPZ (t_s and rate_dps or counts, or x, y, z arrays). Each output sample of
+the chip carries the recorded rate at that moment, resampled to the chip's ODR (linear
+interpolation, or the mean over each output period when the data are at least twice as
+fast; docs/replay.md). Gaps, time going backwards, wrong column counts and unit mismatches
+are errors naming the line.
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "replay",
+        help="play a recording (CSV/NPZ) through the chip's registers",
+        description="Make a recording of real gyro data the emulated chip's output, then "
+        "record what a driver reads (-o) or run a register script against it (--script).",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("data", type=Path, metavar="DATA", help="recording (.csv or .npz)")
+    parser.add_argument("--unit", choices=("dps", "counts"), default="dps",
+                        help="unit of the x, y, z data (default: dps)")
+    parser.add_argument(
+        "--data-range", type=int, default=None, metavar="DPS", choices=sorted(RANGE_CODE_BY_DPS),
+        help="for --unit counts without a settings line: the range they were recorded at",
+    )
+    parser.add_argument("--max-gap-factor", type=float, default=3.0, metavar="F",
+                        help="a time step over F times the median step is a gap (default 3)")
+    parser.add_argument("--loop", action="store_true", help="start over at the end (default: hold)")
+    parser.add_argument("-o", "--output", type=Path, default=None,
+                        help="record the chip's output during the replay to OUT.csv/.npz")
+    parser.add_argument("--script", type=Path, default=None, help="run a register script instead")
+    add_chip_options(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bmg160_emu import spec_choices
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.recording import record, write_recording
+    from bmg160_emu.replay_source import ReplayDataError, ReplaySource, load_replay_data
+
+    if (args.output is None) == (args.script is None):
+        raise CommandError("give -o OUT (record the chip's output) or --script FILE, one of them")
+    if args.output is not None and args.output.suffix.lower() not in (".csv", ".npz"):
+        raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
+    if not args.max_gap_factor > 1:
+        raise CommandError("--max-gap-factor must be greater than 1")
+    lsb = None
+    if args.data_range is not None:
+        table = spec_choices.SENSITIVITY_TABLES[getattr(args, "sensitivity", "binary")]
+        lsb = table[RANGE_CODE_BY_DPS[args.data_range]]
+    try:
+        data = load_replay_data(args.data, args.unit, lsb, args.max_gap_factor)
+    except ReplayDataError as exc:
+        raise CommandError(str(exc)) from None
+    chips = chips_from_args(args)
+    chip = next(iter(chips.values()))
+    ReplaySource(data, loop=args.loop).attach(chip)
+    if args.output is not None:
+        duration = data.duration_s + data.median_step_s
+        rec = record(chip, duration)
+        rec.metadata["replayed"] = str(args.data)
+        rec.true_rate_dps = None  # the truth behind real data is unknown
+        try:
+            write_recording(rec, args.output)
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.output}: {exc.strerror}") from None
+        print(f"replayed {len(data.t_s)} samples of {args.data}; recorded {len(rec)} at "
+              f"{rec.odr_hz:g} Hz to {args.output}")
+        return 0
+    from bmg160_emu.i2c_bus import I2CBus
+    from bmg160_emu.register_script import ScriptFailure, ScriptSyntaxError, run_script
+
+    try:
+        text = args.script.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise CommandError(f"cannot read {args.script}: {exc.strerror}") from None
+    try:
+        run_script(text, chip, print, str(args.script), bus=I2CBus(1, chips))
+    except ScriptSyntaxError as exc:
+        raise CommandError(str(exc)) from None
+    except ScriptFailure as exc:
+        print(f"FAILED {exc}", file=sys.stderr)
+        return 1
+    return 0
