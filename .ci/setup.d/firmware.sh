@@ -3,6 +3,7 @@
 # firmware, simavr and its development files for the harness (firmware/sim/bmg160_sim.c),
 # a host C compiler and make. Idempotent: installs only what is missing.
 set -euo pipefail
+export DEBIAN_FRONTEND=noninteractive
 
 packages=(gcc-avr avr-libc binutils-avr simavr libsimavr-dev libelf-dev gcc make)
 missing=()
