@@ -165,6 +165,7 @@ class BMG160:
         self._rate_samples_k0 = 0
         self._pointer = 0
         self._next_ns = NEVER
+        self._emitting = False
         self._reset_state(self.clock.now_ns(), powered=choice.POWERED_UP_AT_CONSTRUCTION)
         self._apply_true_rate(true_rate, None)
 
@@ -337,7 +338,7 @@ class BMG160:
         payload = self._check_data(data)
         with self.lock:
             now = self._now()
-            self._write_burst(reg, payload, now)
+            self._pointer = self._write_burst(reg, payload, now)
 
     def read(self, reg: int, n: int = 1) -> bytes:
         """One bus read transaction of ``n`` bytes from ``reg`` with every side effect."""
@@ -350,14 +351,18 @@ class BMG160:
                     self._msb_latch = [None, None, None]
                     self._latched = False
                 self._data_ready_pending = False
+                self._pointer = 8
                 return self._cur
             reg = self._check_reg(reg)
             n = self._check_count(n)
-            data, _ = self._read_burst(reg, n, now)
+            data, self._pointer = self._read_burst(reg, n, now)
             return data
 
     def i2c_write(self, data: bytes | Sequence[int]) -> None:
-        """I2C write: ``data[0]`` sets the register pointer, the rest is written from it."""
+        """I2C write: ``data[0]`` sets the register pointer, the rest is written from it.
+
+        ``read`` and ``write`` leave the pointer where their transaction ended too, as a
+        combined I2C transaction does."""
         payload = self._check_data(data)
         if not payload:
             return
@@ -663,7 +668,13 @@ class BMG160:
         """Produce every sample due by ``now`` (between transactions, never inside one)."""
         while now >= self._next_ns:
             if self._per_sample or self.sample_hooks or self.truth_hooks:
-                self._emit_one()
+                if self._emitting:  # a hook called a primitive: finish this sample first
+                    return
+                self._emitting = True
+                try:
+                    self._emit_one()
+                finally:
+                    self._emitting = False
                 continue
             t = self._next_ns
             period = self._period_ns

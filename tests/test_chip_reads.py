@@ -134,3 +134,21 @@ def test_new_samples_never_change_a_transaction_in_progress():
     assert one == chip.read(0x02, 6)  # no time passed: same sample
     chip.advance(period_s(chip))
     assert rates(chip) != struct.unpack("<3h", one)
+
+
+def test_read_leaves_the_i2c_pointer_after_its_last_byte():
+    chip = quiet_chip()
+    chip.read(0x00, 1)
+    assert chip.i2c_read(1) == b"\x00"  # 0x01, reserved
+    chip.read(0x3E, 3)
+    assert chip.pointer == 0x3F
+
+
+def test_a_hook_that_calls_a_primitive_does_not_reorder_samples():
+    chip = quiet_chip(true_rate=lambda t: (1000.0 * t, 0, 0))
+    chip.read(0x00)
+    chip.sample_hooks.append(lambda c, t, r: (c.read(0x0F), r)[1])
+    for _ in range(5):
+        chip.advance(period_s(chip))
+    expected = round(1000.0 * chip.time * chip.sensitivity)
+    assert abs(rates(chip)[0] - expected) <= 20  # filter lag of a few samples at most
