@@ -56,7 +56,7 @@ class MonteCarloResult:
 
     def summary(self, rows: int = 10) -> str:
         """A table of the percentiles at ``rows`` evenly spaced times, for a terminal."""
-        header = "  time_s " + "".join(f"   p{p:g}_deg" for p in self.percentiles)
+        header = "  time_s" + "".join(f"{f'p{p:g}_deg':>12}" for p in self.percentiles)
         picks = np.unique(np.linspace(0, self.times_s.size - 1, rows).round().astype(int))
         lines = [(f"scenario {self.scenario}: {self.runs} runs, angle error of the propagated "
                  "attitude against truth"), header]
