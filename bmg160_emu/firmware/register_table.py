@@ -57,19 +57,32 @@ def _table() -> list[FirmwareRegister]:
     add(0x1B, "ANY_TH", 0x04, 0xFF, "stored")
     add(0x1C, "ANY_EN", 0xA0, 0xF7, "stored")
     add(0x1E, "FIFO_WM_EN", 0x00, 0xFF, "modelled", "bit 7 selects the watermark interrupt")
-    add(0x21, "INT_RST_LATCH", 0x00, 0x1F, "stored", "bits 7:6 are triggers, read 0")
+    add(
+        0x21,
+        "INT_RST_LATCH",
+        0x00,
+        0x1F,
+        "modelled",
+        "offset_reset clears offsets; latch modes stored",
+    )
     for i, axis in enumerate("XYZ"):
         add(0x22 + 2 * i, f"HIGH_TH_{axis}", 0x02, 0xFF, "stored")
         add(0x23 + 2 * i, f"HIGH_DUR_{axis}", 0x19, 0xFF, "stored")
     add(0x31, "SOC", 0x60, 0xFF, "stored", "slow offset compensation not on chip")
-    add(0x32, "A_FOC", 0xC0, 0xF7, "stored", "fast offset trigger (bit 3) ignored")
-    add(0x33, "TRIM_NVM_CTRL", 0xF4, 0x01, "stored", "no NVM: triggers ignored")
+    add(0x32, "A_FOC", 0xC0, 0xF7, "stored", "fast offset compensation not on chip: bit 3 ignored")
+    add(
+        0x33,
+        "TRIM_NVM_CTRL",
+        0xF4,
+        0x01,
+        "modelled",
+        "nvm_load restores the zero image; no programming",
+    )
     add(0x34, "BGW_SPI3_WDT", 0x00, 0x07, "stored")
-    for addr, name in zip(
-        range(0x36, 0x3C), ("OFC1", "OFC2", "OFC3", "OFC4", "TRIM_GP0", "TRIM_GP1")
-    ):
-        add(addr, name, 0x00, 0xFF, "stored", "offsets stored, not applied")
-    add(0x3C, "BIST", 0x10, 0x00, "unmodelled", "rate_ok reads 1; self-test trigger ignored")
+    for addr, name in zip(range(0x36, 0x3B), ("OFC1", "OFC2", "OFC3", "OFC4", "TRIM_GP0")):
+        add(addr, name, 0x00, 0xFF, "modelled", "offsets added to the output (6.9)")
+    add(0x3B, "TRIM_GP1", 0x00, 0xFF, "stored", "general-purpose byte")
+    add(0x3C, "BIST", 0x10, 0x00, "modelled", "rate_ok while sampling; bist_rdy 5 ms after trig")
     add(0x3D, "FIFO_CONFIG_0", 0x00, 0xFF, "modelled", "tag, watermark; a write empties the FIFO")
     add(0x3E, "FIFO_CONFIG_1", 0x00, 0xFF, "modelled", "mode, data select; a write empties it")
     add(0x3F, "FIFO_DATA", 0x00, 0x00, "modelled", "pointer stays; empty pattern 0x00 0x80")
