@@ -136,3 +136,12 @@ def test_command_errors_are_one_line_and_exit_2(tmp_path, capsys, args, message)
     err = capsys.readouterr().err
     assert status == 2
     assert message in err and "Traceback" not in err
+
+
+def test_a_scheduler_address_that_is_not_one_is_a_clear_error(tmp_path, capsys):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(SCENARIO_TOML)
+    status = main(["montecarlo", str(scenario), "--runs", "1", "--scheduler", "bogus"])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert "cannot reach the Dask scheduler at 'bogus'" in err and "Traceback" not in err

@@ -168,8 +168,10 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
     else:
         try:
             client = Client(address, timeout="10s")
-        except OSError as exc:
-            raise RuntimeError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
+        except (OSError, ValueError, TimeoutError) as exc:
+            raise RuntimeError(f"cannot reach the Dask scheduler at {address!r}: {exc} "
+                               "(expected 'local', 'sync' or an address like "
+                               "tcp://host:8786)") from None
     try:
         futures = client.map(run, list(seeds), pure=False)
         by_seed: dict[int, RunResult] = {}
