@@ -294,6 +294,8 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
                 raise TraceFormatError(f"{path}:{lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
             if not isinstance(obj, dict):
                 raise TraceFormatError(f"{path}:{lineno}: each line must be a JSON object")
+            if header is None and "format" not in obj and "kind" in obj:
+                header = {}  # a bare log (Transaction.to_dict() lines): decodable, not replayable
             if header is None:
                 if obj.get("format") != TRACE_FORMAT_TAG:
                     raise TraceFormatError(f"{path}:{lineno}: not a {TRACE_FORMAT_TAG} (header line missing)")
@@ -476,6 +478,11 @@ def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayR
     recorded time, so every sample is the same as in the original session.
     """
     if isinstance(header, dict):
+        if header.get("format") != TRACE_FORMAT_TAG:
+            raise TraceFormatError(
+                "the trace has no header line: replay needs the seed and chip settings "
+                "(write traces with TraceWriter)"
+            )
         header = TraceHeader.from_dict(header)
     replayer = _Replayer(header.build_chips())
     count = 0

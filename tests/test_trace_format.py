@@ -14,6 +14,7 @@ from bmg160_emu.trace import (
     describe_transaction,
     describe_write,
     read_trace,
+    replay_trace,
 )
 from bmg160_emu.transactions import Transaction, TransactionLog
 
@@ -59,9 +60,19 @@ def test_reading_reports_the_line_of_a_broken_record(tmp_path):
         read_trace(path)
 
 
-def test_a_file_without_the_header_is_not_a_trace(tmp_path):
+def test_a_bare_log_without_header_decodes_but_does_not_replay(tmp_path):
+    path = tmp_path / "bare.jsonl"
+    path.write_text("".join(json.dumps(t.to_dict()) + "\n" for t in _session()))
+    header, records = read_trace(path)
+    assert header == {} and len(records) == 3
+    assert "write 0x0F RANGE <- 0x02" in describe_transaction(records[0])
+    with pytest.raises(TraceFormatError, match="no header line: replay needs the seed"):
+        replay_trace(header, records)
+
+
+def test_a_json_file_that_is_not_a_trace_is_refused(tmp_path):
     path = tmp_path / "other.jsonl"
-    path.write_text(json.dumps(_session()[0].to_dict()) + "\n")
+    path.write_text('{"format": "something else"}\n')
     with pytest.raises(TraceFormatError, match=r"other.jsonl:1: not a bmg160-emu trace"):
         read_trace(path)
 

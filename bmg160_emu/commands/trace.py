@@ -58,7 +58,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     try:
         result = replay_trace(header, records)
-    except (TraceFormatError, ValueError, TypeError) as exc:
+    except TraceFormatError as exc:
+        raise CommandError(f"{args.file}: {exc}") from None
+    except (ValueError, TypeError) as exc:
         raise CommandError(f"{args.file}: cannot replay: {exc}") from None
     if result.ok:
         print(f"no divergence: {result.transactions} transactions replayed")
