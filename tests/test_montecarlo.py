@@ -145,3 +145,15 @@ def test_a_scheduler_address_that_is_not_one_is_a_clear_error(tmp_path, capsys):
     err = capsys.readouterr().err
     assert status == 2
     assert "cannot reach the Dask scheduler at 'bogus'" in err and "Traceback" not in err
+
+
+def test_an_existing_dask_cluster_given_by_address_gives_the_same_results():
+    from distributed import LocalCluster
+
+    seeds = [3, 4]
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        remote = run_montecarlo(_short(), seeds, scheduler=cluster.scheduler_address,
+                                progress=False)
+    in_process = run_montecarlo(_short(), seeds, scheduler="sync", progress=False)
+    assert np.array_equal(remote.angle_error_deg, in_process.angle_error_deg)
