@@ -128,7 +128,9 @@ class I2cDevKernel:
         if msg.read_write not in (0, 1):
             raise os_error(errno.EINVAL)
         command, size = msg.command, msg.size
-        data = msg.data.contents if msg.data else None
+        data: Any = msg.data.contents if msg.data else None
+        if data is None and size != I2C_SMBUS_QUICK and not (size == I2C_SMBUS_BYTE and not read):
+            raise os_error(errno.EFAULT)  # i2c-dev: these kinds need a data buffer
         if size == I2C_SMBUS_QUICK:
             bus.write_quick(address, read=read)
         elif size == I2C_SMBUS_BYTE:
@@ -227,10 +229,10 @@ def _install_smbus2_shim() -> None:
             return
         import smbus2.smbus2 as impl
 
-        _saved_smbus2["os"] = impl.os
-        _saved_smbus2["ioctl"] = impl.ioctl
-        impl.os = _OsProxy(KERNEL)
-        impl.ioctl = KERNEL.ioctl
+        _saved_smbus2["os"] = getattr(impl, "os")  # noqa: B009 - module globals of smbus2
+        _saved_smbus2["ioctl"] = getattr(impl, "ioctl")  # noqa: B009
+        setattr(impl, "os", _OsProxy(KERNEL))  # noqa: B010
+        setattr(impl, "ioctl", KERNEL.ioctl)  # noqa: B010
 
 
 def _remove_smbus2_shim() -> None:
@@ -241,8 +243,8 @@ def _remove_smbus2_shim() -> None:
             return
         import smbus2.smbus2 as impl
 
-        impl.os = _saved_smbus2.pop("os")
-        impl.ioctl = _saved_smbus2.pop("ioctl")
+        setattr(impl, "os", _saved_smbus2.pop("os"))  # noqa: B010
+        setattr(impl, "ioctl", _saved_smbus2.pop("ioctl"))  # noqa: B010
 
 
 class LegacySMBus(FakeSMBus):

@@ -18,7 +18,7 @@ from __future__ import annotations
 import errno
 import os
 from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from bmg160_emu.i2c_bus import os_error
 from bmg160_emu.transactions import TransactionLog
@@ -223,7 +223,7 @@ class FakeSpiDev:
     def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> bool:
+    def __exit__(self, exc_type: object, exc_value: object, traceback: object) -> Literal[False]:
         self.close()
         return False
 
