@@ -56,7 +56,7 @@ def test_power_on_reset_restores_reset_values():
     chip.write(0x0F, b"\x04")
     chip.i2c_write(b"\x10")
     chip.power_on_reset()
-    assert chip.read(0x0F) == b"\x00" and chip.pointer == 0
+    assert chip.pointer == 0 and chip.read(0x0F) == b"\x00"
 
 
 @pytest.mark.parametrize("lpm1, lpm2, mode", [
