@@ -14,6 +14,7 @@ malformed request -> EINVAL, bad block count -> EPROTO, PEC mismatch -> EBADMSG.
 from __future__ import annotations
 
 import errno
+import itertools
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from contextlib import ExitStack
@@ -156,7 +157,7 @@ class I2CBus:
         self.log = log if log is not None else TransactionLog()
         self.transaction_hooks: list[TransactionHook] = []
         self.claimed: set[int] = set(claimed)
-        self.transactions = 0
+        self._counter = itertools.count()  # next() is atomic: safe across threads
         self.funcs = funcs
 
     # ------------------------------------------------------------------ configuration
@@ -234,8 +235,7 @@ class I2CBus:
         self, address: int, kind: str, register: int | None = None, written: bytes = b""
     ) -> Any:
         """Run the hooks and find the device; raise the adapter's error if there is none."""
-        index = self.transactions
-        self.transactions = index + 1
+        index = next(self._counter)
         if kind in self._unsupported:
             raise os_error(errno.EOPNOTSUPP)
         chip = self.devices.get(address)
@@ -412,7 +412,7 @@ class I2CBus:
         if chip is None or self.transaction_hooks or self._unsupported:
             chip = self._begin(address, "read_i2c_block_data", register)
         else:  # the hot path of a polling driver: _begin inlined
-            self.transactions += 1
+            next(self._counter)
         data = chip.read(register, length)
         log = self.log
         if log.enabled:
