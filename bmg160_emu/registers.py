@@ -372,3 +372,18 @@ def decode_dump(dump: bytes) -> list[str]:
     if len(dump) != REGISTER_COUNT:
         raise ValueError(f"a register dump has {REGISTER_COUNT} bytes, not {len(dump)}")
     return [f"0x{r.address:02X} {r.describe(v)}" for r, v in zip(REGISTERS, dump)]
+
+
+def markdown_table() -> str:
+    """The register map as a Markdown table (embedded in docs/device-model.md)."""
+    lines = ["| addr | name | access | reset | fields (bits, access) |",
+             "| --- | --- | --- | --- | --- |"]
+    for r in REGISTERS:
+        fields = ", ".join(f"`{f.name}` [{f.bits}] {f.access}" for f in r.fields) or "reserved"
+        reset = f"0x{r.reset:02X}" + (" (NVM)" if r.nvm else "")
+        lines.append(f"| 0x{r.address:02X} | {r.name} | {r.access} | {reset} | {fields} |")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    print(markdown_table(), end="")
