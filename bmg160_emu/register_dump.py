@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 from bmg160_emu import registers, spec_choices
 
@@ -175,31 +177,32 @@ def _i2cdump_char(value: int) -> str:
     return chr(value)
 
 
-def format_i2cdump(values: bytes, first: int = 0x00, last: int | None = None) -> str:
+def format_i2cdump(values: Sequence[int | None], first: int = 0x00, last: int | None = None) -> str:
     """Render bytes exactly as ``i2cdump -y -r FIRST-LAST BUS ADDR b`` prints them.
 
     ``values[i]`` is register ``i``; registers outside ``first..last`` are blanked the way
     i2cdump blanks them, and ``None`` entries print as ``XX`` (a failed read).
     """
-    values = list(values)
+    cells: list[int | None] = list(values)
     if last is None:
-        last = len(values) - 1
-    if not 0 <= first <= last <= 0xFF or last >= len(values):
+        last = len(cells) - 1
+    if not 0 <= first <= last <= 0xFF or last >= len(cells):
         raise ValueError(f"invalid register range 0x{first:02x}-0x{last:02x}")
     lines = [I2CDUMP_HEADER]
     for row in range(first // 16 * 16, last // 16 * 16 + 16, 16):
         hex_part = []
         ascii_part = []
         for reg in range(row, row + 16):
-            if reg < first or reg > last:
+            cell = cells[reg] if first <= reg <= last else -1
+            if cell == -1:
                 hex_part.append("   ")
                 ascii_part.append(" ")
-            elif values[reg] is None:
+            elif cell is None:
                 hex_part.append("XX ")
                 ascii_part.append("X")
             else:
-                hex_part.append(f"{values[reg]:02x} ")
-                ascii_part.append(_i2cdump_char(values[reg]))
+                hex_part.append(f"{cell:02x} ")
+                ascii_part.append(_i2cdump_char(cell))
         lines.append(f"{row:02x}: " + "".join(hex_part) + "   " + "".join(ascii_part))
     return "\n".join(lines) + "\n"
 
@@ -254,7 +257,9 @@ def format_json(dump: RegisterDump) -> str:
     """The dump for programs: every register with its name, value and decoded fields."""
     registers = []
     for reg, value in enumerate(dump.values):
-        entry = {"register": f"0x{reg:02x}", "name": register_name(reg), "value": f"0x{value:02x}"}
+        entry: dict[str, Any] = {
+            "register": f"0x{reg:02x}", "name": register_name(reg), "value": f"0x{value:02x}"
+        }
         entry["fields"] = {f.name: f.raw for f in decode_register(reg, value)}
         registers.append(entry)
     document = {

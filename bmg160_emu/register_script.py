@@ -13,6 +13,7 @@ import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from bmg160_emu.register_dump import (
     DUMP_FORMATS,
@@ -63,16 +64,16 @@ class Statement:
     line: int
     command: str
     text: str
-    register: int | None = None
+    register: int = 0
     values: tuple[int, ...] = ()
     count: int = 1
     mask: int = 0xFF
-    bit: int | None = None
+    bit: int = 0
     expected_bit: int = 1
     seconds: float = 0.0
     interval_s: float = DEFAULT_POLL_INTERVAL_S
-    rate_dps: tuple[float, float, float] | None = None
-    fault: tuple[tuple[str, object], ...] = ()  # (kind, kind), then (key, value) pairs
+    rate_dps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    fault: tuple[tuple[str, Any], ...] = ()  # (kind, kind), then (key, value) pairs
     dump_format: str = "table"
 
     @property
@@ -176,10 +177,10 @@ def _parse_statement(
     cur = _Cursor(tokens, len(text.split("#", 1)[0].rstrip()) + 1)
     if command == "write":
         reg = parse_register(cur.take("register"))
-        values = [parse_number(cur.take("value to write"))]
+        written = [parse_number(cur.take("value to write"))]
         while cur.peek() is not None:
-            values.append(parse_number(cur.take("value")))
-        return Statement(line, command, text, register=reg, values=tuple(values))
+            written.append(parse_number(cur.take("value")))
+        return Statement(line, command, text, register=reg, values=tuple(written))
     if command in ("read", "burst"):
         reg = parse_register(cur.take("register"))
         count = 1
@@ -235,11 +236,11 @@ def _parse_statement(
         return Statement(line, command, text, fault=_parse_fault(name, cur))
     if command == "dump":
         fmt = "table"
-        token = cur.peek()
-        if token is not None:
+        given = cur.peek()
+        if given is not None:
             fmt = cur.take("format").text
             if fmt not in DUMP_FORMATS:
-                raise _LineError(token.column, f"dump format must be one of {', '.join(DUMP_FORMATS)}")
+                raise _LineError(given.column, f"dump format must be one of {', '.join(DUMP_FORMATS)}")
         cur.done()
         return Statement(line, command, text, dump_format=fmt)
     raise _LineError(tokens[0].column, f"unknown command {tokens[0].text!r} (one of {', '.join(COMMANDS)})")
@@ -279,7 +280,7 @@ def fault_injection_available() -> bool:
 _FAULT_TRIGGERS = ("at_s", "on_transaction", "probability")
 
 
-def _fault_value(key: str, token: Token, text: str) -> object:
+def _fault_value(key: str, token: Token, text: str) -> Any:
     if key == "register":
         return parse_register(Token(text, token.column + len(key) + 1))
     if key == "axis" and text in ("x", "y", "z"):
@@ -297,7 +298,7 @@ def _fault_value(key: str, token: Token, text: str) -> object:
     return value
 
 
-def _parse_fault(kind: Token, cur: _Cursor) -> tuple[tuple[str, object], ...]:
+def _parse_fault(kind: Token, cur: _Cursor) -> tuple[tuple[str, Any], ...]:
     """``fault KIND key=value ...``: a bmg160_emu.adcs.faults.Fault, checked now.
 
     Without a trigger key the fault starts at the statement's time (``at_s`` is filled in
@@ -306,7 +307,7 @@ def _parse_fault(kind: Token, cur: _Cursor) -> tuple[tuple[str, object], ...]:
 
     if kind.text not in FAULT_KINDS:
         raise _LineError(kind.column, f"unknown fault kind {kind.text!r} (one of {', '.join(FAULT_KINDS)})")
-    pairs: list[tuple[str, object]] = [("kind", kind.text)]
+    pairs: list[tuple[str, Any]] = [("kind", kind.text)]
     fields = set(Fault.__dataclass_fields__) - {"kind", "gyro"}
     while cur.peek() is not None:
         token = cur.take("key=value")
@@ -316,7 +317,7 @@ def _parse_fault(kind: Token, cur: _Cursor) -> tuple[tuple[str, object], ...]:
         if key not in fields:
             raise _LineError(token.column, f"unknown fault parameter {key!r} (one of {', '.join(sorted(fields))})")
         pairs.append((key, _fault_value(key, token, text)))
-    trial = dict(pairs)
+    trial: dict[str, Any] = dict(pairs)
     if not any(k in trial for k in _FAULT_TRIGGERS):
         trial["at_s"] = 0.0
     try:
