@@ -77,3 +77,20 @@ def test_disabled_log_records_nothing():
     bus.log.enabled = False
     bus.read_byte_data(0x68, 0)
     assert len(bus.log) == 0
+
+
+def test_a_trace_writer_sink_gets_every_transaction_as_a_json_line(tmp_path):
+    from bmg160_emu.trace import TraceWriter, read_trace
+
+    chip = RegisterFileChip()
+    bus = I2CBus(1, {0x68: chip})
+    path = tmp_path / "session.jsonl"
+    with TraceWriter(path) as writer:
+        bus.log.sinks.append(writer)
+        bus.write_byte_data(0x68, 0x0F, 0x02)
+        bus.read_i2c_block_data(0x68, 0x02, 6)
+        with pytest.raises(OSError):
+            bus.read_byte_data(0x69, 0x00)
+    _, records = read_trace(path)
+    again = [Transaction.from_dict(r) for r in records]
+    assert again == list(bus.log)
