@@ -30,7 +30,7 @@ DURATION_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
 DEFAULT_POLL_INTERVAL_S = 1e-3  # one read per millisecond of simulated time
 MAX_BURST = 256  # no bus transfer in scope is longer (FIFO drains of 100 frames x 6 bytes use several)
 
-COMMANDS = ("write", "read", "burst", "poll", "advance", "rate", "fault", "dump")
+COMMANDS = ("write", "read", "burst", "poll", "advance", "rate", "fault", "dump", "chip")
 
 
 class ScriptSyntaxError(ValueError):
@@ -234,6 +234,16 @@ def _parse_statement(
         if not fault_available:
             raise _LineError(name.column, "fault injection is not available in this version")
         return Statement(line, command, text, fault=_parse_fault(name, cur))
+    if command == "chip":
+        token = cur.take("I2C address")
+        try:
+            address = int(token.text, 0)
+        except ValueError:
+            raise _LineError(token.column, f"bad I2C address {token.text!r}") from None
+        if not 0 <= address <= 0x7F:
+            raise _LineError(token.column, f"I2C address {token.text} is outside 0x00..0x7f")
+        cur.done()
+        return Statement(line, command, text, register=address)
     if command == "dump":
         fmt = "table"
         given = cur.peek()
@@ -424,11 +434,22 @@ class ScriptRunner:
             self._say(s, f"true rate x={x:g} y={y:g} z={z:g} deg/s")
         elif s.command == "fault":
             self._inject(s)
+        elif s.command == "chip":
+            self._select(s)
         elif s.command == "dump":
             self._say(s, f"dump ({s.dump_format})")
             text = format_dump(RegisterDump.from_chip(chip), s.dump_format)
             for out in text.rstrip("\n").split("\n"):
                 self.log("      " + out)
+
+    def _select(self, s: Statement) -> None:
+        """``chip ADDRESS``: later statements address the chip at ADDRESS on the same bus."""
+        devices = getattr(self.bus, "devices", {})
+        if s.register not in devices or not isinstance(self.port, I2CRegisterPort):
+            raise ScriptFailure(self.source, s.line, f"no chip at 0x{s.register:02x} on this bus")
+        self.chip = devices[s.register]
+        self.port = I2CRegisterPort(self.bus, s.register)
+        self._say(s, f"chip 0x{s.register:02x}")
 
     def _inject(self, s: Statement) -> None:
         from types import SimpleNamespace

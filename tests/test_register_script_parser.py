@@ -92,3 +92,11 @@ def test_error_message_carries_source_line_and_column():
 
 def test_comments_and_blank_lines_are_ignored():
     assert parse_script("\n   # only a comment\n\n", fault_available=False) == []
+
+
+def test_chip_statement_takes_a_7_bit_address():
+    (statement,) = parse_script("chip 0x69\n", fault_available=False)
+    assert (statement.command, statement.register) == ("chip", 0x69)
+    assert _errors("chip 0x80\nchip\n") == [
+        (1, 6, "I2C address 0x80 is outside 0x00..0x7f"), (2, 5, "missing I2C address"),
+    ]

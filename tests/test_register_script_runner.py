@@ -89,3 +89,16 @@ def test_fault_statements_are_checked_before_running():
         parse_script("fault stuck_axis colour=red\n", source="f")
     with pytest.raises(ValueError, match=r":1:7: stuck_axis: needs an axis"):
         parse_script("fault stuck_axis\n", source="f")
+
+
+def test_chip_statement_switches_to_the_other_address_on_the_bus():
+    from bmg160_emu.clock import VirtualClock
+    from bmg160_emu.i2c_bus import I2CBus
+
+    clock = VirtualClock()
+    chips = {a: BMG160(seed=5, address=a, clock=clock, noise=False) for a in (0x68, 0x69)}
+    lines: list[str] = []
+    script = "write RANGE 0x01\nchip 0x69\nwrite RANGE 0x03\nread RANGE == 0x03\nchip 0x6a\n"
+    with pytest.raises(ScriptFailure, match=r":5: no chip at 0x6a on this bus"):
+        run_script(script, chips[0x68], lines.append, "t.script", bus=I2CBus(1, chips))
+    assert (chips[0x68].peek(0x0F), chips[0x69].peek(0x0F)) == (0x01, 0x03)
