@@ -85,7 +85,19 @@ class _Block:
     """The data path for samples k0 .. k0 + n - 1, computed ahead."""
 
     __slots__ = ("body", "counts_f", "counts_u", "dps_f", "dps_u", "end", "k0", "n",
-                 "rate_bytes", "sel_list", "x", "y", "zi0")
+                 "rate_bytes", "x", "y", "zi0")
+    k0: int
+    n: int
+    end: int
+    body: np.ndarray  # true body rate, deg/s
+    x: np.ndarray  # sensor-frame rate before the filter
+    y: np.ndarray  # filtered
+    zi0: np.ndarray  # filter state before the first sample
+    dps_f: np.ndarray  # filtered + noise + offset, deg/s
+    dps_u: np.ndarray  # unfiltered + noise + offset, deg/s
+    counts_f: np.ndarray
+    counts_u: np.ndarray
+    rate_bytes: bytes  # the selected counts, 6 bytes per sample
 
 
 class BMG160:
@@ -160,12 +172,19 @@ class BMG160:
         self._block: _Block | None = None
         self._rate_kind = "constant"
         self._rate_const = np.zeros(3)
-        self._rate_func: Callable[[float], Any] | None = None
-        self._rate_samples: np.ndarray | None = None
+        self._rate_func: Callable[[float], Any] = lambda t: (0.0, 0.0, 0.0)
+        self._rate_samples = np.zeros((1, 3))
+        self._rate_samples_t0 = 0
+        self._rate_samples_hz: float | None = None
         self._rate_samples_k0 = 0
         self._pointer = 0
         self._next_ns = NEVER
         self._emitting = False
+        self._cur = bytes(6)
+        self._latched = False
+        self._msb_latch: list[int | None] = [None, None, None]
+        self._foc: dict[str, Any] | None = None
+        self._bist_start: int | None = None
         self._reset_state(self.clock.now_ns(), powered=choice.POWERED_UP_AT_CONSTRUCTION)
         self._apply_true_rate(true_rate, None)
 
@@ -503,7 +522,7 @@ class BMG160:
         self._last_sample_ns = -NEVER
         self._sample_seq = 0
         self._data_ready_pending = False
-        self._msb_latch: list[int | None] = [None, None, None]
+        self._msb_latch = [None, None, None]
         self._latched = False
         self._fifo = fifo_mod.Fifo()
         self._bypass_seq = 0
@@ -514,7 +533,7 @@ class BMG160:
         self._int_status_2 = 0
         self._int_status_3 = 0
         self._bist_start = None
-        self._foc: dict[str, Any] | None = None
+        self._foc = None
         self._configure_data_path(restart=True)
         self._update_engine_flags()
         self._start_sampling(now if powered else now + self._startup_ns)
@@ -647,7 +666,6 @@ class BMG160:
         b.counts_u = np.clip(np.rint(b.dps_u * sens), -32768, 32767).astype(np.int16)
         sel = b.counts_u if self._regs[RATE_HBW] & 0x80 else b.counts_f
         b.rate_bytes = sel.astype("<i2").tobytes()
-        b.sel_list = None
         return b
 
     def _block_for(self, k: int) -> _Block:
@@ -755,12 +773,12 @@ class BMG160:
         counts_u = b.counts_u[i]
         dps_pre = None
         if self.sample_hooks:
-            rate = np.array(b.dps_u[i] if high_bw else b.dps_f[i], dtype=float)
+            rate: np.ndarray = np.array(b.dps_u[i] if high_bw else b.dps_f[i], dtype=np.float64)
             for hook in list(self.sample_hooks):
                 result = hook(self, t_s, rate)
                 if result is None:
                     return  # a lost sample: no data-ready, no register update
-                rate = np.asarray(result, dtype=float).reshape(3)
+                rate = np.asarray(result, dtype=np.float64).reshape(3)
             counts = np.clip(np.rint(rate * self._sens_now()), -32768, 32767).astype(np.int16)
             rate_bytes = counts.astype("<i2").tobytes()
             counts_f = counts_u = counts
@@ -775,7 +793,7 @@ class BMG160:
             src = counts_u if self._regs[INT_DATA_SRC] & 0x02 else counts_f
             r = self._regs
             rose = self._any.step(
-                tuple(int(c) for c in src), self._any_axes, (1 + (r[ANY_TH] & 0x7F)) * 16,
+                (int(src[0]), int(src[1]), int(src[2])), self._any_axes, (1 + (r[ANY_TH] & 0x7F)) * 16,
                 4 * ((r[ANY_EN] >> 4 & 3) + 1),
                 -(-self._odr // choice.ANY_MOTION_MAX_RATE_HZ))
             if rose:
@@ -790,21 +808,23 @@ class BMG160:
                 ths.append((255 + 256 * (th >> 1 & 0x1F)) * 4)
                 hys.append((255 + 256 * (th >> 6)) * 4)
                 durs.append(-(-(1 + r[0x23 + 2 * axis]) * 25 * self._odr // 10000))
-            rose = self._high.step(tuple(int(c) for c in src), self._high_axes, ths, hys, durs)
+            rose = self._high.step((int(src[0]), int(src[1]), int(src[2])), self._high_axes,
+                                   ths, hys, durs)
             if rose:
                 self._int_status_3 = self._high.status_byte()
             self._status["high"].update(self._high.active, t_ns, hold)
-        if self._foc is not None:
+        foc = self._foc
+        if foc is not None:
             if dps_pre is None:
-                dps_pre = b.dps_u[i] if self._foc["unfilt"] else b.dps_f[i]
+                dps_pre = b.dps_u[i] if foc["unfilt"] else b.dps_f[i]
             offset = np.asarray(self.offsets_lsb(), dtype=float) * self.offset_lsb_dps
-            self._foc["sum"] += np.asarray(dps_pre, dtype=float) - offset
-            self._foc["count"] += 1
-            if self._foc["count"] >= self._foc["n"]:
+            foc["sum"] += np.asarray(dps_pre, dtype=float) - offset
+            foc["count"] += 1
+            if foc["count"] >= foc["n"]:
                 self._finish_foc()
         if self._fifo_store_mode:
-            axis, tag = self._frame_format()
-            self._fifo.push(rate_bytes[axis] + tag, self._fifo_store_mode)
+            select, tag = self._frame_format()
+            self._fifo.push(rate_bytes[select] + tag, self._fifo_store_mode)
         if self._fifo_int_on:
             self._update_fifo_int(t_ns)
 
@@ -855,8 +875,10 @@ class BMG160:
 
     def _finish_foc(self) -> None:
         foc, self._foc = self._foc, None
+        if foc is None:
+            return
         mean = foc["sum"] / foc["count"]
-        new = [None, None, None]
+        new: list[int | None] = [None, None, None]
         for axis in range(3):
             if foc["axes"] >> axis & 1:
                 new[axis] = int(np.clip(np.rint(-mean[axis] / self.offset_lsb_dps), -2048, 2047))

@@ -28,17 +28,19 @@ class LowPass:
 
     def __init__(self, odr_hz: float, bandwidth_hz: float) -> None:
         self.b, self.a, self._zi_unit = coefficients(float(odr_hz), float(bandwidth_hz))
-        self.reference = None  # (3,) level the filter rests at; set by restart()
+        self.reference = np.zeros(3)  # level the filter rests at; set by restart()
+        self.started = False
         self.state = np.zeros((len(self.a) - 1, 3))
 
     def restart(self, level: np.ndarray) -> None:
         """Rest at ``level``: the next input equal to it comes out unchanged."""
         self.reference = np.array(level, dtype=float)
         self.state = np.zeros_like(self.state)
+        self.started = True
 
     def rebase_if_settled(self, level: np.ndarray) -> None:
         """Re-reference at a constant input once the transient has died out."""
-        if self.reference is None:
+        if not self.started:
             self.restart(level)
             return
         deviation = np.asarray(level, dtype=float) - self.reference
