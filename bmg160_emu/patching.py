@@ -245,6 +245,8 @@ def _remove_smbus2_shim() -> None:
 
         setattr(impl, "os", _saved_smbus2.pop("os"))  # noqa: B010
         setattr(impl, "ioctl", _saved_smbus2.pop("ioctl"))  # noqa: B010
+        with KERNEL.lock:  # descriptor numbers get reused: forget the emulated ones
+            KERNEL.files.clear()
 
 
 class LegacySMBus(FakeSMBus):

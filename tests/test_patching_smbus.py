@@ -140,3 +140,13 @@ def test_bad_arguments_are_refused_clearly():
         patch_smbus([1, 2])
     with pytest.raises(TypeError):
         patch_smbus({1: 42})
+
+
+def test_a_bus_left_open_after_the_patch_no_longer_reaches_the_chip():
+    chip = RegisterFileChip()
+    with patch_smbus({1: {0x68: chip}}):
+        bus = smbus2.SMBus(1)
+    with pytest.raises(OSError):  # now a plain descriptor: the kernel knows no such ioctl
+        bus.read_byte_data(0x68, 0)
+    bus.close()
+    assert chip.reads == []
