@@ -55,13 +55,15 @@ def test_stream_mode_keeps_the_newest_100_frames():
     assert [f[0] for f in frames] == list(range(newest - 99, newest + 1))
 
 
-def test_stream_mode_per_sample_path_matches_batch_path():
+@pytest.mark.parametrize("mode", [0x40, 0x80])
+def test_one_long_advance_fills_the_fifo_as_many_short_ones(mode):
     a, b = _ramp_chip(), _ramp_chip()
     for chip in (a, b):
-        chip.write(0x3E, b"\x80")
+        chip.write(0x3E, bytes([mode]))
     a.advance(130 * period_s(a))
     for _ in range(130):
         b.advance(period_s(b))
+    assert a.dump() == b.dump()
     assert a.read(0x3F, 600) == b.read(0x3F, 600)
 
 
