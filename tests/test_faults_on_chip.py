@@ -33,7 +33,7 @@ def _poll(rig, reader, seconds, period=0.05):
 def test_nack_fails_the_transaction_with_eremoteio_and_the_log_shows_it():
     rig, gyro, _ = _rig([Fault("nack", on_transaction=6)])
     bus = gyro.bus
-    assert bus.transactions == 3  # the reader's configuration writes: 0, 1, 2
+    assert len(bus.log) == 3  # the reader's configuration writes: transactions 0, 1, 2
     for _ in range(3):
         bus.read_byte_data(0x68, 0x00)
     with pytest.raises(OSError) as failure:
@@ -137,3 +137,29 @@ def test_random_faults_repeat_with_the_master_seed():
     first = events(8)
     assert first and first == events(8)
     assert first != events(9)
+
+
+def test_bus_and_chip_faults_flag_the_next_output_sample_in_the_truth():
+    rig, gyro, reader = _rig([Fault("nack", at_s=0.5), Fault("brownout", at_s=1.0)])
+    for _ in range(30):
+        rig.advance(0.05)
+        reader.read_frames()
+    truth = rig.truth(0)
+    nack = truth.times_s[(truth.fault_flags & FAULT_FLAGS["nack"]) != 0]
+    brownout = truth.times_s[(truth.fault_flags & FAULT_FLAGS["brownout"]) != 0]
+    assert nack.size == 1 and 0.5 <= nack[0] <= 0.55 + 0.005
+    # after a brown-out the chip restarts: the next sample comes after its start-up time
+    assert brownout.size == 1 and brownout[0] > 1.0
+    assert [e.kind for e in truth.events] == ["nack", "brownout"]
+    assert reader.errors == 1
+
+
+def test_scale_factor_error_scales_the_measured_rate():
+    rig = GyroRig(Scenario.constant([10.0, 10.0, 0.0], 5.0),
+                  [GyroSpec(noise=False, scale_factor_error=[0.01, 0.0, 0.0])], seed=0)
+    gyro = rig.gyros[0]
+    reader = FifoReader(gyro.bus, gyro.address, range_dps=250, bandwidth_code=4)
+    reader.configure()
+    rates = _poll(rig, reader, 1.0)
+    assert rates[-1, 0] == pytest.approx(10.1, abs=LSB_250)
+    assert rates[-1, 1] == pytest.approx(10.0, abs=LSB_250)

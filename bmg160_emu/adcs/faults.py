@@ -22,7 +22,8 @@ rate in the sensor frame, deg/s, before scaling to counts), chip faults between 
 transactions. Every onset is a :class:`FaultEvent` in :attr:`FaultSchedule.events`; a bus
 fault is the failed transaction itself in the bus's transaction log, any other fault adds a
 ``fault:<kind>`` entry there (its description as the written bytes); every output sample a
-fault touched carries its :data:`FAULT_FLAGS` bit in the rig's truth record.
+fault touched carries its :data:`FAULT_FLAGS` bit in the rig's truth record, and a bus or
+chip fault flags the gyro's next output sample.
 
 Triggers: ``at_s`` acts exactly at that time for sample faults and at the first transaction
 at or after it for bus and chip faults; ``on_transaction`` counts the transactions of the
@@ -206,6 +207,8 @@ class FaultSchedule:
         self._last_rate: dict[int, np.ndarray] = {}
         self._sample_flags: dict[int, dict[float, int]] = {}
         self._base_temperature: dict[int, float] = {}
+        # gyro -> (time, flag) of bus and chip faults not yet on a sample
+        self._pending: dict[int, list[tuple[float, int]]] = {}
 
     # ----------------------------------------------------------------- installation
 
@@ -295,6 +298,8 @@ class FaultSchedule:
                 _stall(gyros_here[0].chip, fault.stall_s)
         self.events.append(FaultEvent(now, fault.kind, gyro, index,
                                       f"{fault.describe()} at address 0x{address:02x}"))
+        if gyro is not None:
+            self._pending.setdefault(gyro, []).append((now, FAULT_FLAGS[fault.kind]))
         return OSError(code, text)
 
     # ----------------------------------------------------------------- chip and sample side
@@ -336,6 +341,12 @@ class FaultSchedule:
     def _apply(self, gyro: GyroTarget, t: float, rate_dps: np.ndarray) -> np.ndarray | None:
         rate = np.array(rate_dps, dtype=float)
         flags = 0
+        pending = self._pending.get(gyro.index)
+        if pending:  # bus and chip faults: flag the first sample at or after them
+            for when, bits in pending:
+                if when <= t:
+                    flags |= bits
+            pending[:] = [(when, bits) for when, bits in pending if when > t]
         lost = False
         for i, fault in enumerate(self.faults):
             for act in self._activations[i]:
@@ -389,6 +400,9 @@ class FaultSchedule:
     def _note(self, event: FaultEvent, gyro: GyroTarget) -> None:
         """Record an onset, and put it in the gyro's bus log as a ``fault:<kind>`` entry."""
         self.events.append(event)
+        if event.kind in CHIP_KINDS:  # flagged on the gyro's next output sample
+            self._pending.setdefault(gyro.index, []).append(
+                (event.time_s, FAULT_FLAGS[event.kind]))
         log = getattr(gyro.bus, "log", None)
         if self.log_to_bus and log is not None and getattr(log, "enabled", True):
             from bmg160_emu.transactions import Transaction

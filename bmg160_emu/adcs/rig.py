@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.adcs.attitude import IDENTITY, integrate_attitude
-from bmg160_emu.adcs.faults import Fault, FaultSchedule, describe_flags
+from bmg160_emu.adcs.faults import Fault, FaultEvent, FaultSchedule, describe_flags
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
 
 VALID_ADDRESSES = (0x68, 0x69)  # spec 2.1: SDO low / high
@@ -126,6 +126,7 @@ class Truth:
     rate_dps: np.ndarray  # true body rate
     quaternion: np.ndarray  # true attitude, scalar first, body -> reference
     fault_flags: np.ndarray
+    events: list[FaultEvent] = field(default_factory=list)  # fault onsets on this gyro
 
     def faults_at(self, i: int) -> list[str]:
         return describe_flags(int(self.fault_flags[i]))
@@ -233,6 +234,7 @@ class GyroRig:
         done = 0 if cached is None else cached.times_s.size
         new_times = np.array(self._times[gyro][done:], dtype=float)
         if cached is not None and new_times.size == 0:
+            cached.events = [e for e in self.faults.events if e.gyro in (gyro, None)]
             return cached
         new_rates = np.array(self._rates[gyro][done:], dtype=float).reshape(-1, 3)
         if cached is None or done == 0:
@@ -251,6 +253,7 @@ class GyroRig:
                           np.concatenate([cached.rate_dps, new_rates]),
                           np.concatenate([cached.quaternion, new_q]),
                           np.concatenate([cached.fault_flags, new_flags]))
+        truth.events = [e for e in self.faults.events if e.gyro in (gyro, None)]
         self._truth_cache[gyro] = truth
         return truth
 
