@@ -17,6 +17,7 @@ from __future__ import annotations
 import ctypes
 import errno
 import fcntl
+import operator
 import os
 import sys
 import threading
@@ -249,24 +250,54 @@ def _remove_smbus2_shim() -> None:
             KERNEL.files.clear()
 
 
+_LEGACY_LIST_MESSAGE = (
+    "Third argument must be a list of at least one, but not more than 32 integers"
+)
+
+
+def _legacy_list(values: Any) -> list[int]:
+    """python-smbus's block argument rules: a list (TypeError otherwise) of at most 32 ints
+    (OverflowError), each truncated to 8 bits."""
+    if not isinstance(values, list):
+        raise TypeError(_LEGACY_LIST_MESSAGE)
+    if len(values) > I2C_SMBUS_BLOCK_MAX:
+        raise OverflowError(_LEGACY_LIST_MESSAGE)
+    if not all(isinstance(v, int) for v in values):
+        raise TypeError(_LEGACY_LIST_MESSAGE)
+    return [v & 0xFF for v in values]
+
+
 class LegacySMBus(FakeSMBus):
-    """python-smbus's ``smbus.SMBus([bus])`` over the emulated buses: no ``force``
-    arguments, ``read_i2c_block_data(addr, cmd, len=32)``, IOError on failures."""
+    """python-smbus's ``smbus.SMBus([bus])`` over the emulated buses (its C module's rules):
+    ``read_i2c_block_data(addr, cmd, len=32)`` with lengths above 32 failing in the kernel
+    (EINVAL), block arguments that must be lists of at most 32 ints, a boolean ``pec``."""
 
     def __init__(self, bus: int = -1) -> None:
         super().__init__(None if bus is None or (isinstance(bus, int) and bus < 0) else bus)
 
-    def read_i2c_block_data(
-        self, addr: int, cmd: int, len: int = 32, force: bool | None = None
+    def read_i2c_block_data(  # type: ignore[override]
+        self, addr: int, cmd: int, len: int = 32
     ) -> list[int]:
-        return super().read_i2c_block_data(addr, cmd, min(len, I2C_SMBUS_BLOCK_MAX), force)
+        self._set_address(addr)
+        count = operator.index(len) & 0xFF
+        data = self._bus().read_i2c_block_data(self._client, operator.index(cmd) & 0xFF, count)
+        return list(data)
+
+    def write_i2c_block_data(self, addr: int, cmd: int, vals: Any) -> None:  # type: ignore[override]
+        super().write_i2c_block_data(addr, cmd, _legacy_list(vals))
+
+    def write_block_data(self, addr: int, cmd: int, vals: Any) -> None:  # type: ignore[override]
+        super().write_block_data(addr, cmd, _legacy_list(vals))
+
+    def block_process_call(self, addr: int, cmd: int, vals: Any) -> list[int]:  # type: ignore[override]
+        return super().block_process_call(addr, cmd, _legacy_list(vals))
 
     @property
-    def pec(self) -> bool:  # python-smbus exposes pec as a bool attribute
+    def pec(self) -> bool:  # type: ignore[override]
         return bool(self._pec)
 
     @pec.setter
-    def pec(self, value: bool) -> None:
+    def pec(self, value: Any) -> None:
         self.enable_pec(bool(value))
 
 

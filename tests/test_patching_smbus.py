@@ -150,3 +150,25 @@ def test_a_bus_left_open_after_the_patch_no_longer_reaches_the_chip():
         bus.read_byte_data(0x68, 0)
     bus.close()
     assert chip.reads == []
+
+
+def test_legacy_smbus_follows_python_smbus_rules():
+    chip = RegisterFileChip()
+    with patch_smbus({1: {0x68: chip}}):
+        import smbus
+
+        bus = smbus.SMBus()
+        bus.open(1)
+        assert bus.read_i2c_block_data(0x68, 0x02, 3) == [2, 3, 4]
+        with pytest.raises(OSError) as info:
+            bus.read_i2c_block_data(0x68, 0x02, 33)  # the kernel refuses it (EINVAL)
+        assert info.value.errno == 22
+        with pytest.raises(TypeError, match="must be a list"):
+            bus.write_i2c_block_data(0x68, 0x20, (1, 2))
+        with pytest.raises(OverflowError):
+            bus.write_block_data(0x68, 0x20, [0] * 33)
+        bus.write_i2c_block_data(0x68, 0x20, [0x1AA])
+        assert chip.regs[0x20] == 0xAA
+        bus.pec = 1
+        assert bus.pec is True
+        bus.close()
