@@ -156,3 +156,26 @@ def test_stream_mode_keeps_the_newest_100(driver, bmg160_chip):
     assert len(frames) == 100
     latest = driver.rates()
     assert frames[-1] == latest  # the last frame is the current sample
+
+
+def test_bypass_mode_holds_only_the_newest_sample_and_reads_empty_after(driver):
+    driver.init(range_code=0, bw_code=5)
+    time.sleep(0.1)
+    driver.bus.write_byte_data(0x68, FIFO_CONFIG_1, 0x00)  # bypass (spec 6.5)
+    time.sleep(0.05)
+    assert driver.bus.read_byte_data(0x68, FIFO_STATUS) & 0x7F == 1
+    frame = driver.bus.read_i2c_block_data(0x68, FIFO_DATA, 6)
+    again = driver.bus.read_i2c_block_data(0x68, FIFO_DATA, 6)
+    assert frame == driver.bus.read_i2c_block_data(0x68, RATE_X_LSB, 6)
+    assert again == [0x00, 0x80] * 3  # empty pattern, -32768 per word
+
+
+def test_self_test_as_the_bosch_api_runs_it(driver):
+    bist = 0x3C  # spec 4.25
+    driver.init(range_code=0, bw_code=0)
+    time.sleep(0.05)
+    assert driver.bus.read_byte_data(0x68, bist) & 0x10  # rate_ok before the trigger
+    driver.bus.write_byte_data(0x68, bist, 0x01)  # trig_bist
+    time.sleep(0.010)  # BAPI waits 10 ms (spec 6.8)
+    status = driver.bus.read_byte_data(0x68, bist)
+    assert status & 0x02 and not status & 0x04  # bist_rdy, no bist_fail
