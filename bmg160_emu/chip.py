@@ -135,6 +135,10 @@ class BMG160:
     ) -> None:
         if address not in VALID_ADDRESSES:
             raise ValueError(f"BMG160 address must be 0x68 or 0x69, not {address!r}")
+        if noise_mode not in ("physical", "paper"):
+            raise ValueError(f"noise_mode must be 'physical' or 'paper', not {noise_mode!r}")
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
+            raise TypeError(f"seed must be an int or None, not {type(seed).__name__}")
         self.address = address
         self.lock = threading.RLock()
         self.clock = VirtualClock() if clock is None else clock

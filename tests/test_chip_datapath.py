@@ -158,3 +158,14 @@ def test_poke_changes_content_without_access_rules():
     chip.write(0x11, b"\x80")  # suspend: RANGE writes are ignored...
     chip.poke(0x0F, 0x01)  # ...but an upset is not
     assert chip.read(0x0F) == b"\x01"
+
+
+@pytest.mark.parametrize("kwargs, error", [
+    ({"noise_mode": "fancy", "noise": False}, ValueError), ({"seed": "abc"}, TypeError),
+    ({"address": 0x10}, ValueError), ({"startup_time_s": -1}, ValueError),
+    ({"temperature_c": float("nan")}, ValueError), ({"clock": 5}, TypeError),
+    ({"nvm_image": b"12"}, ValueError), ({"nvm_remain": 16}, ValueError),
+])
+def test_bad_constructor_options_are_clear_errors(kwargs, error):
+    with pytest.raises(error):
+        BMG160(**kwargs)
