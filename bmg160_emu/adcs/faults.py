@@ -62,10 +62,14 @@ class FaultError(ValueError):
 class GyroTarget(Protocol):
     """What a fault needs to know about a gyro (a :class:`~bmg160_emu.adcs.rig.Gyro`)."""
 
-    index: int
-    chip: Any
-    bus: Any
-    address: int
+    @property
+    def index(self) -> int: ...
+    @property
+    def chip(self) -> Any: ...
+    @property
+    def bus(self) -> Any: ...
+    @property
+    def address(self) -> int: ...
 
 
 @dataclass
@@ -274,7 +278,7 @@ class FaultSchedule:
             return True
         if fault.on_transaction is not None:
             return index == fault.on_transaction
-        return bool(self._rngs[i].random() < fault.probability)
+        return bool(self._rngs[i].random() < (fault.probability or 0.0))
 
     def _bus_fault_now(self, i: int, fault: Fault, bus: Any, index: int, now: float) -> bool:
         if any(start <= now < end for start, end in self._bus_windows[i]):

@@ -45,7 +45,7 @@ else:  # pragma: no cover - Python 3.10
 EARTH_MU_KM3_S2 = 398600.4418  # km^3/s^2, EGM-96 gravitational parameter
 EARTH_RADIUS_KM = 6378.137  # km, WGS-84 equatorial radius
 
-RateFunction = Callable[[float], Sequence[float]]
+RateFunction = Callable[[Any], Any]  # t (float, or an array when vectorised) -> 3 deg/s
 
 
 class ScenarioError(ValueError):
@@ -250,11 +250,12 @@ class CallableMotion(Motion):
                 )
         return np.array(rows).reshape(t.size, 3)
 
-
     def _vectorised(self, t: np.ndarray) -> np.ndarray | None:
         """One call with all times, when the callable accepts arrays; else None."""
+        function = self.function
+        assert function is not None
         try:
-            values = np.asarray(self.function(t), dtype=float)  # type: ignore[misc]
+            values = np.asarray(function(t), dtype=np.float64)
         except Exception:  # noqa: BLE001 - a scalar-only callable: called per time instead
             return None
         if values.shape == (t.size, 3):
@@ -422,7 +423,7 @@ def motion_from_dict(
     end = entry.get("end_s")
     if end is not None and not float(end) > start:
         raise ScenarioError(f"{where}: end_s must be after start_s")
-    window = {"start_s": start, "end_s": None if end is None else float(end)}
+    window: dict[str, Any] = {"start_s": start, "end_s": None if end is None else float(end)}
 
     if kind == "rest":
         return Rest(**window)
