@@ -157,3 +157,9 @@ def test_an_existing_dask_cluster_given_by_address_gives_the_same_results():
                                 progress=False)
     in_process = run_montecarlo(_short(), seeds, scheduler="sync", progress=False)
     assert np.array_equal(remote.angle_error_deg, in_process.angle_error_deg)
+
+
+def test_progress_bar_counts_runs_when_asked(capsys):
+    run_montecarlo(_short(), [1, 2], scheduler="sync", progress=True)
+    err = capsys.readouterr().err
+    assert "monte carlo" in err and "2/2" in err

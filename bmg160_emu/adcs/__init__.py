@@ -4,3 +4,22 @@ True motion scenarios (:mod:`.scenarios`), the true attitude (:mod:`.attitude`),
 gyros with truth recording (:mod:`.rig`), fault injection (:mod:`.faults`) and Monte Carlo
 runs over noise seeds (:mod:`.montecarlo`). See ``docs/adcs.md``.
 """
+
+from bmg160_emu.adcs.attitude import integrate_attitude
+from bmg160_emu.adcs.faults import Fault, FaultSchedule
+from bmg160_emu.adcs.montecarlo import run_montecarlo
+from bmg160_emu.adcs.rig import GyroRig, GyroSpec, Truth
+from bmg160_emu.adcs.scenarios import Scenario, ScenarioError, load_scenario
+
+__all__ = [
+    "Fault",
+    "FaultSchedule",
+    "GyroRig",
+    "GyroSpec",
+    "Scenario",
+    "ScenarioError",
+    "Truth",
+    "integrate_attitude",
+    "load_scenario",
+    "run_montecarlo",
+]
