@@ -1,0 +1,121 @@
+"""``bmg160-emu stub``: keep a kernel i2c-stub chip in step with the model (kernel drivers)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+from pathlib import Path
+
+from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+
+EPILOG = """\
+example (as root, on a machine or VM that can load modules):
+  modprobe i2c-stub chip_addr=0x68 && modprobe i2c-dev
+  bmg160-emu stub --bus 0 --address 0x68 --seed 7 &
+  echo bmg160 0x68 > /sys/bus/i2c/devices/i2c-0/new_device
+  cat /sys/bus/iio/devices/iio:device0/in_anglvel_x_raw
+
+The adapter runs in real time until interrupted (or --duration has passed), refreshing the
+data registers once per output data period and applying what the driver writes.
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "stub",
+        help="serve the emulated chip to kernel drivers through the i2c-stub module",
+        description=(
+            "Keep the register memory of a Linux i2c-stub chip in step with the emulated "
+            "BMG160, so kernel drivers (the kernel's bmg160 IIO driver) read live data."
+        ),
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--bus", type=_bus_number, required=True, help="number N of the i2c-stub bus /dev/i2c-N"
+    )
+    parser.add_argument(
+        "--duration", type=float, default=None, metavar="SECONDS",
+        help="stop after this many seconds (default: run until interrupted)",
+    )
+    parser.add_argument(
+        "--stats", type=Path, default=None, metavar="FILE",
+        help="write refresh timing (period, jitter, CPU use) and the client writes applied "
+        "to the model as JSON to FILE at exit",
+    )
+    parser.add_argument(
+        "--max-refresh-hz", type=float, default=None, metavar="HZ",
+        help="refresh at most this often even at higher output data rates (default 500)",
+    )
+    parser.add_argument(
+        "--ready-file", type=Path, default=None, metavar="FILE",
+        help="create FILE once the register map is preloaded (for scripts)",
+    )
+    add_chip_options(parser)
+    parser.set_defaults(func=run)
+
+
+def _bus_number(text: str) -> int:
+    try:
+        value = int(text, 0)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"bus must be an integer >= 0, not {text!r}")
+    return value
+
+
+def run(args: argparse.Namespace) -> int:
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.linux.i2c_stub_adapter import I2CStubAdapter, StubSetupError, check_stub_bus
+
+    addresses = list(dict.fromkeys(args.addresses or [0x68]))
+    if len(addresses) != 1:
+        raise CommandError("stub serves one chip address per process: give --address once")
+    address = addresses[0]
+    try:
+        check_stub_bus(args.bus, address)
+    except StubSetupError as exc:
+        raise CommandError(str(exc)) from None
+    args.realtime = True  # a kernel driver lives in real time
+    chip = chips_from_args(args)[address]
+    try:
+        adapter = I2CStubAdapter(chip, args.bus, address)
+        if args.max_refresh_hz is not None:
+            if args.max_refresh_hz <= 0:
+                raise CommandError("--max-refresh-hz must be > 0")
+            adapter.max_refresh_hz = args.max_refresh_hz
+    except PermissionError:
+        raise CommandError(f"permission denied on /dev/i2c-{args.bus}: run as root") from None
+    except OSError as exc:
+        raise CommandError(f"cannot open /dev/i2c-{args.bus}: {exc.strerror}") from None
+
+    stop = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
+    try:
+        adapter.preload()
+        if args.ready_file is not None:
+            args.ready_file.write_text("ready\n")
+        adapter.run(duration_s=args.duration, should_stop=lambda: bool(stop), preload=False)
+    except KeyboardInterrupt:
+        pass
+    except OSError as exc:
+        raise CommandError(f"i2c-stub access failed: {exc}") from None
+    finally:
+        adapter.close()
+        if args.stats is not None:
+            report = {
+                "summary": adapter.stats.summary(),
+                "events": adapter.events,
+                "final": {
+                    "odr_hz": chip.odr_hz,
+                    "power_mode": chip.power_mode,
+                    "registers": chip.dump().hex(),
+                },
+            }
+            args.stats.write_text(json.dumps(report, indent=1) + "\n")
+    print(f"bmg160-emu stub: {adapter.stats.summary().get('refreshes', 0):.0f} refreshes",
+          file=sys.stderr)
+    return 0

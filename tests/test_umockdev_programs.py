@@ -1,0 +1,380 @@
+"""Unmodified programs against the emulated chip on a umockdev /dev/i2c-N (`bmg160-emu run`).
+
+Each program kind runs once under `bmg160-emu run` (real time, seeded chip with a known true
+rate) and its output is asserted on: i2c-tools (i2cdetect, i2cget, i2cset, i2cdump in byte
+and I2C-block modes, i2ctransfer), smbus2 in a subprocess, and a C program using ioctl on
+/dev/i2c-N, compiled here with the system C compiler.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.umockdev
+
+TRUE_RATE_DPS = (20.0, -10.0, 5.0)
+CHIP_OPTIONS = ["--seed", "3", "--true-rate", "20", "-10", "5"]
+
+
+def _umockdev_missing() -> str | None:
+    try:
+        from bmg160_emu.linux.umockdev_node import (
+            UMockdevUnavailable,
+            load_umockdev,
+            preload_available,
+        )
+
+        load_umockdev()
+    except UMockdevUnavailable as exc:
+        return str(exc)
+    if not preload_available():
+        return "umockdev's preload library is missing (apt-get install libumockdev0)"
+    return None
+
+
+_MISSING = _umockdev_missing()
+if _MISSING:
+    pytest.skip(f"umockdev route unavailable: {_MISSING}", allow_module_level=True)
+
+
+def run_emulated(args: list[str], timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "bmg160_emu", "run", *args],
+        capture_output=True, text=True, timeout=timeout, check=False, **kwargs,
+    )
+
+
+def signed_words(data: list[int]) -> list[int]:
+    return [int.from_bytes(bytes(data[i : i + 2]), "little", signed=True) for i in range(0, 6, 2)]
+
+
+# The model's noise is ~0.8 deg/s rms at the reset bandwidth (BW 0: 523 Hz) and ~0.2 deg/s
+# rms at BW 7 (32 Hz), its bias ~0.1 deg/s: tolerances of > 5 sigma for one sample.
+TOLERANCE_RESET_BW_DPS = 4.5
+TOLERANCE_BW7_DPS = 1.5
+
+
+def assert_rate_counts(
+    counts: list[int], full_scale_dps: float = 2000.0, tol_dps: float = TOLERANCE_RESET_BW_DPS
+) -> None:
+    """Counts of X, Y, Z (or the first axes) match the true rate at this range."""
+    for value, true in zip(counts, TRUE_RATE_DPS):
+        assert abs(value * full_scale_dps / 32768 - true) < tol_dps, counts
+
+
+# --------------------------------------------------------------------------- i2c-tools
+
+I2C_TOOLS_SCRIPT = """\
+set -u
+cd "$1"
+i2cdetect -y -r 1 > detect.txt 2>&1
+i2cget -y 1 0x68 0x00 > chip_id.txt 2>&1
+i2cget -y 1 0x50 0x00 > missing.txt 2>&1; echo "status $?" >> missing.txt
+i2cset -y 1 0x68 0x0f 0x03 > /dev/null 2>&1
+i2cset -y 1 0x68 0x10 0x07
+i2cget -y 1 0x68 0x0f > range.txt
+i2cget -y 1 0x68 0x10 > bw.txt
+i2cdump -y 1 0x68 b > dump_b.txt 2>&1
+i2cdump -y 1 0x68 i > dump_i.txt 2>&1
+for n in 1 2 3 4 5; do i2ctransfer -y 1 w1@0x68 0x02 r6; sleep 0.02; done > transfer.txt 2>&1
+i2cset -y 1 0x68 0x3e 0x40
+sleep 0.5
+i2cget -y 1 0x68 0x0e > fifo_before.txt
+i2ctransfer -y 1 w1@0x68 0x3f r120 > fifo_frames.txt
+i2cget -y 1 0x68 0x0e > fifo_after.txt
+"""
+
+
+@pytest.fixture(scope="module")
+def i2c_tools(tmp_path_factory):
+    if shutil.which("i2cget") is None:
+        pytest.skip("i2c-tools is not installed (apt-get install i2c-tools)")
+    out = tmp_path_factory.mktemp("i2c_tools")
+    script = out / "tools.sh"
+    script.write_text(I2C_TOOLS_SCRIPT)
+    result = run_emulated([*CHIP_OPTIONS, "--", "sh", str(script), str(out)])
+    assert result.returncode == 0, result.stderr
+    return out
+
+
+def test_i2cdetect_r_finds_only_the_chip(i2c_tools):
+    rows = (i2c_tools / "detect.txt").read_text().splitlines()[1:]
+    cells = {}
+    for row in rows:
+        base = int(row[:2], 16)
+        for i, cell in enumerate(row[4:].split()):
+            cells[base + i + (3 if base == 0 else 0)] = cell
+    assert cells[0x68] == "68"
+    assert all(v == "--" for k, v in cells.items() if k != 0x68)
+
+
+def test_i2cget_reads_chip_id(i2c_tools):
+    assert (i2c_tools / "chip_id.txt").read_text().strip() == "0x0f"
+
+
+def test_missing_address_fails_like_a_real_adapter(i2c_tools):
+    text = (i2c_tools / "missing.txt").read_text()
+    assert "Read failed" in text
+    assert "status 2" in text
+
+
+def test_i2cset_writes_reach_the_model(i2c_tools):
+    assert (i2c_tools / "range.txt").read_text().strip() == "0x03"
+    assert (i2c_tools / "bw.txt").read_text().strip() == "0x87"  # bit 7 is read-only 1
+
+
+def test_i2cdump_byte_and_block_modes_agree_on_configuration(i2c_tools):
+    def rows(name):
+        lines = (i2c_tools / name).read_text().splitlines()[1:]
+        return {line[:2]: line[4:51].split() for line in lines}
+
+    byte_mode, block_mode = rows("dump_b.txt"), rows("dump_i.txt")
+    for mode in (byte_mode, block_mode):
+        assert mode["00"][0] == "0f"
+        assert mode["00"][15] == "03"  # RANGE as written
+        assert mode["10"][0] == "87"  # BW
+    # configuration registers 0x10..0x3e are the same in both modes (no side effects)
+    assert byte_mode["10"] == block_mode["10"]
+    assert byte_mode["20"] == block_mode["20"]
+
+
+def test_i2ctransfer_sees_changing_rate_data(i2c_tools):
+    lines = (i2c_tools / "transfer.txt").read_text().splitlines()
+    samples = [[int(v, 16) for v in line.split()] for line in lines]
+    assert len(samples) == 5
+    assert len({tuple(s) for s in samples}) >= 3
+    for s in samples:
+        assert_rate_counts(signed_words(s), 250.0, TOLERANCE_BW7_DPS)  # RANGE 3, BW 7
+
+
+def test_fifo_drains_through_i2c_tools(i2c_tools):
+    before = int((i2c_tools / "fifo_before.txt").read_text(), 16) & 0x7F
+    after = int((i2c_tools / "fifo_after.txt").read_text(), 16) & 0x7F
+    frames = [int(v, 16) for v in (i2c_tools / "fifo_frames.txt").read_text().split()]
+    # 0.5 s at ODR 100 Hz (BW 7) stores ~50 frames; 20 frames are read out, and at most a
+    # few new ones arrive in the ~10-50 ms between the two status reads.
+    assert before >= 30
+    assert after <= before - 15
+    assert len(frames) == 120
+    assert_rate_counts(signed_words(frames[:6]), 250.0, TOLERANCE_BW7_DPS)
+
+
+# --------------------------------------------------------------------------- smbus2
+
+SMBUS2_CLIENT = """\
+import errno, json, time
+from smbus2 import SMBus, i2c_msg
+out = {}
+with SMBus(1) as bus:
+    out["chip_id"] = bus.read_byte_data(0x68, 0x00)
+    out["blocks"] = []
+    for _ in range(5):
+        out["blocks"].append(bus.read_i2c_block_data(0x68, 0x02, 6))
+        time.sleep(0.002)
+    out["word_x"] = bus.read_word_data(0x68, 0x02)
+    bus.write_byte_data(0x68, 0x10, 0x07)          # ODR 100 Hz
+    bus.write_byte_data(0x68, 0x3E, 0x40)          # FIFO mode, X Y Z
+    time.sleep(0.3)
+    before = bus.read_byte_data(0x68, 0x0E) & 0x7F
+    write, read = i2c_msg.write(0x68, [0x3F]), i2c_msg.read(0x68, 6 * before)
+    bus.i2c_rdwr(write, read)
+    after = bus.read_byte_data(0x68, 0x0E) & 0x7F
+    out["fifo"] = [before, after, list(read)[:6]]
+    try:
+        bus.read_byte_data(0x50, 0x00)
+        out["missing"] = None
+    except OSError as exc:
+        out["missing"] = exc.errno
+print(json.dumps(out))
+"""
+
+
+@pytest.fixture(scope="module")
+def smbus2_client(tmp_path_factory):
+    script = tmp_path_factory.mktemp("smbus2") / "client.py"
+    script.write_text(SMBUS2_CLIENT)
+    result = run_emulated([*CHIP_OPTIONS, "--", sys.executable, str(script)])
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+def test_smbus2_reads_chip_id_and_changing_rates(smbus2_client):
+    assert smbus2_client["chip_id"] == 0x0F
+    blocks = smbus2_client["blocks"]
+    assert len({tuple(b) for b in blocks}) >= 3
+    for block in blocks:
+        assert_rate_counts(signed_words(block))
+    word = smbus2_client["word_x"]
+    assert_rate_counts([word - 65536 if word >= 32768 else word])  # X alone
+
+
+def test_smbus2_fifo_drains_completely(smbus2_client):
+    before, after, first = smbus2_client["fifo"]
+    assert before >= 15  # 0.3 s at 100 Hz
+    assert after <= 1  # everything read; at most one new frame in the microseconds between
+    assert_rate_counts(signed_words(first), tol_dps=TOLERANCE_BW7_DPS)
+
+
+def test_smbus2_missing_address_raises_the_bus_errno(smbus2_client):
+    from bmg160_emu.i2c_bus import I2CBus
+
+    bus = I2CBus(1, {})
+    with pytest.raises(OSError) as expected:
+        bus.read_byte_data(0x50, 0)
+    assert smbus2_client["missing"] == expected.value.errno
+
+
+# --------------------------------------------------------------------------- C, ioctl
+
+C_CLIENT = textwrap.dedent(
+    r"""
+    #include <errno.h>
+    #include <fcntl.h>
+    #include <linux/i2c.h>
+    #include <linux/i2c-dev.h>
+    #include <stdio.h>
+    #include <sys/ioctl.h>
+    #include <unistd.h>
+
+    static int smbus(int fd, char rw, unsigned char cmd, int size, union i2c_smbus_data *d)
+    {
+        struct i2c_smbus_ioctl_data a = { .read_write = rw, .command = cmd, .size = size, .data = d };
+        return ioctl(fd, I2C_SMBUS, &a);
+    }
+
+    static int rdwr(int fd, unsigned char reg, unsigned char *buf, unsigned short len)
+    {
+        struct i2c_msg m[2] = { { 0x68, 0, 1, &reg }, { 0x68, I2C_M_RD, len, buf } };
+        struct i2c_rdwr_ioctl_data a = { m, 2 };
+        return ioctl(fd, I2C_RDWR, &a);
+    }
+
+    int main(int argc, char **argv)
+    {
+        union i2c_smbus_data d;
+        unsigned long funcs = 0;
+        unsigned char buf[600], reg;
+        int fd = open(argv[1], O_RDWR), i, before, after;
+        if (fd < 0) { perror("open"); return 1; }
+        if (ioctl(fd, I2C_FUNCS, &funcs) < 0) { perror("I2C_FUNCS"); return 1; }
+        printf("funcs %lu\n", funcs);
+        if (ioctl(fd, I2C_SLAVE, 0x68) < 0) { perror("I2C_SLAVE"); return 1; }
+        if (smbus(fd, I2C_SMBUS_READ, 0x00, I2C_SMBUS_BYTE_DATA, &d) < 0) { perror("smbus"); return 1; }
+        printf("chip_id %d\n", d.byte);
+        for (i = 0; i < 5; i++) {
+            if (rdwr(fd, 0x02, buf, 6) != 2) { perror("I2C_RDWR"); return 1; }
+            printf("rate %d %d %d\n", (short)(buf[0] | buf[1] << 8),
+                   (short)(buf[2] | buf[3] << 8), (short)(buf[4] | buf[5] << 8));
+            usleep(2000);
+        }
+        d.byte = 0x07;  /* BW: ODR 100 Hz */
+        if (smbus(fd, I2C_SMBUS_WRITE, 0x10, I2C_SMBUS_BYTE_DATA, &d) < 0) { perror("w"); return 1; }
+        buf[0] = 0x3E; buf[1] = 0x40;  /* FIFO mode, plain write() */
+        if (write(fd, buf, 2) != 2) { perror("write"); return 1; }
+        usleep(300000);
+        reg = 0x0E;  /* FIFO_STATUS, split form: write the pointer, then read() */
+        if (write(fd, &reg, 1) != 1 || read(fd, buf, 1) != 1) { perror("split"); return 1; }
+        before = buf[0] & 0x7F;
+        if (rdwr(fd, 0x3F, buf, 6 * before) != 2) { perror("fifo"); return 1; }
+        printf("fifo_first %d %d %d\n", (short)(buf[0] | buf[1] << 8),
+               (short)(buf[2] | buf[3] << 8), (short)(buf[4] | buf[5] << 8));
+        if (smbus(fd, I2C_SMBUS_READ, 0x0E, I2C_SMBUS_BYTE_DATA, &d) < 0) { perror("st"); return 1; }
+        after = d.byte & 0x7F;
+        printf("fifo %d %d\n", before, after);
+        d.block[0] = 6;
+        if (smbus(fd, I2C_SMBUS_READ, 0x02, I2C_SMBUS_I2C_BLOCK_DATA, &d) < 0) { perror("blk"); return 1; }
+        printf("block %d %d\n", d.block[0], (short)(d.block[1] | d.block[2] << 8));
+        ioctl(fd, I2C_SLAVE, 0x50);
+        errno = 0;
+        i = smbus(fd, I2C_SMBUS_READ, 0x00, I2C_SMBUS_BYTE_DATA, &d);
+        printf("missing %d %d\n", i, errno);
+        close(fd);
+        return 0;
+    }
+    """
+)
+
+
+@pytest.fixture(scope="module")
+def c_client(tmp_path_factory):
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler (apt-get install gcc)")
+    work = tmp_path_factory.mktemp("c_client")
+    source = work / "client.c"
+    source.write_text(C_CLIENT)
+    binary = work / "client"
+    subprocess.run([cc, "-O2", "-Wall", "-o", str(binary), str(source)], check=True)
+    result = run_emulated([*CHIP_OPTIONS, "--", str(binary), "/dev/i2c-1"])
+    assert result.returncode == 0, result.stdout + result.stderr
+    lines = [line.split() for line in result.stdout.splitlines()]
+    parsed: dict[str, list] = {}
+    for key, *values in lines:
+        parsed.setdefault(key, []).append([int(v) for v in values])
+    return parsed
+
+
+def test_c_ioctl_client_sees_the_adapter_and_chip_id(c_client):
+    from bmg160_emu.i2c_bus import DEFAULT_FUNCS
+
+    assert c_client["funcs"] == [[DEFAULT_FUNCS]]
+    assert c_client["chip_id"] == [[0x0F]]
+
+
+def test_c_ioctl_client_sees_changing_rate_data(c_client):
+    rates = c_client["rate"]
+    assert len(rates) == 5 and len({tuple(r) for r in rates}) >= 3
+    for rate in rates:
+        assert_rate_counts(rate)
+    (count, x), = c_client["block"]
+    assert count == 6
+    assert_rate_counts([x])  # X alone
+
+
+def test_c_ioctl_client_drains_the_fifo(c_client):
+    (before, after), = c_client["fifo"]
+    assert before >= 15 and after <= 1
+    assert_rate_counts(c_client["fifo_first"][0], tol_dps=TOLERANCE_BW7_DPS)
+
+
+def test_c_ioctl_client_missing_address(c_client):
+    from bmg160_emu.i2c_bus import I2CBus
+
+    with pytest.raises(OSError) as expected:
+        I2CBus(1, {}).read_byte_data(0x50, 0)
+    assert c_client["missing"] == [[-1, expected.value.errno]]
+
+
+# --------------------------------------------------------------------------- the command
+
+
+def test_run_exits_with_the_program_status():
+    assert run_emulated(["--", "sh", "-c", "exit 3"]).returncode == 3
+
+
+def test_run_without_program_is_a_clear_error():
+    result = run_emulated([])
+    assert result.returncode == 2
+    assert "no program given" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_run_with_unknown_program_is_a_clear_error():
+    result = run_emulated(["--", "no-such-program-bmg160"])
+    assert result.returncode == 2
+    assert "command not found" in result.stderr
+
+
+def test_run_serves_two_chips_and_the_bus_number(tmp_path: Path):
+    result = run_emulated(
+        ["--bus", "4", "--address", "0x68", "--address", "0x69", "--",
+         "sh", "-c", "i2cget -y 4 0x68 0 && i2cget -y 4 0x69 0"]
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["0x0f", "0x0f"]
