@@ -140,7 +140,7 @@ def test_random_faults_repeat_with_the_master_seed():
 
 
 def test_bus_and_chip_faults_flag_the_next_output_sample_in_the_truth():
-    rig, gyro, reader = _rig([Fault("nack", at_s=0.5), Fault("brownout", at_s=1.0)])
+    rig, _, reader = _rig([Fault("nack", at_s=0.5), Fault("brownout", at_s=1.0)])
     for _ in range(30):
         rig.advance(0.05)
         reader.read_frames()
@@ -163,3 +163,23 @@ def test_scale_factor_error_scales_the_measured_rate():
     rates = _poll(rig, reader, 1.0)
     assert rates[-1, 0] == pytest.approx(10.1, abs=LSB_250)
     assert rates[-1, 1] == pytest.approx(10.0, abs=LSB_250)
+
+
+def test_inject_puts_one_fault_into_a_lone_chip_from_script_style_arguments():
+    from bmg160_emu.adcs.faults import FaultError, inject
+    from bmg160_emu.chip import BMG160
+
+    chip = BMG160(seed=1, noise=False, true_rate=(0.0, 5.0, 0.0))
+    chip.write(0x0F, b"\x03")  # +-250 deg/s
+    chip.advance(0.1)
+    schedule = inject(chip, "bias_step", "axis=y", "step_dps=1.5")
+    chip.advance(0.1)
+    y = int.from_bytes(chip.read(0x04, 2), "little", signed=True)
+    assert y == round(6.5 * 131.072)
+    assert schedule.events[0].kind == "bias_step"
+    inject(chip, "seu", "register=0x0F", "bit=0")
+    assert chip.peek(0x0F) & 7 == 2
+    with pytest.raises(FaultError, match="bus fault"):
+        inject(chip, "nack")
+    with pytest.raises(FaultError, match="key=value"):
+        inject(chip, "spike", "axis")

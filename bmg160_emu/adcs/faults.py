@@ -473,3 +473,64 @@ def _set_temperature(chip: Any, celsius: float) -> None:
         chip.set_temperature(celsius)
     else:
         chip.temperature_c = celsius
+
+
+# ----------------------------------------------------------------- one chip, right now
+
+
+@dataclass
+class _LoneChip:
+    """A chip outside any rig, as a fault target (no bus: bus faults need a rig)."""
+
+    chip: Any
+    index: int = 0
+    bus: Any = None
+
+    @property
+    def address(self) -> int:
+        return int(getattr(self.chip, "address", 0x68))
+
+
+def _parse_value(text: str) -> Any:
+    for convert in (int, float):
+        try:
+            return convert(text, 0) if convert is int else convert(text)  # type: ignore[call-arg]
+        except ValueError:
+            pass
+    if "," in text:
+        return [_parse_value(part) for part in text.split(",")]
+    return text
+
+
+def inject(chip: Any, kind: str, *args: str, **params: Any) -> FaultSchedule:
+    """Inject one fault into a lone chip from now on: ``inject(chip, "stuck_axis", "axis=y")``.
+
+    Arguments are ``key=value`` strings (as a script line gives them) or keywords. Without a
+    trigger the fault starts at the chip's current time. Bus faults (nack, timeout) need a bus
+    and are refused here: use a :class:`~bmg160_emu.adcs.rig.GyroRig`.
+    """
+    for arg in args:
+        key, sep, value = arg.partition("=")
+        if not sep or not key:
+            raise FaultError(f"{kind}: expected key=value, not {arg!r}")
+        params[key] = _parse_value(value)
+    if kind in BUS_KINDS:
+        raise FaultError(f"{kind} is a bus fault: inject it through a GyroRig's bus")
+    if {"on_transaction", "probability"} & set(params):
+        raise FaultError(f"{kind}: a lone chip has no transactions to count; give at_s")
+    now = float(chip.time)
+    params.setdefault("at_s", now)
+    fault = fault_from_dict({"kind": kind, **params}, kind)
+    assert fault.at_s is not None
+    if fault.layer == "chip" and fault.at_s > now:
+        raise FaultError(f"{kind}: acts at once on a lone chip; at_s cannot be in the future")
+    schedule = FaultSchedule([fault], log_to_bus=False)
+    target = _LoneChip(chip)
+    schedule._gyros = [target]
+    schedule._sample_flags[0] = {}
+    chip.sample_hooks.append(schedule._sample_hook_for(target))
+    if fault.layer == "sample":
+        schedule._activate(0, target, fault.at_s, None)
+    else:
+        schedule._chip_fault(fault, target, now, None)
+    return schedule
