@@ -323,3 +323,28 @@ def test_range_code_scales_the_rate_counts(bus, chip):
     # 300 samples: the std estimate has 4 % relative error (1/sqrt(2n)); 25 % is > 5 sigma
     # of the ratio, and quantization at +-2000 deg/s (0.06 deg/s per LSB) is well below it.
     assert 16 * 0.75 < spreads[1] / spreads[0] < 16 * 1.25
+
+
+def test_no_frame_is_lost_while_a_long_fifo_burst_is_read(bus, chip):
+    import smbus2
+
+    bus.write_byte_data(ADDRESS, BW, BW_200HZ)
+    bus.write_byte_data(ADDRESS, FIFO_CONFIG_1, 0x40)
+    start = chip.time
+    chip.advance(0.4)
+    stored = bus.read_byte_data(ADDRESS, FIFO_STATUS)
+    # One transaction: every stored frame, then 50 frames' worth of empty pattern. On the
+    # firmware at 400 kHz (9 SCL periods plus the interrupt's clock stretching per byte) it
+    # spans several output periods, whose samples must all reach the FIFO when it ends.
+    length = 6 * (stored + 50)
+    write, read = smbus2.i2c_msg.write(ADDRESS, [FIFO_DATA]), smbus2.i2c_msg.read(ADDRESS, length)
+    bus.i2c_rdwr(write, read)
+    data = list(read)
+    frames = [data[i : i + 6] for i in range(0, length, 6)]
+    assert [0x00, 0x80] * 3 not in frames[:stored]
+    assert frames[stored:] == [[0x00, 0x80] * 3] * 50
+    chip.advance(0.1)
+    total = stored + (bus.read_byte_data(ADDRESS, FIFO_STATUS) & 0x7F)
+    # every output period since the FIFO was configured left one frame (+-1 for the phase
+    # of the first sample and for the period in progress)
+    assert abs(total - (chip.time - start) * 200) <= 1.5, (total, chip.time - start)
