@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Linux front ends (issue 4): what the umockdev tests and the QEMU kernel tests need.
+# Idempotent: installs only missing Debian packages, builds PyGObject into the active
+# environment only if gi is not importable, and downloads/unpacks the kernel package into
+# the cache (~/.cache/bmg160-emu, never the repository) only once.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+export DEBIAN_FRONTEND=noninteractive
+
+packages=(
+    i2c-tools gcc                                   # both routes: clients, the C test program
+    umockdev gir1.2-umockdev-1.0 libumockdev0       # A: virtual /dev/i2c-N
+    libgirepository1.0-dev libcairo2-dev pkg-config # A: building PyGObject in a venv
+    qemu-system-x86 busybox-static cpio kmod        # B: the guest
+    util-linux                                      # B: setpriv for the permission check
+)
+missing=()
+for package in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" \
+        || missing+=("$package")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "installing: ${missing[*]}"
+    apt-get install -y -qq "${missing[@]}" >/dev/null \
+        || { apt-get update -qq && apt-get install -y -qq "${missing[@]}" >/dev/null; }
+fi
+
+# Debian's python3-gi serves Debian's /usr/bin/python3 only; a venv builds its own.
+if ! python3 -c "import gi" 2>/dev/null; then
+    python3 -m pip install --quiet 'PyGObject<3.50'   # 3.50+ needs GLib >= 2.80 (Debian 12 has 2.74)
+fi
+python3 -c "import gi; gi.require_version('UMockdev', '1.0'); from gi.repository import UMockdev"
+
+# The guest: Debian's kernel package unpacked into the cache, and the busybox initramfs.
+python3 tools/qemu/guest.py prepare
