@@ -319,9 +319,7 @@ class FakeSpiDev:
 
     # ------------------------------------------------------------------ transfers
 
-    def _transfer(
-        self, tx: bytes | None, count: int, bits_per_word: int = 0, kind: str = "spi_xfer"
-    ) -> bytes:
+    def _transfer(self, tx: bytes | None, count: int, bits_per_word: int = 0) -> bytes:
         """One spidev message: tx (None for a read-only transfer) and ``count`` bytes back."""
         if self._fd == -1:
             raise os_error(errno.EBADF)
@@ -341,37 +339,50 @@ class FakeSpiDev:
             selected = not (mode & SPI_CS_HIGH) and (mode & (SPI_CPHA | SPI_CPOL)) in (0, 3)
             if selected:
                 frame = self._frame if self._frame is not None else SpiFrame(chip)
-                command = frame.command
+                start_state, start_address = frame.state, frame.address
                 driven = frame.clock(wire_tx)
                 chip_3wire = bool(chip.peek(SPI3_REGISTER) & SPI3_BIT)
                 self._frame = frame if mode & SPI_NO_CS else None
                 if host_3wire != chip_3wire:
                     driven = bytes([UNDRIVEN_BYTE]) * count  # the chip answers on the other line
-                register = frame.command if command is None else command
             else:
                 driven = bytes([UNDRIVEN_BYTE]) * count
-                register = None
             time = float(chip.time)
         wire_rx = wire_tx if mode & SPI_LOOP else driven
         if mode & SPI_LSB_FIRST:
             wire_rx = wire_rx.translate(_REVERSED)
         rx = _swap_words(wire_rx, size)
         if self.log.enabled:
-            heard = rx if tx is None or not host_3wire else b""
-            self.log.record(time, self.name, None, kind, register, tx or b"", heard)
+            if not selected:  # the chip took no part: log the raw frame
+                self.log.record(time, self.name, None, "spi_frame", None, tx or b"", rx)
+            else:
+                self._log_frame(time, start_state, start_address, wire_tx, driven)
         return rx
+
+    def _log_frame(self, time: float, state: int, address: int, mosi: bytes, driven: bytes) -> None:
+        """Log what the chip saw, in register terms: ``spi_read``/``spi_write`` from the
+        frame's register, data bytes after the command byte (as for I2C transactions)."""
+        offset = 0
+        if state == _COMMAND and mosi:
+            state = _READ if mosi[0] & 0x80 else _WRITE_DATA
+            address = mosi[0] & 0x7F
+            offset = 1
+        if state == _READ:
+            self.log.record(time, self.name, None, "spi_read", address, b"", driven[offset:])
+        else:
+            self.log.record(time, self.name, None, "spi_write", address, mosi[offset:])
 
     def readbytes(self, length: int) -> list[int]:
         """Read len bytes from SPI device (1..4096; other lengths are clamped, as spidev does)."""
         if not isinstance(length, int):
             raise TypeError("an integer is required")
         length = max(1, min(length, SPIDEV_BUFSIZ))
-        return list(self._transfer(None, length, kind="spi_read"))
+        return list(self._transfer(None, length))
 
     def writebytes(self, values: Sequence[int]) -> None:
         """Write bytes to SPI device (at most 4096 in one frame)."""
         tx = _as_tx(values, SPIDEV_BUFSIZ)
-        self._transfer(tx, len(tx), kind="spi_write")
+        self._transfer(tx, len(tx))
 
     def writebytes2(self, values: Any) -> None:
         """Write bytes to SPI device; any length, sent as frames of at most 4096 bytes."""
@@ -383,7 +394,7 @@ class FakeSpiDev:
             tx = _as_tx(values, None)
         for start in range(0, len(tx), SPIDEV_BUFSIZ):
             chunk = tx[start : start + SPIDEV_BUFSIZ]
-            self._transfer(chunk, len(chunk), kind="spi_write")
+            self._transfer(chunk, len(chunk))
 
     def _xfer(self, values: Any, speed_hz: int, delay_usecs: int, bits_per_word: int) -> Any:
         for name, value in (

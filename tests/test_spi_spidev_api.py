@@ -108,12 +108,39 @@ def test_close_resets_the_attributes(spi):
     assert (spi.fileno(), spi.mode, spi.bits_per_word, spi.max_speed_hz) == (-1, 0, 0, 0)
 
 
-def test_each_frame_is_logged_with_command_and_bytes(spi):
-    spi.xfer2([0x82, 0, 0])
-    entry = spi.log[-1]
-    assert (entry.kind, entry.register, entry.written, entry.read) == (
-        "spi_xfer",
-        0x82,
-        bytes([0x82, 0, 0]),
-        bytes([0, 2, 3]),
+def test_each_frame_is_logged_in_register_terms(spi):
+    spi.xfer2([0x82, 0, 0])  # read from 0x02
+    spi.writebytes([0x0F, 0x03])  # write 0x03 to 0x0F
+    read, write = spi.log[-2], spi.log[-1]
+    assert (read.kind, read.register, read.written, read.read) == (
+        "spi_read",
+        0x02,
+        b"",
+        b"\x02\x03",
     )
+    assert (write.kind, write.register, write.written, write.read) == (
+        "spi_write",
+        0x0F,
+        b"\x03",
+        b"",
+    )
+
+
+def test_a_frame_continued_without_cs_is_logged_from_where_it_stands(spi):
+    spi.no_cs = True
+    spi.writebytes([0x84])
+    spi.readbytes(2)
+    assert (spi.log[-1].kind, spi.log[-1].register, spi.log[-1].read) == (
+        "spi_read",
+        0x04,
+        b"\x04\x05",
+    )
+
+
+def test_spi_log_reads_like_an_i2c_trace():
+    from bmg160_emu.trace import describe_transaction
+
+    with FakeSpiDev(RegisterFileChip()) as dev:
+        dev.xfer2([0x82] + [0] * 6)
+        text = describe_transaction(dev.log[-1].to_dict())
+    assert "burst read 0x02..0x07" in text
