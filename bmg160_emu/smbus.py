@@ -11,6 +11,7 @@ Kept thin for speed: no ctypes structures, one call into ``I2CBus`` per transact
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import operator
 import os
@@ -121,6 +122,14 @@ class FakeSMBus:
             self.address = None
             self._force_last = None
             self._i2c = None
+
+    def __del__(self) -> None:
+        # smbus2 leaks the descriptor of an SMBus never closed; a fake used in long test runs
+        # should not, so the placeholder descriptor is released with the object.
+        fd = getattr(self, "fd", None)
+        if fd:
+            with contextlib.suppress(OSError):
+                os.close(fd)
 
     # ------------------------------------------------------------------ emulator extras
 

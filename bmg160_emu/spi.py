@@ -15,6 +15,7 @@ active-high chip select the chip does not take part in the transfer.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 from collections.abc import Iterable, Sequence
@@ -216,6 +217,12 @@ class FakeSpiDev:
         self._bits_per_word = 0
         self._max_speed_hz = 0
         self._frame = None
+
+    def __del__(self) -> None:  # spidev closes its descriptor when the object goes away
+        fd = getattr(self, "_fd", -1)
+        if fd != -1:
+            with contextlib.suppress(OSError):
+                os.close(fd)
 
     def fileno(self) -> int:
         return self._fd
