@@ -163,14 +163,13 @@ class Identification:
         return self.samples / self.rate_hz
 
     def to_profile(self, name: str = "identified") -> Profile:
-        """A profile the generator loads; axes missing from the record copy the first axis."""
-        by_name = {a.axis: a.to_axis_noise() for a in self.axes}
-        first = self.axes[0].to_axis_noise()
+        """A profile the generator loads: record columns in order become x, y, z; axes
+        missing from the record copy the first one."""
+        noise = [a.to_axis_noise() for a in self.axes]
+        noise += [noise[0]] * (3 - len(noise))
         return Profile(
             name,
-            by_name.get("x", first),
-            by_name.get("y", first),
-            by_name.get("z", first),
+            *noise,
             description=f"identified from {self.source or 'a record'} "
             f"({self.duration_s:.0f} s at {self.rate_hz:g} Hz)",
         )

@@ -46,6 +46,8 @@ def load_rate_record(
     if not path.is_file():
         raise RecordError(f"no such record file: {path}")
     suffix = path.suffix.lower()
+    if columns and suffix not in (".csv", ".txt"):
+        raise RecordError(f"{path}: --columns applies to CSV files with a header row")
     if suffix == ".csv" or suffix == ".txt":
         data, t, names = _read_csv(path, columns)
     elif suffix == ".npy":

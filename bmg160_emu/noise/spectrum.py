@@ -12,13 +12,16 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import welch
+from numpy.lib.stride_tricks import sliding_window_view
+from scipy.fft import rfft
+from scipy.signal import get_window
 
 PSD_CONVENTION = (
     "one-sided Welch PSD in (deg/s)^2/Hz: white noise of density N reads 2 N^2 "
     "(IEEE 952 two-sided S = N^2)"
 )
 DEFAULT_SEGMENT = 1 << 16  # samples per Welch segment: 328 s at 200 Hz, 3 mHz resolution
+_BATCH = 8  # segments transformed together (8 x 64 k doubles: 4 MB)
 
 
 @dataclass(frozen=True)
@@ -33,11 +36,29 @@ class Spectrum:
 
 
 def one_sided_psd(rate_dps: np.ndarray, rate_hz: float, segment: int | None = None) -> Spectrum:
-    """Welch estimate (Hann window, 50 % overlap, mean removed per segment), one-sided."""
-    n = rate_dps.shape[0]
+    """Welch estimate (Hann window, 50 % overlap), one-sided, of the record minus its mean.
+
+    Numerically the estimate of scipy.signal.welch(x - mean, detrend=False) (a test checks
+    it), computed in batches of segments with scipy.fft: scipy's welch takes 2-3x longer on
+    day-long records. The mean is removed once for the whole record rather than per segment:
+    the Hann window keeps any residual segment offset within the first two bins.
+    """
+    x = np.asarray(rate_dps, dtype=float)
+    n = x.shape[0]
     nperseg = min(segment or DEFAULT_SEGMENT, n)
-    f, p = welch(rate_dps, fs=rate_hz, nperseg=nperseg, return_onesided=True, scaling="density")
-    return Spectrum(f[1:], p[1:], nperseg)  # drop DC: removed by detrending, log axes
+    step = nperseg - nperseg // 2
+    window = get_window("hann", nperseg)
+    mean = x.mean()
+    segments = sliding_window_view(x, nperseg)[::step]
+    total = np.zeros(nperseg // 2 + 1)
+    for first in range(0, segments.shape[0], _BATCH):
+        batch = (segments[first : first + _BATCH] - mean) * window
+        spec = rfft(batch, axis=-1)
+        total += (spec.real**2 + spec.imag**2).sum(axis=0)
+    psd = total / (segments.shape[0] * rate_hz * float(np.sum(window**2)))
+    psd[1 : nperseg // 2 + (nperseg % 2)] *= 2.0  # one-sided: fold the negative frequencies
+    f = np.fft.rfftfreq(nperseg, 1.0 / rate_hz)
+    return Spectrum(f[1:], psd[1:], nperseg)  # drop DC (mean removed; log axes)
 
 
 def white_level_band(rate_hz: float) -> tuple[float, float]:

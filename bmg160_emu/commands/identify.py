@@ -1,0 +1,201 @@
+"""``bmg160-emu identify``: N, B, T, K of each axis of a static record, with plots and a profile."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+EPILOG = """\
+examples:
+  bmg160-emu identify noise.npy --rate 200
+  bmg160-emu identify static.csv --plot adev.png --json
+  bmg160-emu identify static.csv --profile-out my-gyro.toml --figures figs/ --compare
+
+Inputs: CSV (one column per axis, optional time column t/t_s/time, '#' comments, the layout
+of `bmg160-emu record` and `generate`), .npy (n or n x k array), .npz. The rate comes from
+--rate or from the time column. The fit is a weighted least-squares fit of the closed-form
+Allan variance (white + Gauss-Markov + random walk); the IEEE 952 read-offs are printed
+beside it, labelled. PSDs are one-sided (white noise of density N reads 2 N^2).
+--figures writes timeseries, histogram, adev and psd figures; with --compare, an emulator
+record of the same length from the identified profile is overlaid (overlay_adev, overlay_psd,
+overlay_time, one set per axis).
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "identify",
+        help="identify N, B, T, K (Allan deviation + PSD + fit) from a static record",
+        description="Identify the noise parameters of each axis of a static gyroscope record "
+        "and write a profile the generator loads back.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("file", type=Path, help="record: .csv, .npy or .npz (deg/s)")
+    parser.add_argument(
+        "--rate",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="sample rate in Hz (default: from the time column)",
+    )
+    parser.add_argument(
+        "--columns",
+        default=None,
+        metavar="A,B,C",
+        help="CSV columns holding the axes, by header name (default: x_dps,y_dps,z_dps or all)",
+    )
+    parser.add_argument("--json", action="store_true", help="print a JSON result instead")
+    parser.add_argument(
+        "--plot",
+        type=Path,
+        default=None,
+        metavar="ADEV.png",
+        help="write the Allan deviation figure (.png or .svg)",
+    )
+    parser.add_argument(
+        "--figures", type=Path, default=None, metavar="DIR", help="write every figure into DIR"
+    )
+    parser.add_argument(
+        "--format",
+        choices=("png", "svg"),
+        default="png",
+        help="figure format for --figures (default png)",
+    )
+    parser.add_argument(
+        "--compare",
+        action="store_true",
+        help="with --figures: overlay an emulator record from the result",
+    )
+    parser.add_argument("--seed", type=int, default=1, help="seed of the --compare emulator")
+    parser.add_argument(
+        "--profile-out",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help="write the identified profile (loadable by generate)",
+    )
+    parser.add_argument("--with-q", action="store_true", help="also fit quantization Q")
+    parser.add_argument("--with-r", action="store_true", help="also fit rate ramp R")
+    parser.add_argument(
+        "--tau-min",
+        type=float,
+        default=None,
+        metavar="S",
+        help="shortest tau fitted (e.g. above the chip filter's time constant)",
+    )
+    parser.add_argument(
+        "--tau-max", type=float, default=None, metavar="S", help="longest tau fitted"
+    )
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.noise.identification import IdentificationError, identify
+    from bmg160_emu.noise.rate_record import RecordError, load_rate_record
+
+    for path in (args.plot,):
+        if path is not None and path.suffix.lower() not in (".png", ".svg"):
+            raise CommandError(f"--plot must end in .png or .svg, not {path.name!r}")
+    if args.compare and args.figures is None:
+        raise CommandError("--compare needs --figures DIR")
+    columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
+    try:
+        record = load_rate_record(args.file, args.rate, columns)
+        bar = _progress(record.rate_dps.shape[1])
+        try:
+            result = identify(
+                record.rate_dps,
+                record.rate_hz,
+                axis_names=record.axis_names,
+                with_q=args.with_q,
+                with_r=args.with_r,
+                tau_range=(args.tau_min, args.tau_max),
+                source=str(args.file),
+                progress=(lambda _name: bar.update(1)) if bar is not None else None,
+            )
+        finally:
+            if bar is not None:
+                bar.close()
+    except (RecordError, IdentificationError) as exc:
+        raise CommandError(str(exc)) from None
+
+    written: list[Path] = []
+    try:
+        if args.profile_out is not None:
+            from bmg160_emu.noise.profile import write_profile
+
+            write_profile(
+                result.to_profile(args.profile_out.stem),
+                args.profile_out,
+                header=f"identified by bmg160-emu identify from {args.file}\n"
+                "units: N deg/s/sqrt(Hz), B deg/s, T s, K deg/s/sqrt(s), bias deg/s",
+            )
+            written.append(args.profile_out)
+        if args.plot is not None:
+            from bmg160_emu.noise import plots
+
+            written.append(plots.save(plots.adev_figure(result.axes), args.plot))
+        if args.figures is not None:
+            written += _write_figures(args, record, result)
+    except OSError as exc:
+        raise CommandError(f"cannot write output: {exc}") from None
+
+    if args.json:
+        out = result.as_dict()
+        out["written"] = [str(p) for p in written]
+        json.dump(out, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(result.summary())
+        for path in written:
+            print(f"wrote {path}")
+    return 0
+
+
+def _progress(axes: int):
+    if not sys.stderr.isatty():
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=axes, unit="axis", desc="identify", file=sys.stderr)
+
+
+def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.noise import plots
+
+    folder: Path = args.figures
+    folder.mkdir(parents=True, exist_ok=True)
+    ext = "." + args.format
+    names = [a.axis for a in result.axes]
+    figs = {
+        "timeseries": plots.time_series_figure(record.rate_dps, record.rate_hz, names),
+        "histogram": plots.histogram_figure(record.rate_dps, names),
+        "adev": plots.adev_figure(result.axes),
+        "psd": plots.psd_figure(result.axes, record.rate_hz),
+    }
+    if args.compare:
+        from bmg160_emu.noise import NoiseGenerator
+        from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
+        from bmg160_emu.noise.identification import identify_axis
+
+        chip_rate = min(SUPPORTED_RATES_HZ, key=lambda r: abs(r / record.rate_hz - 1))
+        if abs(chip_rate / record.rate_hz - 1) > 0.01:
+            raise CommandError(
+                f"--compare: the record's rate {record.rate_hz:g} Hz is not a BMG160 output "
+                "data rate (100, 200, 400, 1000, 2000 Hz)"
+            )
+        gen = NoiseGenerator(result.to_profile(), rate_hz=chip_rate, seed=args.seed)
+        emulated = gen.generate(record.rate_dps.shape[0])
+        for i, axis in enumerate(result.axes):
+            emu = identify_axis(emulated[:, i], record.rate_hz, axis.axis)
+            overlays = plots.overlay_figures(
+                record.rate_dps[:, i], emulated[:, i], record.rate_hz, axis, emu
+            )
+            for key, fig in overlays.items():
+                figs[f"{key}_{axis.axis}"] = fig
+    return [plots.save(fig, folder / f"{key}{ext}") for key, fig in figs.items()]

@@ -1,0 +1,70 @@
+"""`bmg160-emu generate`: streams seeded noise to .npy / .csv, clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bmg160_emu.cli import main
+from bmg160_emu.commands import generate as generate_command
+from bmg160_emu.commands.generate import parse_duration
+from bmg160_emu.noise import NoiseGenerator
+
+
+@pytest.mark.parametrize(
+    ("text", "seconds"),
+    [("10s", 10), ("5min", 300), ("2h", 7200), ("1d", 86400), ("250ms", 0.25), ("1.5", 1.5)],
+)
+def test_durations(text, seconds):
+    assert parse_duration(text) == pytest.approx(seconds)
+
+
+def test_npy_output_is_the_generator_stream_written_in_chunks(tmp_path, monkeypatch):
+    monkeypatch.setattr(generate_command, "CHUNK_SAMPLES", 1000)  # force many chunks
+    out = tmp_path / "noise.npy"
+    assert (
+        main(["generate", "--rate", "400", "--duration", "10s", "--seed", "1", "-o", str(out)]) == 0
+    )
+    data = np.load(out)
+    assert data.shape == (4000, 3)
+    assert np.array_equal(data, NoiseGenerator("paper", rate_hz=400.0, seed=1).generate(4000))
+
+
+def test_csv_output_has_time_and_reads_back(tmp_path):
+    out = tmp_path / "noise.csv"
+    args = ["generate", "--profile", "datasheet", "--rate", "100", "--duration", "2s"]
+    assert main(args + ["--seed", "2", "--mode", "physical", "-o", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert lines[0].startswith("# bmg160-emu generate: profile=datasheet mode=physical")
+    assert lines[1] == "t_s,x_dps,y_dps,z_dps"
+    table = np.loadtxt(out, delimiter=",", skiprows=2)
+    np.testing.assert_allclose(table[:, 0], np.arange(1, 201) / 100.0)
+    expected = NoiseGenerator("datasheet", rate_hz=100.0, seed=2).generate(200)
+    np.testing.assert_allclose(table[:, 1:], expected, rtol=1e-9, atol=1e-12)  # %.10g text
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--duration", "soon"], "not a duration"),
+        (["--duration", "0s"], "must be positive"),
+        (["--duration", "1s", "--rate", "250"], "unsupported output data rate 250"),
+        (["--duration", "1s", "--profile", "nope"], "unknown noise profile 'nope'"),
+        (["--duration", "1s", "--profile", "datasheet", "--mode", "paper"], "paper mode needs"),
+        (["--duration", "1ms"], "shorter than one sample period"),
+    ],
+)
+def test_bad_arguments_are_one_line_errors(tmp_path, capsys, extra, message):
+    status = main(["generate", *extra, "-o", str(tmp_path / "n.npy")])
+    err = capsys.readouterr().err
+    assert status == 2
+    assert len(err.strip().splitlines()) == 1
+    assert "Traceback" not in err
+    import re
+
+    assert re.search(message, err)
+
+
+def test_unknown_output_suffix_is_an_error(tmp_path, capsys):
+    assert main(["generate", "--duration", "1s", "-o", str(tmp_path / "n.txt")]) == 2
+    assert "must end in .npy or .csv" in capsys.readouterr().err
