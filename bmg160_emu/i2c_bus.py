@@ -136,7 +136,7 @@ class I2CBus:
     hook fails the transaction as a real adapter would (NACK = EREMOTEIO, timeout = ETIMEDOUT).
     ``claimed``: addresses a kernel driver has bound; ``I2C_SLAVE`` on them gives EBUSY unless
     forced. ``funcs``: the adapter's functionality mask; a kind whose bit is missing fails with
-    EOPNOTSUPP.
+    EOPNOTSUPP. ``nack_errno``: the errno of an address nobody acknowledges (EREMOTEIO).
     """
 
     def __init__(
@@ -157,6 +157,9 @@ class I2CBus:
         self.log = log if log is not None else TransactionLog()
         self.transaction_hooks: list[TransactionHook] = []
         self.claimed: set[int] = set(claimed)
+        # errno of an address NACK: EREMOTEIO on i2c-bcm2835 (Raspberry Pi) and most
+        # adapters; some (i2c-designware, i2c-i801) give ENXIO. Set it to match a target.
+        self.nack_errno = errno.EREMOTEIO
         self._counter = itertools.count()  # next() is atomic: safe across threads
         self.funcs = funcs
 
@@ -249,7 +252,7 @@ class I2CBus:
                     )
                     raise
         if chip is None:
-            raise self._fail(None, address, kind, register, errno.EREMOTEIO, written)
+            raise self._fail(None, address, kind, register, self.nack_errno, written)
         return chip
 
     @staticmethod

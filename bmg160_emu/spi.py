@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import itertools
 import os
 from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any, Literal
@@ -178,6 +179,10 @@ class FakeSpiDev:
         self.chip: Any = None
         self.name = ""
         self.log = TransactionLog()
+        # hook(dev, index, None, "spi") before each frame; an OSError it raises fails the
+        # transfer as a failing SPI_IOC_MESSAGE ioctl would (fault injection, as on I2CBus)
+        self.transaction_hooks: list[Any] = []
+        self._frames = itertools.count()
         self._frame: SpiFrame | None = None
         if _is_chip(bus):
             self._attach(bus, "spi0.0")
@@ -336,6 +341,10 @@ class FakeSpiDev:
         size = bits // 8
         if count % size:
             raise os_error(errno.EINVAL)  # a transfer is a whole number of words
+        if self.transaction_hooks:
+            index = next(self._frames)
+            for hook in list(self.transaction_hooks):
+                hook(self, index, None, "spi")
         mode = self._mode
         host_3wire = bool(mode & SPI_3WIRE)
         wire_tx = _swap_words(tx, size) if tx is not None else bytes(count)  # undriven MOSI: 0

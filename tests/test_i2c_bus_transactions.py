@@ -187,3 +187,10 @@ def test_attach_refuses_addresses_beyond_7_bits_and_non_chips():
         bus.attach(0x80, RegisterFileChip())
     with pytest.raises(TypeError):
         bus.attach(0x68, object())
+
+
+def test_nack_errno_can_match_an_adapter_that_answers_enxio(bus):
+    bus.nack_errno = errno.ENXIO
+    with pytest.raises(OSError) as info:
+        bus.read_byte_data(0x50, 0)
+    assert info.value.errno == errno.ENXIO

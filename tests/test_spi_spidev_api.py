@@ -144,3 +144,19 @@ def test_spi_log_reads_like_an_i2c_trace():
         dev.xfer2([0x82] + [0] * 6)
         text = describe_transaction(dev.log[-1].to_dict())
     assert "burst read 0x02..0x07" in text
+
+
+def test_a_transaction_hook_can_fail_a_frame_before_it_reaches_the_chip():
+    chip = RegisterFileChip()
+    with FakeSpiDev(chip) as dev:
+
+        def fail_second(d, index, address, kind):
+            if index == 1:
+                raise OSError(errno.EIO, "injected")
+
+        dev.transaction_hooks.append(fail_second)
+        dev.writebytes([0x20, 0x11])
+        with pytest.raises(OSError) as info:
+            dev.writebytes([0x21, 0x22])
+        assert info.value.errno == errno.EIO
+    assert (chip.regs[0x20], chip.regs[0x21]) == (0x11, 0x21)
