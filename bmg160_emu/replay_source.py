@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bmg160_emu.recording import chip_odr_hz
+
 UNITS = ("dps", "counts")
 TIME_COLUMNS = ("t_s", "t", "time", "time_s", "timestamp")
 DEFAULT_MAX_GAP_FACTOR = 3.0  # a step over 3x the median step is a gap, not jitter
@@ -48,9 +50,9 @@ class ReplayData:
     rate_dps: np.ndarray
     source: str = "<data>"
 
-    @property
-    def median_step_s(self) -> float:
-        return float(np.median(np.diff(self.t_s))) if len(self.t_s) > 1 else math.inf
+    def __post_init__(self) -> None:
+        # computed once: the replay hook consults it for every output sample
+        self.median_step_s = float(np.median(np.diff(self.t_s))) if len(self.t_s) > 1 else math.inf
 
     @property
     def duration_s(self) -> float:
@@ -329,8 +331,6 @@ class ReplaySource:
 
     def __call__(self, chip, t: float, rate_dps) -> np.ndarray:
         """The sample hook: replace the chip's sample with the recorded one."""
-        from bmg160_emu.recording import chip_odr_hz
-
         tau = self.recording_time(float(t))
         self.samples_played += 1
         return self.value_at(tau, 1.0 / chip_odr_hz(chip))
