@@ -142,6 +142,10 @@ def describe_transaction(record: dict) -> str:
         target = f" {register_label(register)}" if isinstance(register, int) and register < REGISTER_COUNT else ""
         return head + f"{kind}{target} failed: {error}"
     if isinstance(register, int):
+        if read and written:  # process calls: write from register on, then read on from there
+            after = min(register + len(written), FIFO_DATA) if register < FIFO_DATA else register
+            return (head + describe_write(register, written) + "; then "
+                    + describe_read(after, read) + f"  [{kind}]")
         if read:
             return head + describe_read(register, read) + f"  [{kind}]"
         if written:

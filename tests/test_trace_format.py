@@ -101,3 +101,11 @@ def test_failed_transactions_show_the_errno_name():
     line = describe_transaction(_session()[2].to_dict())
     assert "read_byte_data 0x00 CHIP_ID failed: EREMOTEIO" in line
     assert "0.002000s" in line
+
+
+def test_a_process_call_shows_the_write_then_the_read_from_where_the_pointer_went():
+    record = Transaction(0.0, 1, 0x68, "process_call", 0x0F, written=b"\x02\x84",
+                         read=b"\x00\x00").to_dict()
+    line = describe_transaction(record)
+    assert "write 0x0F..0x10: 0x0F RANGE <- 0x02 (+-500 deg/s)" in line
+    assert "then burst read 0x11..0x12 -> LPM1=0x00 LPM2=0x00" in line
