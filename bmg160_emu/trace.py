@@ -136,8 +136,11 @@ def describe_transaction(record: dict) -> str:
     error = _get(record, "error")
     written = _as_bytes(_get(record, "written", "data_out", "write"))
     read = _as_bytes(_get(record, "read", "data_in", "result"))
-    if kind == "spi_xfer" and written and not error:
+    if kind == "spi_xfer" and written and not error:  # a raw frame, command byte first
         return head + _describe_spi_frame(written, read) + f"  [{kind}]"
+    if kind == "spi_write" and isinstance(register, int) and len(written) > 1 and not error:
+        # one register, then (address, data) pairs in the same frame (spec 2.2)
+        return head + _describe_spi_frame(bytes([register & 0x7F]) + written, b"") + f"  [{kind}]"
     if error:
         target = f" {register_label(register)}" if isinstance(register, int) and register < REGISTER_COUNT else ""
         return head + f"{kind}{target} failed: {error}"
@@ -419,12 +422,14 @@ class _Replayer:
         kind, reg, w, expected = t.kind, t.register, t.written, t.read
         if kind.startswith("spi_"):
             spi = self.spi(t.bus)
-            if kind == "spi_read":
-                return bytes(spi.readbytes(len(expected)))
-            if kind == "spi_write":
-                spi.writebytes(list(w))
+            if kind == "spi_read" and reg is not None:  # command byte, then the data bytes
+                return bytes(spi.xfer2([0x80 | reg] + [0] * len(expected))[1:])
+            if kind == "spi_write" and reg is not None:
+                spi.xfer2([reg & 0x7F, *w])
                 return b""
-            return bytes(spi.xfer2(list(w)))
+            if kind == "spi_frame":  # the chip took no part in it: nothing to repeat
+                return expected
+            return bytes(spi.xfer2(list(w)))  # a raw frame (spi_xfer), command byte first
         bus, a = self.bus(t.bus), t.address
         if kind == "read_byte_data":
             return bytes([bus.read_byte_data(a, reg)])

@@ -49,6 +49,9 @@ def _driver_session(path, seed: int = SEED) -> None:
         spi.log.sinks.append(writer)
         chip.advance(0.05)
         spi.xfer2([0x82, 0, 0, 0, 0, 0, 0])
+        spi.xfer2([0x0F, 0x01, 0x10, 0x05])  # RANGE, then an (address, data) pair: BW
+        chip.advance(0.05)
+        spi.xfer2([0xBF] + [0] * 12)  # two FIFO frames
 
 
 def test_a_driver_session_replays_without_divergence(tmp_path):
