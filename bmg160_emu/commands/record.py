@@ -12,7 +12,8 @@ EPILOG = """\
 examples:
   bmg160-emu record --duration 10min --rate 200 --seed 7 -o static.csv
   bmg160-emu record --duration 1h --range 250 --rate 200 -o static.npz
-  bmg160-emu record --truth examples/slew.toml --rate 400 -o slew.csv
+  bmg160-emu record --truth examples/scenarios/slew.toml --rate 400 -o slew.csv
+  bmg160-emu identify static.npz      # N, B, T, K of the recorded output
 
 Every output sample is read as a driver reads it (one 6-byte burst from RATE_X_LSB after
 each new sample); the file holds time, raw counts, deg/s (counts / sensitivity) and the
