@@ -91,3 +91,14 @@ def test_bad_input_is_a_one_line_error(tmp_path, capsys, setup, args, message):
     import re
 
     assert re.search(message, err)
+
+
+def test_progress_bar_only_on_a_terminal(record, capsys, monkeypatch):
+    import sys
+
+    assert main(["identify", str(record), "--rate", "200"]) == 0
+    assert "identify:" not in capsys.readouterr().err  # not a terminal: no bar
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["identify", str(record), "--rate", "200"]) == 0
+    err = capsys.readouterr().err
+    assert "identify:" in err and "9/9" in err  # 3 axes x 3 stages

@@ -68,3 +68,14 @@ def test_bad_arguments_are_one_line_errors(tmp_path, capsys, extra, message):
 def test_unknown_output_suffix_is_an_error(tmp_path, capsys):
     assert main(["generate", "--duration", "1s", "-o", str(tmp_path / "n.txt")]) == 2
     assert "must end in .npy or .csv" in capsys.readouterr().err
+
+
+def test_progress_bar_only_on_a_terminal(tmp_path, capsys, monkeypatch):
+    import sys
+
+    out = str(tmp_path / "n.npy")
+    assert main(["generate", "--duration", "10s", "--seed", "1", "-o", out]) == 0
+    assert "sample" not in capsys.readouterr().err
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["generate", "--duration", "10s", "--seed", "1", "-o", out]) == 0
+    assert "2.00k/2.00k" in capsys.readouterr().err

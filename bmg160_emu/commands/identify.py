@@ -94,7 +94,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.noise.identification import IdentificationError, identify
+    from bmg160_emu.noise.identification import STAGES_PER_AXIS, IdentificationError, identify
     from bmg160_emu.noise.rate_record import RecordError, load_rate_record
 
     for path in (args.plot,):
@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
     try:
         record = load_rate_record(args.file, args.rate, columns)
-        bar = _progress(record.rate_dps.shape[1])
+        bar = _progress(record.rate_dps.shape[1] * STAGES_PER_AXIS)
         try:
             result = identify(
                 record.rate_dps,
@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
                 with_r=args.with_r,
                 tau_range=(args.tau_min, args.tau_max),
                 source=str(args.file),
-                progress=(lambda _name: bar.update(1)) if bar is not None else None,
+                progress=(lambda stage: _step(bar, stage)) if bar is not None else None,
             )
         finally:
             if bar is not None:
@@ -156,12 +156,17 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _progress(axes: int):
+def _progress(steps: int):
     if not sys.stderr.isatty():
         return None
     from tqdm import tqdm
 
-    return tqdm(total=axes, unit="axis", desc="identify", file=sys.stderr)
+    return tqdm(total=steps, unit="step", desc="identify", file=sys.stderr)
+
+
+def _step(bar, stage: str) -> None:
+    bar.set_postfix_str(stage, refresh=False)
+    bar.update(1)
 
 
 def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:

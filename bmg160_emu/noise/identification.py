@@ -45,6 +45,7 @@ from bmg160_emu.noise.spectrum import (
 # widened by a factor measured by simulation (paper profile, 1 h and 6 h records at 200 Hz,
 # 30 records each: the 95th percentile of |error| / half-width; docs/identification.md).
 CI_WIDENING = {"N": 1.5, "B": 1.8, "lnT": 3.0, "K": 3.0, "Q": 1.5, "R": 3.0}
+STAGES_PER_AXIS = 3  # progress calls per axis: Allan deviation, fit, PSD
 MIN_SAMPLES = 1000  # enough octave taus (9) to fit the white level and see its slope
 CI_LEVEL = 0.95
 _Z95 = 1.959963984540054  # two-sided 95 % normal quantile
@@ -169,7 +170,9 @@ class Identification:
         noise += [noise[0]] * (3 - len(noise))
         return Profile(
             name,
-            *noise,
+            x=noise[0],
+            y=noise[1],
+            z=noise[2],
             description=f"identified from {self.source or 'a record'} "
             f"({self.duration_s:.0f} s at {self.rate_hz:g} Hz)",
         )
@@ -490,8 +493,13 @@ def identify_axis(
     with_r: bool = False,
     tau_range: tuple[float | None, float | None] = (None, None),
     psd_segment: int | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> AxisIdentification:
-    """Identify one axis (1-D array in deg/s sampled at rate_hz)."""
+    """Identify one axis (1-D array in deg/s sampled at rate_hz).
+
+    progress, if given, is called with a short label after each of the STAGES_PER_AXIS
+    stages (Allan deviation, fit, PSD): the command line's progress bar.
+    """
     data = check_record(rate_dps, rate_hz)
     if data.shape[1] != 1:
         raise IdentificationError("identify_axis takes one axis; use identify() for several")
@@ -500,8 +508,14 @@ def identify_axis(
     mean = float(x.mean())
     std = float(x.std())
     raw_curve = overlapping_adev(x, rate_hz, taus="octave")
+    if progress is not None:
+        progress(f"{axis}: Allan deviation")
     estimates, curve, info = fit_allan_variance(raw_curve, rate_hz, n, with_q, with_r, tau_range)
+    if progress is not None:
+        progress(f"{axis}: fit")
     spectrum = one_sided_psd(x, rate_hz, psd_segment)
+    if progress is not None:
+        progress(f"{axis}: PSD")
     band = white_level_band(rate_hz)
     notes = _notes(estimates, n / rate_hz)
     if info["T_at_search_edge"]:
@@ -570,10 +584,10 @@ def identify(
     axes = []
     for i, name in enumerate(names):
         axes.append(
-            identify_axis(data[:, i], rate_hz, name, with_q, with_r, tau_range, psd_segment)
+            identify_axis(
+                data[:, i], rate_hz, name, with_q, with_r, tau_range, psd_segment, progress
+            )
         )
-        if progress is not None:
-            progress(name)
     return Identification(float(rate_hz), data.shape[0], axes, source)
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, fields
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -145,7 +145,7 @@ def profile_from_mapping(data: Mapping[str, Any], origin: str = "profile") -> Pr
     description = data.get("description", "")
     if not isinstance(name, str) or not isinstance(description, str):
         raise ProfileError(f"{origin}: name and description must be strings")
-    return Profile(name, *axes, description=description)
+    return Profile(name, x=axes[0], y=axes[1], z=axes[2], description=description)
 
 
 def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
@@ -197,8 +197,3 @@ def write_profile(profile: Profile, path: str | Path, header: str = "") -> None:
 def _toml_string(text: str) -> str:
     escaped = text.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
     return f'"{escaped}"'
-
-
-def with_axes(profile: Profile, **axes: AxisNoise) -> Profile:
-    """A copy of the profile with some axes replaced (x=..., y=..., z=...)."""
-    return replace(profile, **axes)
