@@ -55,7 +55,7 @@ for arg in $(cat /proc/cmdline); do
     esac
 done
 mkdir -p /host
-if mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144 host /host; then
+if mount -t 9p -o trans=virtio,version=9p2000.L,msize=262144,cache=loose host /host; then
     mount -t proc proc /host/proc
     mount -t sysfs sys /host/sys
     mount -o bind /dev /host/dev
@@ -217,6 +217,7 @@ def run_guest(
     console_log: Path | None = None,
     timeout_s: float = 150.0,
     memory_mb: int = 1024,
+    cpus: int = 2,
     cache: Path | None = None,
 ) -> GuestRun:
     """Boot the guest, run `script` in it, always end QEMU; return its console text."""
@@ -228,7 +229,9 @@ def run_guest(
     cmd = [
         qemu_binary() or "qemu-system-x86_64",
         "-cpu", "max",  # numpy needs modern instructions under TCG
-        "-m", str(memory_mb), "-smp", "1",
+        # Two vCPUs: QEMU runs them on two host threads, so the adapter and the kernel
+        # driver's reader (or the adapter's start-up and other checks) overlap.
+        "-m", str(memory_mb), "-smp", str(cpus),
         "-nographic", "-no-reboot", "-nodefaults", "-serial", "stdio",
         "-kernel", str(kernel.vmlinuz), "-initrd", str(initrd),
         "-append",

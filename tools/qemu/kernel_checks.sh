@@ -1,0 +1,106 @@
+#!/bin/sh
+# Runs INSIDE the QEMU guest (tools/qemu/guest.py), chrooted in the host's root file system.
+# One boot performs every kernel check of tests/test_kernel_i2c_stub.py and writes the
+# results to $GUEST_OUT as small text files the host-side tests assert on.
+#
+# Environment: PY (the host's Python, with bmg160_emu importable), GUEST_OUT, GUEST_ROOT
+# (the unpacked kernel package), STUB_ARGS (chip options for `bmg160-emu stub`).
+set -u
+OUT=${GUEST_OUT:?}
+: "${PY:?}" "${GUEST_ROOT:?}"
+STUB_ARGS=${STUB_ARGS:-}
+IIO=/sys/bus/iio/devices/iio:device0
+cd /run || exit 1
+
+step() { echo "== [$(cut -d' ' -f1 /proc/uptime)s] $*"; echo "$(cut -d' ' -f1 /proc/uptime) $*" >> "$OUT/steps.txt"; }
+emu() { "$PY" -m bmg160_emu "$@"; }
+# n reads of one sysfs attribute, $2 seconds apart, one value a line
+sample() { i=0; while [ $i -lt "$3" ]; do cat "$IIO/$1"; sleep "$2"; i=$((i + 1)); done; }
+
+step "1. modules: i2c-stub chip_addr=0x68, i2c-dev"
+modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68 || echo "modprobe i2c-stub failed"
+modprobe -d "$GUEST_ROOT" i2c-dev || echo "modprobe i2c-dev failed"
+# A real (non-stub) SMBus adapter for the "not an i2c-stub adapter" error: QEMU's PIIX4.
+modprobe -d "$GUEST_ROOT" i2c-piix4 2>/dev/null
+i2cdetect -l > "$OUT/i2cdetect_l.txt" 2>&1
+
+step "1b. start bmg160-emu stub (in the background)"
+# shellcheck disable=SC2086  # (not through emu(): $! must be Python's own pid)
+"$PY" -m bmg160_emu stub --bus 0 --address 0x68 $STUB_ARGS --stats "$OUT/stub_stats.json" \
+    --ready-file /run/stub.ready > "$OUT/stub.log" 2>&1 &
+STUB=$!
+step "1c. stub command errors, while the adapter starts"
+emu stub --bus 9 > "$OUT/err_missing.txt" 2>&1; echo $? >> "$OUT/err_missing.txt"
+emu stub --bus 0 --address 0x69 > "$OUT/err_address.txt" 2>&1; echo $? >> "$OUT/err_address.txt"
+OTHER=$(i2cdetect -l | grep -v 'stub' | sed -n 's/^i2c-\([0-9]*\).*/\1/p' | head -n 1)
+if [ -n "$OTHER" ]; then
+    emu stub --bus "$OTHER" > "$OUT/err_not_stub.txt" 2>&1; echo $? >> "$OUT/err_not_stub.txt"
+fi
+# root without CAP_DAC_OVERRIDE on a node nobody may open: permission denied
+chmod 000 /dev/i2c-0
+setpriv --bounding-set=-dac_override,-dac_read_search "$PY" -m bmg160_emu stub --bus 0 \
+    > "$OUT/err_permission.txt" 2>&1; echo $? >> "$OUT/err_permission.txt"
+chmod 600 /dev/i2c-0
+
+i=0
+while [ ! -e /run/stub.ready ] && [ $i -lt 1200 ] && kill -0 $STUB 2>/dev/null; do
+    sleep 0.1; i=$((i + 1))
+done
+[ -e /run/stub.ready ] && echo ready > "$OUT/stub_ready.txt"
+
+step "2. i2c-tools"
+i2cget -y 0 0x68 0x00 > "$OUT/i2cget_chip_id.txt" 2>&1
+i2cdump -y 0 0x68 i > "$OUT/i2cdump_i.txt" 2>&1
+i2cdump -y -r 0x00-0x3f 0 0x68 b > "$OUT/i2cdump_b.txt" 2>&1
+for n in 1 2 3 4 5 6; do i2cget -y 0 0x68 0x02 w; sleep 0.05; done > "$OUT/i2cget_rate_x_words.txt" 2>&1
+for n in 1 2 3 4 5 6; do
+    i2cdump -y -r 0x02-0x07 0 0x68 i | sed -n 's/^00: //p'; sleep 0.05
+done > "$OUT/i2cdump_rate_blocks.txt" 2>&1
+
+step "3. kernel driver bmg160_i2c"
+modprobe -d "$GUEST_ROOT" bmg160_i2c || echo "modprobe bmg160_i2c failed"
+echo bmg160 0x68 > /sys/bus/i2c/devices/i2c-0/new_device
+i=0
+while [ ! -e "$IIO/in_anglvel_x_raw" ] && [ $i -lt 100 ]; do sleep 0.1; i=$((i + 1)); done
+cat "$IIO/name" > "$OUT/iio_name.txt" 2>&1
+for a in in_anglvel_scale in_anglvel_sampling_frequency in_temp_raw in_temp_offset \
+         in_temp_scale in_anglvel_scale_available; do
+    echo "$a $(cat "$IIO/$a" 2>&1)"
+done > "$OUT/iio_attributes.txt"
+i2cdump -f -y -r 0x0f-0x21 0 0x68 b > "$OUT/i2cdump_after_probe.txt" 2>&1
+
+step "3a. default configuration: samples"
+for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_default_$axis.txt"; done
+sample in_temp_raw 0.05 3 > "$OUT/temp_raw.txt"
+
+step "3b. in_anglvel_scale 0.001065 (2000 deg/s)"
+echo 0.001065 > "$IIO/in_anglvel_scale"
+sleep 0.2
+cat "$IIO/in_anglvel_scale" > "$OUT/scale_2000.txt"
+for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_2000_$axis.txt"; done
+
+step "3c. in_anglvel_sampling_frequency 400"
+echo 400 > "$IIO/in_anglvel_sampling_frequency"
+sleep 1
+cat "$IIO/in_anglvel_sampling_frequency" > "$OUT/freq_400.txt"
+
+step "3d. idle until runtime suspend"
+sleep 4
+i2cget -f -y 0 0x68 0x11 > "$OUT/lpm1_idle.txt" 2>&1
+
+step "3e. after resume: in_anglvel_scale 0.000133 (250 deg/s), sampling frequency 200"
+for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_resumed_2000_$axis.txt"; done
+echo 0.000133 > "$IIO/in_anglvel_scale"
+echo 200 > "$IIO/in_anglvel_sampling_frequency"
+sleep 0.2
+cat "$IIO/in_anglvel_scale" > "$OUT/scale_250.txt"
+for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_250_$axis.txt"; done
+sleep 2  # a stretch of refreshes at 200 Hz for the period and jitter figures
+
+step "4. stop the adapter"
+kill -TERM $STUB 2>/dev/null
+wait $STUB
+echo $? > "$OUT/stub_exit.txt"
+dmesg > "$OUT/dmesg.txt"
+step "done"
+echo done > "$OUT/done.txt"
