@@ -13,6 +13,7 @@ import importlib.util
 import json
 import math
 import shlex
+import shutil
 import statistics
 import sys
 from pathlib import Path
@@ -43,6 +44,9 @@ def guest(tmp_path_factory):
     """Boot the guest once, run every check, return (output folder, console text)."""
     harness = _load_guest_module()
     reason = harness.missing_requirements()
+    for tool, package in (("i2cget", "i2c-tools"), ("setpriv", "util-linux")):
+        if reason is None and shutil.which(tool) is None:
+            reason = f"{tool} is missing (Debian package {package}; the guest runs the host's)"
     if reason:
         pytest.skip(f"kernel tests need a bootable guest: {reason}")
     work = tmp_path_factory.mktemp("kernel")
