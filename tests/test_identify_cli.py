@@ -63,20 +63,20 @@ def test_all_figures_with_emulator_overlays(record, tmp_path, capsys):
     [
         (lambda p: None, ["--rate", "200"], "no such record file"),
         (lambda p: np.save(p, np.zeros((10, 3))), ["--rate", "200"], "too short: 10 samples"),
-        (lambda p: np.save(p, np.zeros((2000, 3))), [], r"give the sample rate \(--rate HZ\)"),
+        (lambda p: np.save(p, np.random.default_rng(0).standard_normal((2000, 3))), [], r"give the sample rate \(--rate HZ\)"),
         (lambda p: np.save(p, np.full((2000, 1), np.nan)), ["--rate", "200"], "NaN or infinite"),
         (
-            lambda p: np.save(p, np.zeros((2000, 3))),
+            lambda p: np.save(p, np.random.default_rng(0).standard_normal((2000, 3))),
             ["--rate", "200", "--plot", "a.jpg"],
             "must end in .png or .svg",
         ),
         (
-            lambda p: np.save(p, np.zeros((2000, 3))),
+            lambda p: np.save(p, np.random.default_rng(0).standard_normal((2000, 3))),
             ["--rate", "200", "--columns", "x"],
             "--columns applies to CSV",
         ),
         (
-            lambda p: np.save(p, np.zeros((2000, 3))),
+            lambda p: np.save(p, np.random.default_rng(0).standard_normal((2000, 3))),
             ["--rate", "200", "--compare"],
             "--compare needs --figures",
         ),

@@ -128,3 +128,9 @@ def test_non_finite_samples_are_rejected(samples, bad):
 def test_bad_rate_is_rejected(samples, rate):
     with pytest.raises(IdentificationError, match="sample rate"):
         identify(samples, rate)
+
+
+def test_constant_column_is_rejected(samples):
+    samples[:, 2] = 0.5
+    with pytest.raises(IdentificationError, match="column 2 is constant"):
+        identify(samples, 200.0)

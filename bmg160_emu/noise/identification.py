@@ -482,6 +482,12 @@ def check_record(rate_dps: np.ndarray, rate_hz: float) -> np.ndarray:
             f"record has {int(bad.sum())} NaN or infinite sample(s), first at sample {row} "
             f"of column {col}: remove or fill them before identification"
         )
+    flat = np.flatnonzero(np.ptp(data, axis=0) == 0)
+    if flat.size:
+        raise IdentificationError(
+            f"column {int(flat[0])} is constant ({data[0, flat[0]]!r} throughout): "
+            "a record without noise has nothing to identify"
+        )
     return data
 
 
