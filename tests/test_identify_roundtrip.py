@@ -113,3 +113,14 @@ def test_summary_and_json_label_everything():
     assert ax["fit"]["tau_range_s"][0] == pytest.approx(0.005)
     assert "one-sided" in ax["psd"]["convention"]
     assert np.isfinite(ax["psd"]["white_N"]["value"])
+
+
+def test_rate_ramp_is_fitted_on_request():
+    profile = Profile("r", *[AxisNoise(N=0.01, B=0.0, T=0.0, K=0.0, bias=0.0, R=1e-4)] * 3)
+    x = NoiseGenerator(profile, seed=5).generate(HOUR * 200)[:, 0]
+    r = identify_axis(x, 200.0, with_r=True)
+    # a deterministic ramp of 0.36 deg/s over the hour dominates the long taus (R^2 tau^2 / 2
+    # against N^2 / tau: 1e4 times larger at tau = 1000 s); 5 % covers the white noise's
+    # share of the last, few-degree-of-freedom points (8 seeds tried: within 3 %)
+    assert r.R is not None and r.R.value == pytest.approx(1e-4, rel=0.05)
+    assert r.Q is None
