@@ -45,7 +45,10 @@ def one_sided_psd(rate_dps: np.ndarray, rate_hz: float, segment: int | None = No
     """
     x = np.asarray(rate_dps, dtype=float)
     n = x.shape[0]
-    nperseg = min(segment or DEFAULT_SEGMENT, n)
+    if segment is None:
+        # at least ~15 half-overlapping segments on short records, 2^16 samples on long ones
+        segment = min(DEFAULT_SEGMENT, max(256, 1 << max(int(n // 8).bit_length() - 1, 0)))
+    nperseg = min(segment, n)
     step = nperseg - nperseg // 2
     window = get_window("hann", nperseg)
     mean = x.mean()
