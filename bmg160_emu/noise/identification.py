@@ -254,8 +254,10 @@ def _design(tau: np.ndarray, T: float, with_q: bool, with_r: bool) -> np.ndarray
 
 def _solve(tau, avar, w, T, with_q, with_r) -> _Fit:
     A = _design(tau, T, with_q, with_r) * w[:, None]
-    theta, rnorm = nnls(A, avar * w)
-    return _Fit(theta, T, rnorm**2)
+    scale = np.linalg.norm(A, axis=0)  # columns span ~10 decades: solve on unit columns
+    scale[scale == 0] = 1.0
+    theta, rnorm = nnls(A / scale, avar * w)
+    return _Fit(theta / scale, T, rnorm**2)
 
 
 def _best_T(tau, avar, w, with_q, with_r, t_bounds) -> _Fit:
