@@ -124,3 +124,17 @@ def test_rate_ramp_is_fitted_on_request():
     # share of the last, few-degree-of-freedom points (8 seeds tried: within 3 %)
     assert r.R is not None and r.R.value == pytest.approx(1e-4, rel=0.05)
     assert r.Q is None
+
+
+def test_white_noise_only_gives_intervals_reaching_zero_and_a_loadable_profile(tmp_path):
+    from bmg160_emu.noise.profile import write_profile
+
+    x = np.random.default_rng(8).standard_normal(200_000) * 0.02 * math.sqrt(200.0)
+    axis = identify(x, 200.0).axes[0]
+    # 1000 s of pure white noise: N to ~0.1 %; B and K are absent, so their 95 % intervals
+    # must reach 0
+    assert axis.N.value == pytest.approx(0.02, rel=0.01)
+    assert axis.B.ci_low == 0.0 and axis.K.ci_low == 0.0
+    path = tmp_path / "white.toml"
+    write_profile(identify(x, 200.0).to_profile("white"), path)
+    assert NoiseGenerator(path, seed=1).generate(10).shape == (10, 3)
