@@ -411,6 +411,80 @@ def test_c_ioctl_client_missing_address(c_client):
     assert c_client["missing"] == [[-1, expected.value.errno]]
 
 
+C_EDGE_CASES = textwrap.dedent(
+    r"""
+    #include <errno.h>
+    #include <fcntl.h>
+    #include <linux/i2c.h>
+    #include <linux/i2c-dev.h>
+    #include <stdio.h>
+    #include <sys/ioctl.h>
+
+    #define REPORT(name, call) do { errno = 0; int r_ = (call); \
+        printf("%s %d %d\n", name, r_, r_ < 0 ? errno : 0); } while (0)
+
+    int main(int argc, char **argv)
+    {
+        int fd = open(argv[1], O_RDWR);
+        union i2c_smbus_data d;
+        unsigned char buf[8];
+        struct i2c_msg m[43];
+        struct i2c_rdwr_ioctl_data rdwr = { m, 43 };
+        struct i2c_smbus_ioctl_data a = { I2C_SMBUS_READ, 0x00, 9, &d };
+        int i;
+        for (i = 0; i < 43; i++) { m[i].addr = 0x68; m[i].flags = I2C_M_RD; m[i].len = 1; m[i].buf = buf; }
+        REPORT("slave_0x80", ioctl(fd, I2C_SLAVE, 0x80));
+        REPORT("slave_force", ioctl(fd, I2C_SLAVE_FORCE, 0x68));
+        REPORT("size_9", ioctl(fd, I2C_SMBUS, &a));
+        a.size = I2C_SMBUS_BYTE_DATA; a.read_write = 2;
+        REPORT("read_write_2", ioctl(fd, I2C_SMBUS, &a));
+        a.read_write = I2C_SMBUS_READ; a.data = 0;
+        REPORT("null_data", ioctl(fd, I2C_SMBUS, &a));
+        a.data = &d; a.size = I2C_SMBUS_I2C_BLOCK_DATA; d.block[0] = 33;
+        REPORT("i2c_block_33", ioctl(fd, I2C_SMBUS, &a));
+        a.size = I2C_SMBUS_I2C_BLOCK_BROKEN; d.block[0] = 0;
+        REPORT("block_broken", ioctl(fd, I2C_SMBUS, &a));
+        printf("broken_block %d %d\n", d.block[0], d.block[1]);
+        REPORT("rdwr_43", ioctl(fd, I2C_RDWR, &rdwr));
+        rdwr.nmsgs = 0;
+        REPORT("rdwr_0", ioctl(fd, I2C_RDWR, &rdwr));
+        rdwr.nmsgs = 1; m[0].len = 8193;
+        REPORT("rdwr_8193", ioctl(fd, I2C_RDWR, &rdwr));
+        REPORT("unknown", ioctl(fd, 0x0799, 0));
+        return 0;
+    }
+    """
+)
+
+
+def test_c_ioctl_argument_checks_match_i2c_dev(tmp_path: Path):
+    """Malformed requests fail as drivers/i2c/i2c-dev.c makes them fail."""
+    import errno
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler (apt-get install gcc)")
+    source, binary = tmp_path / "edge.c", tmp_path / "edge"
+    source.write_text(C_EDGE_CASES)
+    subprocess.run([cc, "-O2", "-o", str(binary), str(source)], check=True)
+    result = run_emulated(["--", str(binary), "/dev/i2c-1"])
+    assert result.returncode == 0, result.stderr
+    seen = {line.split()[0]: [int(v) for v in line.split()[1:]] for line in result.stdout.splitlines()}
+    einval = [-1, errno.EINVAL]
+    assert seen["slave_0x80"] == einval  # above 0x7f without I2C_TENBIT
+    assert seen["slave_force"] == [0, 0]
+    assert seen["size_9"] == einval  # no such SMBus size
+    assert seen["read_write_2"] == einval
+    assert seen["null_data"] == einval  # a read needs the data union
+    assert seen["i2c_block_33"] == einval  # I2C block transfers carry at most 32 bytes
+    assert seen["block_broken"] == [0, 0]
+    assert seen["broken_block"] == [32, 0x0F]  # size 6 reads 32 bytes from the command on
+    assert seen["rdwr_43"] == einval  # I2C_RDWR_IOCTL_MAX_MSGS is 42
+    assert seen["rdwr_0"] == einval
+    assert seen["rdwr_8193"] == einval  # messages are capped at 8192 bytes
+    assert seen["unknown"] == [-1, errno.ENOTTY]
+
+
 # --------------------------------------------------------------------------- the command
 
 
