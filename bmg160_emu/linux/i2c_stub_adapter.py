@@ -191,7 +191,8 @@ class I2CStubAdapter:
         """Slots first..last: high byte = reg[r+1], low byte kept as the stub has it."""
         for r in range(first, last + 1):
             high = image[r + 1] if r + 1 < len(image) else 0
-            low = self.shadow[r] if self.shadow[r] is not None else image[r]
+            known = self.shadow[r]
+            low = image[r] if known is None else known
             if self.high[r] != high:
                 self.smbus.write_word_data(self.address, r, low | high << 8)
                 self.high[r] = high
