@@ -513,3 +513,17 @@ def test_run_serves_two_chips_and_the_bus_number(tmp_path: Path):
     )
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["0x0f", "0x0f"]
+
+
+def test_run_passes_sigterm_on_to_the_program():
+    process = subprocess.Popen(
+        [sys.executable, "-m", "bmg160_emu", "run", "--", "sh", "-c", "echo started; exec sleep 60"],
+        stdout=subprocess.PIPE, text=True,
+    )
+    try:
+        assert process.stdout.readline().strip() == "started"
+        process.terminate()
+        assert process.wait(timeout=30) == 128 + 15  # the program died of SIGTERM
+    finally:
+        if process.poll() is None:
+            process.kill()

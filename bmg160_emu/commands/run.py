@@ -94,11 +94,18 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(exc)) from None
     with devices:
         process = devices.popen(program)
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # the child gets ^C itself
+        # ^C reaches the child from the terminal; SIGTERM and SIGHUP sent to us are passed on,
+        # so the program never outlives the emulator that answers it.
+        previous = {
+            signal.SIGINT: signal.signal(signal.SIGINT, signal.SIG_IGN),
+            signal.SIGTERM: signal.signal(signal.SIGTERM, lambda n, _: process.send_signal(n)),
+            signal.SIGHUP: signal.signal(signal.SIGHUP, lambda n, _: process.send_signal(n)),
+        }
         try:
             status = process.wait()
         finally:
-            signal.signal(signal.SIGINT, previous)
+            for number, handler in previous.items():
+                signal.signal(number, handler)
         for error in devices.handler_errors():
             print(f"bmg160-emu run: internal error answered as EIO: {error}", file=sys.stderr)
     if args.log is not None:
