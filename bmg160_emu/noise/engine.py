@@ -202,6 +202,8 @@ class NoiseGenerator:
         rate = check_rate(rate_hz)
         if rate == self._rate_hz:
             return
+        # coefficients first: if the profile cannot run at this rate, nothing has changed
+        coefs = [axis_coefficients(s.axis, rate, self.mode) for s in self._axes]
         last = self._k - 1
         t_last = self._t_ref + (last - self._k_ref) * (1.0 / self._rate_hz)
         pos = self._k - self._buf_start
@@ -216,7 +218,7 @@ class NoiseGenerator:
                 stream.rw_prev = float(rw[pos - 1]) if (rw is not None and pos > 0) else rw_before
                 wq = normals["quant"]
                 stream.quant_prev = float(wq[pos - 1]) if (wq is not None and pos > 0) else q_before
-        self._apply_rate(rate)
+        self._apply_rate(rate, coefs)
         self._t_ref, self._k_ref = t_last, last
         if pending > 0:
             kept = [
@@ -227,9 +229,11 @@ class NoiseGenerator:
 
     # -- internals ---------------------------------------------------------------------------
 
-    def _apply_rate(self, rate: float) -> None:
-        for stream in self._axes:
-            stream.coef = axis_coefficients(stream.axis, rate, self.mode)
+    def _apply_rate(self, rate: float, coefs: list[AxisCoefficients] | None = None) -> None:
+        if coefs is None:
+            coefs = [axis_coefficients(s.axis, rate, self.mode) for s in self._axes]
+        for stream, coef in zip(self._axes, coefs):
+            stream.coef = coef
         self._rate_hz = rate
 
     def _times(self, k0: int, n: int) -> np.ndarray | None:
