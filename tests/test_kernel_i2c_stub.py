@@ -218,10 +218,14 @@ def test_sysfs_scale_and_frequency_writes_change_the_emulator(guest):
 
 def test_runtime_suspend_and_resume_reach_the_model(guest):
     assert text(guest, "lpm1_idle.txt").strip() == "0x80"
-    modes = [e["power_mode"] for e in stub_report(guest)["events"] if e["register"] == 0x11]
-    assert "suspend" in modes
-    assert modes[-1] == "normal"
-    # the scale set before the suspend still holds after it (raw_resumed_2000 above)
+    events = stub_report(guest)["events"]
+    power = [(e["time_s"], e["power_mode"]) for e in events if e["register"] == 0x11]
+    suspended = next(t for t, mode in power if mode == "suspend")
+    resumed = next(t for t, mode in power if mode == "normal" and t > suspended)
+    # the scale written after the resume reached the model, which was running again
+    range_250 = next(e for e in events if e["register"] == 0x0F and e["range"] == 3)
+    assert range_250["time_s"] > resumed
+    assert range_250["power_mode"] == "normal"
 
 
 def test_adapter_refresh_follows_the_output_data_rate(guest):
