@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from bmg160_emu.noise import NoiseGenerator, ProfileError, load_profile
+from bmg160_emu.noise import AxisNoise, NoiseGenerator, Profile, ProfileError, load_profile
 from bmg160_emu.noise.profile import builtin_profile_names, format_profile, write_profile
 
 PAPER_TEXT = """
@@ -106,3 +106,10 @@ def test_generator_rejects_a_bad_profile_with_a_value_error():
 def test_paper_mode_needs_the_paper_fields():
     with pytest.raises(ValueError, match="paper mode needs sigma_gyro and sigma_K"):
         NoiseGenerator("datasheet", mode="paper")
+
+
+def test_paper_mode_profile_whose_std_cannot_hold_its_terms_is_rejected_up_front():
+    # sigma_gyro below B leaves a negative variance for the white term (paper eq. 16)
+    axis = AxisNoise(N=0.0178, B=0.004, T=33.9, K=4e-4, bias=0.0, sigma_gyro=0.003, sigma_K=10.0)
+    with pytest.raises(ValueError, match="eq. 16"):
+        NoiseGenerator(Profile("bad", axis, axis, axis), mode="paper")

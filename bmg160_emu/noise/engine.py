@@ -28,6 +28,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from bmg160_emu.noise.discretization import (
+    SUPPORTED_RATES_HZ,
     AxisCoefficients,
     axis_coefficients,
     check_mode,
@@ -132,6 +133,9 @@ class NoiseGenerator:
         self.profile = load_profile(profile)
         self.mode = check_mode(mode)
         rate = check_rate(rate_hz)
+        for other in SUPPORTED_RATES_HZ:  # a profile must run at every rate a driver may set
+            for axis in self.profile.axes:
+                axis_coefficients(axis, other, self.mode)
         seed_seq = (
             seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
         )
