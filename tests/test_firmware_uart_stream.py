@@ -88,10 +88,10 @@ def test_identification_of_the_capture_gives_back_the_profile_n(stream):
         assert axis.N.value == pytest.approx(truth, rel=0.03), axis.axis
 
 
-def test_polar_and_trigonometric_box_muller_builds_give_the_same_distribution(stream, tmp_path):
-    # The polar form replaces the paper's trigonometric Box-Muller for speed; both map
-    # uniforms to exact normals. A 30 s capture of the Box-Muller build (6000 samples per
-    # axis) must match the polar capture: two-sample KS on the pooled, centred axes
+def test_default_ziggurat_and_the_papers_box_muller_give_the_same_distribution(stream, tmp_path):
+    # The default build draws normals with the ziggurat; the paper used trigonometric
+    # Box-Muller. Both are exact methods. A 30 s capture of the Box-Muller build (6000 samples
+    # per axis) must match the default capture: two-sample KS on the pooled, centred axes
     # (p > 0.001 fails equal distributions 1 time in 1000) and the same std (relative
     # standard error of each std about 0.9 % and 0.65 %: 5 % is > 4 sd of the difference).
     build = require_firmware_build(profile="paper", seed=22, normal="box-muller")

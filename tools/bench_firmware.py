@@ -65,7 +65,7 @@ def main() -> int:
     parser.add_argument("--capture-seconds", type=float, default=20.0)
     args = parser.parse_args()
 
-    for normal in ("polar", "box-muller"):
+    for normal in ("ziggurat", "polar", "box-muller"):
         build = build_firmware(profile="paper", normal=normal)
         print(f"== normal generator: {normal}")
         print(f"flash {build.flash_bytes} / {ATMEGA328P_FLASH} bytes "

@@ -65,9 +65,10 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=1, help="seed of the on-chip generator")
     parser.add_argument(
         "--normal",
-        default="polar",
-        choices=("polar", "box-muller"),
-        help="normal generator: Marsaglia polar (default) or the paper's trigonometric form",
+        default="ziggurat",
+        choices=("ziggurat", "polar", "box-muller"),
+        help="normal generator: ziggurat (default, fastest), Marsaglia's polar form or the "
+        "paper's trigonometric Box-Muller",
     )
     parser.add_argument("--out", default=None, help="build folder (default firmware/build/...)")
 

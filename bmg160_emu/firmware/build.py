@@ -21,7 +21,12 @@ AVR_PACKAGES = "gcc-avr avr-libc binutils-avr"
 SIM_PACKAGES = "simavr libsimavr-dev libelf-dev"
 ATMEGA328P_FLASH = 32768  # bytes, data sheet
 ATMEGA328P_SRAM = 2048  # bytes, data sheet
-NORMAL_METHODS = ("polar", "box-muller")
+NORMAL_METHODS = ("ziggurat", "polar", "box-muller")
+NORMAL_FLAGS = {
+    "ziggurat": "",
+    "polar": "-DBMG_NORMAL_POLAR",
+    "box-muller": "-DBMG_NORMAL_BOX_MULLER",
+}
 
 
 class FirmwareToolError(RuntimeError):
@@ -83,7 +88,7 @@ def build_firmware(
     address: int = 0x68,
     mode: str = "physical",
     seed: int = 1,
-    normal: str = "polar",
+    normal: str = "ziggurat",
     out_dir: str | Path | None = None,
 ) -> FirmwareBuild:
     """Write bmg160_params.h for the profile and build bmg160.elf and bmg160.hex.
@@ -92,7 +97,7 @@ def build_firmware(
     missing or the build fails.
     """
     if normal not in NORMAL_METHODS:
-        raise ValueError(f"unknown normal generator {normal!r}: use polar or box-muller")
+        raise ValueError(f"unknown normal generator {normal!r}: use {', '.join(NORMAL_METHODS)}")
     header_text = render_params_header(profile=profile, address=address, mode=mode, seed=seed)
     missing = missing_avr_tools()
     if missing:
@@ -106,7 +111,7 @@ def build_firmware(
     header = directory / "bmg160_params.h"
     if not header.is_file() or header.read_text(encoding="utf-8") != header_text:
         header.write_text(header_text, encoding="utf-8")  # unchanged header: no rebuild
-    flags = "-DBMG_NORMAL_BOX_MULLER" if normal == "box-muller" else ""
+    flags = NORMAL_FLAGS[normal]
     _run(
         [
             "make", "--no-print-directory", "-C", str(FIRMWARE_DIR),

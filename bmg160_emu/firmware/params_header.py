@@ -24,8 +24,41 @@ SENSITIVITY_LSB_PER_DPS = (16.384, 32.768, 65.536, 131.072, 262.144, 16.384, 16.
 I2C_ADDRESSES = (0x68, 0x69)  # SDO low / high (spec 2.1)
 
 
+# Marsaglia and Tsang (2000), "The Ziggurat Method for Generating Random Variables", J. Stat.
+# Software 5(8): 128 layers, right-most layer edge r and common layer area v.
+ZIGGURAT_R = 3.442619855899
+ZIGGURAT_V = 9.91256303526217e-3
+ZIGGURAT_M = 2.0**31  # the layer test compares a signed 32-bit draw with kn
+
+
+def ziggurat_tables() -> tuple[list[int], list[float], list[float]]:
+    """kn (integer thresholds), wn (scale of a draw to x), fn (density at the layer edges)."""
+    dn = tn = ZIGGURAT_R
+    q = ZIGGURAT_V / math.exp(-0.5 * dn * dn)
+    kn = [0] * 128
+    wn = [0.0] * 128
+    fn = [0.0] * 128
+    kn[0] = int((dn / q) * ZIGGURAT_M)
+    kn[1] = 0
+    wn[0] = q / ZIGGURAT_M
+    wn[127] = dn / ZIGGURAT_M
+    fn[0] = 1.0
+    fn[127] = math.exp(-0.5 * dn * dn)
+    for i in range(126, 0, -1):
+        dn = math.sqrt(-2.0 * math.log(ZIGGURAT_V / dn + math.exp(-0.5 * dn * dn)))
+        kn[i + 1] = int((dn / tn) * ZIGGURAT_M)
+        tn = dn
+        fn[i] = math.exp(-0.5 * dn * dn)
+        wn[i] = dn / ZIGGURAT_M
+    return kn, wn, fn
+
+
 def _c_float(value: float) -> str:
-    return f"{value:.9g}f"
+    """A C float literal (9 significant digits round-trip a float32; always with a point)."""
+    text = f"{value:.9g}"
+    if "." not in text and "e" not in text:
+        text += ".0"
+    return text + "f"
 
 
 def _c_bytes(values: list[int]) -> str:
@@ -69,6 +102,8 @@ def render_params_header(
         tables["gm"].append([c.gm_gain for c in coeffs])
         tables["rw"].append([c.rw_step for c in coeffs])
 
+    zig_kn, zig_wn, zig_fn = ziggurat_tables()
+
     def table(name: str, key: str) -> str:
         rows = ",\n".join("\t{" + ", ".join(_c_float(v) for v in row) + "}" for row in tables[key])
         return f"static const float {name}[8][3] PROGMEM = {{\n{rows}\n}};"
@@ -111,6 +146,18 @@ def render_params_header(
         + "};",
         "static const float bmg_gm_std_dps[3] PROGMEM = {"
         + ", ".join(_c_float(a.B if a.T > 0 else 0.0) for a in prof.axes)
+        + "};",
+        "",
+        "/* Ziggurat tables, 128 layers (Marsaglia and Tsang 2000). */",
+        f"#define BMG_ZIGGURAT_R {_c_float(ZIGGURAT_R)}",
+        "static const uint32_t bmg_zig_kn[128] PROGMEM = {"
+        + ", ".join(f"{k}UL" for k in zig_kn)
+        + "};",
+        "static const float bmg_zig_wn[128] PROGMEM = {"
+        + ", ".join(_c_float(w) for w in zig_wn)
+        + "};",
+        "static const float bmg_zig_fn[128] PROGMEM = {"
+        + ", ".join(_c_float(f) for f in zig_fn)
         + "};",
         "",
         "#endif",

@@ -59,6 +59,10 @@ static void stream_sample(uint32_t index, const float rate_dps[3])
 {
 	char line[48];
 	uint8_t n;
+	if (uart_room() < sizeof line) { /* the longest line is 44 bytes: drop it unformatted */
+		sampler_stats.uart_dropped++;
+		return;
+	}
 	ultoa(index, line, 10);
 	n = (uint8_t)strlen(line);
 	for (uint8_t i = 0; i < 3; i++) {

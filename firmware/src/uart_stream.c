@@ -30,6 +30,11 @@ ISR(USART_UDRE_vect)
 	head = (uint8_t)((head + 1) & (QUEUE_SIZE - 1));
 }
 
+uint8_t uart_room(void)
+{
+	return (uint8_t)(QUEUE_SIZE - 2 - ((tail - head) & (QUEUE_SIZE - 1)));
+}
+
 uint8_t uart_send_line(const char *line, uint8_t length)
 {
 	uint8_t used = (uint8_t)((tail - head) & (QUEUE_SIZE - 1));

@@ -8,5 +8,7 @@
 void uart_init(void);
 /* Queue a whole line; returns 0 (and sends nothing) if it does not fit. */
 uint8_t uart_send_line(const char *line, uint8_t length);
+/* Bytes a line may use now (so a line that cannot fit is not even formatted). */
+uint8_t uart_room(void);
 
 #endif
