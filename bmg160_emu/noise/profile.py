@@ -11,6 +11,7 @@ K deg/s/sqrt(s), bias deg/s, Q deg (angle quantization), R deg/s/s (rate ramp).
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 from collections.abc import Mapping
@@ -83,10 +84,15 @@ class Profile:
         return out
 
 
+@functools.lru_cache(maxsize=1)
+def _builtin_names() -> tuple[str, ...]:
+    folder = resources.files("bmg160_emu.noise").joinpath("profiles")
+    return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml")))
+
+
 def builtin_profile_names() -> list[str]:
     """Names of the profiles shipped inside the package."""
-    folder = resources.files("bmg160_emu.noise").joinpath("profiles")
-    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+    return list(_builtin_names())
 
 
 def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper") -> Profile:
@@ -105,9 +111,7 @@ def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper
     text_name = str(name_or_path)
     builtins = builtin_profile_names()
     if isinstance(name_or_path, str) and text_name in builtins:
-        folder = resources.files("bmg160_emu.noise").joinpath("profiles")
-        data = folder.joinpath(f"{text_name}.toml").read_text(encoding="utf-8")
-        return _parse(data, origin=f"built-in profile {text_name!r}", default_name=text_name)
+        return _builtin_profile(text_name)
     path = Path(name_or_path)
     if path.is_file():
         try:
@@ -119,6 +123,14 @@ def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper
         f"unknown noise profile {text_name!r}: not a built-in profile "
         f"({', '.join(builtins)}) nor an existing TOML file"
     )
+
+
+@functools.cache
+def _builtin_profile(name: str) -> Profile:
+    """Built-ins are parsed once (Profile is frozen, so sharing it is safe)."""
+    folder = resources.files("bmg160_emu.noise").joinpath("profiles")
+    data = folder.joinpath(f"{name}.toml").read_text(encoding="utf-8")
+    return _parse(data, origin=f"built-in profile {name!r}", default_name=name)
 
 
 def _parse(text: str, origin: str, default_name: str) -> Profile:
