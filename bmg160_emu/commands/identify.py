@@ -69,7 +69,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="with --figures: overlay an emulator record from the result",
     )
-    parser.add_argument("--seed", type=int, default=1, help="seed of the --compare emulator")
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="seed of the --compare emulator record (default: random; the same seed as the "
+        "recording's own generator would reproduce its noise almost sample for sample)",
+    )
     parser.add_argument(
         "--profile-out",
         type=Path,

@@ -34,6 +34,7 @@ from bmg160_emu.noise.spectrum import (
 FIGURE_FORMATS = (".png", ".svg")
 _PSD_LABEL = "one-sided PSD [(deg/s)$^2$/Hz]"
 _MAX_POINTS = 20_000  # a time series is drawn as a min/max envelope beyond this
+_OVERLAY_WINDOW = 2000  # samples of the time-domain overlay (10 s at 200 Hz)
 
 
 def check_figure_path(path: str | Path) -> Path:
@@ -278,12 +279,14 @@ def overlay_figures(
     figs["overlay_psd"] = fig
 
     fig, (ax,) = _new(size=(9.0, 4.0))
-    _draw_series(ax, recording, rate_hz, "recording", color="tab:blue")
-    _draw_series(ax, emulated, rate_hz, "emulator", color="tab:orange")
+    window = min(recording.shape[0], _OVERLAY_WINDOW)  # raw samples, as the paper's Fig. 9
+    t = np.arange(window) / rate_hz
+    ax.plot(t, recording[:window], lw=0.6, color="tab:blue", label="recording")
+    ax.plot(t, emulated[:window], lw=0.6, color="tab:orange", alpha=0.8, label="emulator")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("rate [deg/s]")
     ax.grid(alpha=0.3)
     ax.legend(fontsize="small")
-    ax.set_title(f"axis {rec_result.axis}: emulator against recording (time domain)")
+    ax.set_title(f"axis {rec_result.axis}: emulator against recording, first {window} samples")
     figs["overlay_time"] = fig
     return figs
