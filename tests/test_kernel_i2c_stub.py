@@ -65,9 +65,9 @@ def guest(tmp_path_factory):
 
 @pytest.fixture(autouse=True)
 def _console_in_report(request, guest):
+    """Attach the guest console to the test's report (shown with any failure)."""
     _, result = guest
-    yield
-    request.node.add_report_section("call", "guest console", result.console)
+    request.node.add_report_section("setup", "guest console", result.console)
 
 
 def text(guest, name: str) -> str:
