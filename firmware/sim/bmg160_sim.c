@@ -34,6 +34,7 @@
 #include "avr_twi.h"
 #include "avr_uart.h"
 #include "sim_avr.h"
+#include "sim_cycle_timers.h"
 #include "sim_elf.h"
 #include "sim_interrupts.h"
 #include "sim_irq.h"
@@ -100,8 +101,20 @@ static void twcr_write(struct avr_t *a, avr_io_addr_t addr, uint8_t v, void *par
 	}
 }
 
+/* A sleeping core jumps to the next cycle timer; this empty timer makes it stop at the
+ * target instead (otherwise a bus bit time could stretch to the next 1 ms tick). */
+static avr_cycle_count_t wake_at_target(struct avr_t *a, avr_cycle_count_t when, void *param)
+{
+	(void)a;
+	(void)when;
+	(void)param;
+	return 0;
+}
+
 static void run_until(avr_cycle_count_t target)
 {
+	if (avr->cycle < target)
+		avr_cycle_timer_register(avr, target - avr->cycle, wake_at_target, NULL);
 	while (avr->cycle < target) {
 		int state = avr_run(avr);
 		if (state == cpu_Done || state == cpu_Crashed)
