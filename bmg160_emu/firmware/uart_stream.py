@@ -1,7 +1,7 @@
 """Reader of the firmware's UART sample stream (line format in docs/firmware.md).
 
 A stream is a banner line starting with ``#`` and then one line per output sample:
-``INDEX X Y Z`` with the sample index (output periods since the data path started) and the
+``INDEX X Y Z`` with the sample index (output periods of the data path since power-on) and the
 three rates in millidegrees per second. A gap in the index is a lost line or a missed period.
 """
 

@@ -4,7 +4,7 @@
 #include <stdint.h>
 
 struct sampler_stats {
-	uint32_t index;          /* output periods since the data path (re)started */
+	uint32_t index;          /* output periods of the data path since power-on */
 	uint32_t produced;       /* samples computed and published */
 	uint32_t missed;         /* periods skipped because the CPU fell behind */
 	uint32_t uart_dropped;   /* lines not sent because the UART queue was full */
