@@ -297,10 +297,10 @@ def _check_count(n: object) -> int:
     return n
 
 
-def _check_data(data: object) -> bytes:
+def _check_data(data: bytes | Sequence[int]) -> bytes:
     if isinstance(data, (int, str)):
         raise TypeError("data must be bytes or a sequence of ints 0..255")
     try:
-        return bytes(data)  # type: ignore[arg-type]
+        return bytes(data)
     except ValueError:
         raise ValueError("data bytes must be in 0..255") from None
