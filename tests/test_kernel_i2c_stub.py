@@ -148,6 +148,13 @@ def test_kernel_driver_binds_and_reports_the_emulated_chip(guest):
     assert numbers(guest, "temp_raw.txt") == [14.0] * 3
 
 
+def test_bound_address_is_busy_without_force(guest):
+    busy = text(guest, "i2cget_busy.txt")
+    assert "Device or resource busy" in busy and "status 1" in busy
+    # ... while the adapter, opening with I2C_SLAVE_FORCE, kept serving the driver
+    assert any(e["register"] == 0x0F and e["range"] == 0 for e in stub_report(guest)["events"])
+
+
 def test_probe_writes_reached_the_model_and_were_normalised(guest):
     rows = text(guest, "i2cdump_after_probe.txt").splitlines()
     row10 = rows[2].split()[1:]

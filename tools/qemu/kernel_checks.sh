@@ -68,6 +68,8 @@ for a in in_anglvel_scale in_anglvel_sampling_frequency in_temp_raw in_temp_offs
     echo "$a $(cat "$IIO/$a" 2>&1)"
 done > "$OUT/iio_attributes.txt"
 i2cdump -f -y -r 0x0f-0x21 0 0x68 b > "$OUT/i2cdump_after_probe.txt" 2>&1
+# with the driver bound, I2C_SLAVE answers EBUSY (the adapter uses I2C_SLAVE_FORCE)
+i2cget -y 0 0x68 0x00 > "$OUT/i2cget_busy.txt" 2>&1; echo "status $?" >> "$OUT/i2cget_busy.txt"
 
 step "3a. default configuration: samples"
 for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_default_$axis.txt"; done
