@@ -18,7 +18,8 @@ example (as root, on a machine or VM that can load modules):
   cat /sys/bus/iio/devices/iio:device0/in_anglvel_x_raw
 
 The adapter runs in real time until interrupted (or --duration has passed), refreshing the
-data registers once per output data period and applying what the driver writes.
+data registers once per output data period (at most --max-refresh-hz) and applying what
+the driver writes. Docs: docs/i2c-stub.md.
 """
 
 
