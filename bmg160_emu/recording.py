@@ -250,19 +250,3 @@ def read_recording(path: str | Path) -> Recording:
 # Output data rate -> the BW code the Linux driver writes for it (LNX bmg160_samp_freq_table;
 # spec 5.3). Codes 0, 4 and 5 give the same rates with other filters: use --bandwidth for them.
 BW_CODE_BY_ODR_HZ = {100: 0x07, 200: 0x06, 400: 0x03, 1000: 0x02, 2000: 0x01}
-
-_DURATION_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0}
-
-
-def parse_duration_text(text: str) -> float:
-    """'10min', '30s', '1.5h', '250ms' or plain seconds -> seconds (positive, finite)."""
-    stripped = text.strip().lower()
-    number = stripped.rstrip("abcdefghijklmnopqrstuvwxyz")
-    unit = stripped[len(number):]
-    try:
-        value = float(number) * _DURATION_UNITS[unit]
-    except (ValueError, KeyError):
-        raise ValueError(f"not a duration: {text!r} (e.g. 10min, 30s, 1.5h, 250ms)") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise ValueError(f"duration must be positive: {text!r}")
-    return value

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from bmg160_emu import durations
 from bmg160_emu.register_dump import (
     DUMP_FORMATS,
     REGISTER_COUNT,
@@ -25,8 +26,6 @@ from bmg160_emu.register_dump import (
     resolve_register_name,
 )
 
-# Durations carry a unit: simulated time is exact, and "10" alone is ambiguous.
-DURATION_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0}
 DEFAULT_POLL_INTERVAL_S = 1e-3  # one read per millisecond of simulated time
 MAX_BURST = 256  # no bus transfer in scope is longer (FIFO drains of 100 frames x 6 bytes use several)
 
@@ -118,15 +117,12 @@ def parse_register(token: Token) -> int:
 
 
 def parse_duration(token: Token) -> float:
-    match = re.fullmatch(r"([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)([a-z]+)?", token.text)
-    if not match:
-        raise _LineError(token.column, f"bad duration {token.text!r} (e.g. 10ms, 2.5s, 1min)")
-    number, unit = match.groups()
-    if unit is None:
-        raise _LineError(token.column, f"duration {token.text!r} needs a unit: s, ms, us or min")
-    if unit not in DURATION_UNITS:
-        raise _LineError(token.column, f"unknown time unit {unit!r} (use s, ms, us or min)")
-    return float(number) * DURATION_UNITS[unit]
+    """A duration token in seconds; zero is allowed (``advance 0s`` is a no-op)."""
+    # Durations carry a unit: simulated time is exact, and "10" alone is ambiguous.
+    try:
+        return durations.parse_duration(token.text, unit_required=True, allow_zero=True)
+    except ValueError as exc:
+        raise _LineError(token.column, str(exc)) from None
 
 
 def _parse_float(token: Token) -> float:

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
+
+from bmg160_emu.durations import parse_duration
 
 EPILOG = """\
 examples:
@@ -20,21 +21,6 @@ in memory. Durations: 10s, 5min, 2h, 1d, 250ms or plain seconds.
 """
 
 CHUNK_SAMPLES = 1 << 18  # samples per generate() call while streaming (6 MB per chunk)
-_DURATION_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "min": 60.0, "h": 3600.0, "d": 86400.0}
-
-
-def parse_duration(text: str) -> float:
-    """'10s', '5min', '2h', '1d', '250ms' or plain seconds -> seconds (positive, finite)."""
-    stripped = text.strip().lower()
-    number = stripped.rstrip("abcdefghijklmnopqrstuvwxyz")
-    unit = stripped[len(number) :]
-    try:
-        value = float(number) * _DURATION_UNITS[unit]
-    except (ValueError, KeyError):
-        raise ValueError(f"not a duration: {text!r} (e.g. 10s, 5min, 2h, 1d)") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise ValueError(f"duration must be positive: {text!r}")
-    return value
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--duration", default=None, metavar="TIME",
-        help="chip time to record: 10min, 30s, 1.5h, 250ms (default: the scenario's duration)",
+        help="chip time to record: 10min, 30s, 1.5h, 1d, 250ms (default: the scenario's duration)",
     )
     parser.add_argument(
         "--rate", type=int, default=None, metavar="HZ", choices=(100, 200, 400, 1000, 2000),
@@ -50,12 +50,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.recording import (
-        BW_CODE_BY_ODR_HZ,
-        parse_duration_text,
-        record,
-        write_recording,
-    )
+    from bmg160_emu.durations import parse_duration
+    from bmg160_emu.recording import BW_CODE_BY_ODR_HZ, record, write_recording
 
     if args.output.suffix.lower() not in (".csv", ".npz"):
         raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
@@ -75,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"{args.truth}: {exc}") from None
     if args.duration is not None:
         try:
-            duration = parse_duration_text(args.duration)
+            duration = parse_duration(args.duration)
         except ValueError as exc:
             raise CommandError(str(exc)) from None
     elif scenario is not None:

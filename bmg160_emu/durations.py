@@ -1,0 +1,49 @@
+"""One parser for the durations people type: ``10s``, ``5min``, ``2h``, ``1d``, ``250ms``, ``100us``.
+
+Every command-line option and the register-script language read durations through
+:func:`parse_duration`, so the same text means the same time everywhere. Callers choose
+only whether a bare number (seconds) is accepted and whether zero is a valid duration.
+"""
+
+from __future__ import annotations
+
+import math
+
+# Unit suffix -> seconds. Suffixes are read case-insensitively ("10MS" is 10 ms).
+UNIT_SECONDS: dict[str, float] = {
+    "us": 1e-6,
+    "ms": 1e-3,
+    "s": 1.0,
+    "min": 60.0,
+    "h": 3600.0,
+    "d": 86400.0,
+}
+UNIT_NAMES = "us, ms, s, min, h or d"
+EXAMPLES = "e.g. 10s, 5min, 2h, 1d, 250ms"
+
+
+def parse_duration(text: str, *, unit_required: bool = False, allow_zero: bool = False) -> float:
+    """``text`` -> seconds, finite and positive (or zero when ``allow_zero``).
+
+    A bare number is seconds unless ``unit_required`` (the script language asks for a unit
+    because simulated time is exact and "10" alone is ambiguous). Raises ``ValueError`` with
+    a message that names the text and says what is expected.
+    """
+    if not isinstance(text, str):
+        raise TypeError(f"a duration is text such as '10s', not {type(text).__name__}")
+    stripped = text.strip().lower()
+    number = stripped.rstrip("abcdefghijklmnopqrstuvwxyz")
+    unit = stripped[len(number):]
+    try:
+        value = float(number)
+    except ValueError:
+        raise ValueError(f"not a duration: {text!r} ({EXAMPLES})") from None
+    if unit == "" and unit_required:
+        raise ValueError(f"duration {text.strip()!r} needs a unit: {UNIT_NAMES}")
+    if unit and unit not in UNIT_SECONDS:
+        raise ValueError(f"not a duration: {text!r} (unknown time unit {unit!r}; use {UNIT_NAMES})")
+    seconds = value * UNIT_SECONDS.get(unit, 1.0)
+    if not math.isfinite(seconds) or seconds < 0 or (seconds == 0 and not allow_zero):
+        qualifier = "zero or positive" if allow_zero else "positive"
+        raise ValueError(f"duration must be {qualifier}: {text!r}")
+    return seconds + 0.0  # -0.0 (from '-0s') reads as 0.0
