@@ -28,6 +28,7 @@ TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
 RATE_REGISTERS = range(0x02, 0x08)  # RATE_X_LSB..RATE_Z_MSB (spec 4.2)
 FIFO_DATA = 0x3F  # the pointer does not advance here (spec 2.4)
+FAULT_KIND_PREFIX = "fault:"  # entries bmg160_emu.adcs.faults adds at a fault's onset
 
 
 class TraceFormatError(ValueError):
@@ -136,6 +137,11 @@ def describe_transaction(record: dict) -> str:
     error = _get(record, "error")
     written = _as_bytes(_get(record, "written", "data_out", "write"))
     read = _as_bytes(_get(record, "read", "data_in", "result"))
+    if kind.startswith(FAULT_KIND_PREFIX):  # an injected fault's onset, not bus traffic
+        from bmg160_emu.adcs.faults import parse_fault_entry
+
+        detail, _ = parse_fault_entry(written)
+        return head + f"FAULT injected: {detail or kind[len(FAULT_KIND_PREFIX):]}  [{kind}]"
     if kind == "spi_xfer" and written and not error:  # a raw frame, command byte first
         return head + _describe_spi_frame(written, read) + f"  [{kind}]"
     if kind == "spi_write" and isinstance(register, int) and len(written) > 1 and not error:
@@ -351,8 +357,14 @@ class Divergence:
 
 @dataclass
 class ReplayResult:
+    """``transactions`` replayed (fault entries not counted); the injected faults the trace
+    carried: ``faults_reapplied`` were acted again on the replay chips, ``faults_skipped``
+    (their lines, described) could not be, so a divergence after them is expected."""
+
     transactions: int
     divergence: Divergence | None
+    faults_reapplied: int = 0
+    faults_skipped: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -479,12 +491,124 @@ def _outcome_text(t: Transaction, read: bytes, error: str | None) -> str:
     return describe_transaction(record).strip()
 
 
+class _FaultReplayer:
+    """Acts a trace's ``fault:<kind>`` entries again on the replay chips.
+
+    Sample faults (stuck axis, bias step ...) are installed on the chips before the replay
+    starts, each from its entry's parameters with its recorded activation start as ``at_s``,
+    so they touch exactly the samples they touched in the session (and a stuck axis holds
+    the same previous sample). Chip faults (SEU, brown-out) act when the replay reaches
+    their entry, just before the transaction that triggered them, as in the session. Bus
+    faults need no entry: the failed transaction carries its errno and is failed again.
+    """
+
+    def __init__(self, replayer: _Replayer):
+        self.replayer = replayer
+        self.reapplied = 0
+        self.skipped: list[str] = []
+
+    def _chip(self, record: dict, line: int) -> Any:
+        address = record.get("address")
+        chip = self.replayer.chips.get(address)
+        if chip is None:
+            raise TraceFormatError(f"line {line}: fault entry for a chip at {address!r} that the "
+                                   "header does not describe")
+        return chip
+
+    def prepare(self, records: list[dict]) -> None:
+        """List the entries that cannot be acted again, install the sample faults."""
+        from types import SimpleNamespace
+
+        from bmg160_emu.adcs.faults import SAMPLE_KINDS, FaultError, replay_schedule
+
+        per_chip: dict[int, dict[str, Any]] = {}  # id(chip) -> chip, entries, base temperature
+        for record in records:
+            if not str(record.get("kind", "")).startswith(FAULT_KIND_PREFIX):
+                continue
+            if not self._replayable(record):
+                detail = _fault_entry(record)[0]
+                self.skipped.append(f"line {record.get('_line', '?')}: {detail or record['kind']}")
+                continue
+            if record["kind"][len(FAULT_KIND_PREFIX):] not in SAMPLE_KINDS:
+                continue
+            entry = _fault_entry(record)[1]
+            assert entry is not None
+            chip = self._chip(record, int(record.get("_line", 0)))
+            group = per_chip.setdefault(id(chip), {"chip": chip, "entries": [], "base": 23.0})
+            group["entries"].append(entry)
+            if entry.get("base_temperature_c") is not None:
+                group["base"] = float(entry["base_temperature_c"])
+        for group in per_chip.values():
+            chip = group["chip"]
+            target = SimpleNamespace(
+                index=0, chip=chip, address=chip.address, bus=None,
+                spec=SimpleNamespace(temperature_c=group["base"]),
+            )
+            try:
+                replay_schedule(group["entries"], target)
+            except (FaultError, TypeError, ValueError) as exc:
+                raise TraceFormatError(f"a fault entry cannot be replayed: {exc}") from None
+
+    @staticmethod
+    def _replayable(record: dict) -> bool:
+        from bmg160_emu.adcs.faults import CHIP_KINDS, SAMPLE_KINDS
+
+        kind = str(record["kind"])[len(FAULT_KIND_PREFIX):]
+        detail, entry = _fault_entry(record)
+        if kind in SAMPLE_KINDS:
+            return entry is not None and "activation" in entry
+        if kind in CHIP_KINDS:
+            return entry is not None or _chip_fault_from_text(kind, detail) is not None
+        return False
+
+    def act(self, record: dict, line: int) -> None:
+        """The replay has reached a fault entry: act a chip fault now, count a sample fault."""
+        from bmg160_emu.adcs.faults import CHIP_KINDS, inject
+
+        if not self._replayable(record):
+            return  # listed by prepare()
+        kind = str(record["kind"])[len(FAULT_KIND_PREFIX):]
+        detail, entry = _fault_entry(record)
+        if kind in CHIP_KINDS:
+            params = dict(entry["fault"]) if entry is not None else _chip_fault_from_text(kind, detail)
+            assert params is not None
+            chip = self._chip(record, line)
+            clock_chip = self.replayer.clock_chip
+            time_s = float(record.get("time", record.get("time_s", 0.0)))
+            if time_s > clock_chip.time:
+                clock_chip.advance(time_s - clock_chip.time)
+            params.pop("at_s", None)
+            params.pop("kind", None)
+            inject(chip, kind, **params)
+        self.reapplied += 1
+
+
+def _fault_entry(record: dict) -> tuple[str, dict | None]:
+    from bmg160_emu.adcs.faults import parse_fault_entry
+
+    return parse_fault_entry(_as_bytes(_get(record, "written", "data_out", "write")))
+
+
+def _chip_fault_from_text(kind: str, detail: str) -> dict | None:
+    """Parameters of a chip fault from its description alone (entries without parameters)."""
+    import re
+
+    if kind == "brownout":
+        return {}
+    match = re.search(r"register 0x([0-9a-fA-F]{2}) bit ([0-7])", detail)
+    if kind == "seu" and match:
+        return {"register": int(match.group(1), 16), "bit": int(match.group(2))}
+    return None
+
+
 def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayResult:
     """Replay a trace against fresh chips; report the first transaction that differs.
 
     The chips are built from the header (same master seed, same settings, same set-up
     writes, virtual clock from 0); before each transaction the clock is advanced to the
-    recorded time, so every sample is the same as in the original session.
+    recorded time, so every sample is the same as in the original session. Injected faults
+    recorded in the trace (``fault:<kind>`` entries, failed transactions) are acted again
+    (see :class:`_FaultReplayer`); those that cannot be are listed in ``faults_skipped``.
     """
     if isinstance(header, dict):
         if header.get("format") != TRACE_FORMAT_TAG:
@@ -493,23 +617,33 @@ def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayR
                 "(write traces with TraceWriter)"
             )
         header = TraceHeader.from_dict(header)
+    records = list(records)
     replayer = _Replayer(header.build_chips())
+    faults = _FaultReplayer(replayer)
+    faults.prepare(records)
     count = 0
+
+    def result(divergence: Divergence | None) -> ReplayResult:
+        return ReplayResult(count, divergence, faults.reapplied, faults.skipped)
+
     for record in records:
         line = int(record.get("_line", count + 2))
+        if str(record.get("kind", "")).startswith(FAULT_KIND_PREFIX):
+            faults.act(record, line)
+            continue
         t = Transaction.from_dict(record)
         if t.time < replayer.clock_chip.time - 1e-12:
-            return ReplayResult(count, Divergence(
+            return result(Divergence(
                 line, t.time, f"a transaction at t={t.time:.9f} s",
                 f"the clock is already at {replayer.clock_chip.time:.9f} s (time went backwards)",
             ))
         read, error = replayer.run(t)
         count += 1
         if read != t.read or error != t.error:
-            return ReplayResult(count, Divergence(
+            return result(Divergence(
                 line, t.time, _outcome_text(t, t.read, t.error), _outcome_text(t, read, error)
             ))
-    return ReplayResult(count, None)
+    return result(None)
 
 
 def header_from_chip_args(args: Any) -> TraceHeader:

@@ -35,6 +35,7 @@ that depends only on the schedule's seed and the fault's place in the list.
 from __future__ import annotations
 
 import errno
+import json
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -189,6 +190,7 @@ class _Activation:
     samples_left: int | None = None  # spike, lost_samples: a count of samples instead
     held: np.ndarray | None = None  # stuck_axis: the value it repeats
     started: bool = False
+    not_before_s: float = -math.inf  # a replayed fault: the first sample it touched
 
 
 class FaultSchedule:
@@ -319,8 +321,9 @@ class FaultSchedule:
         end = math.inf if fault.duration_s is None else now + fault.duration_s
         count = fault.samples if fault.kind in ("spike", "lost_samples") else None
         self._activations[i].append(_Activation(now, end, gyro.index, count))
-        if index is not None or fault.at_s is None:
-            self._note(FaultEvent(now, fault.kind, gyro.index, index, fault.describe()), gyro)
+        if index is not None or fault.at_s is None:  # its bus-log entry waits for its first sample
+            self._note(FaultEvent(now, fault.kind, gyro.index, index, fault.describe()), gyro,
+                       log=False)
 
     def _chip_fault(self, fault: Fault, gyro: GyroTarget, now: float, index: int | None) -> None:
         chip = gyro.chip
@@ -334,7 +337,7 @@ class FaultSchedule:
             _poke(chip, fault.register, after)
             detail = (f"SEU register 0x{fault.register:02x} bit {fault.bit}: "
                       f"0x{before:02x} -> 0x{chip.peek(fault.register):02x}")
-        self._note(FaultEvent(now, fault.kind, gyro.index, index, detail), gyro)
+        self._note(FaultEvent(now, fault.kind, gyro.index, index, detail), gyro, fault)
 
     def _sample_hook_for(self, gyro: GyroTarget):
         def hook(chip: Any, t: float, rate_dps: np.ndarray) -> np.ndarray | None:
@@ -354,15 +357,16 @@ class FaultSchedule:
         lost = False
         for i, fault in enumerate(self.faults):
             for act in self._activations[i]:
-                if act.gyro != gyro.index or t < act.start_s:
+                if act.gyro != gyro.index or t < act.start_s or t < act.not_before_s:
                     continue
                 if not act.started:
                     act.started = True
-                    if fault.at_s is not None:  # time-triggered: log the onset at the sample
-                        self._note(
-                            FaultEvent(t, fault.kind, gyro.index, None, fault.describe()), gyro)
-                    if fault.kind == "stuck_axis":
+                    if fault.kind == "stuck_axis" and act.held is None:
                         act.held = self._last_rate.get(gyro.index, rate).copy()
+                    event = FaultEvent(t, fault.kind, gyro.index, None, fault.describe())
+                    # time-triggered: the onset is this sample; every sample fault's bus-log
+                    # entry is written here, where what it does (held value ...) is known
+                    self._note(event, gyro, fault, act, event_too=fault.at_s is not None)
                 if act.samples_left is not None:
                     if act.samples_left <= 0:
                         continue
@@ -401,24 +405,119 @@ class FaultSchedule:
             rate += fault.tc_bias_dps_per_c * rise_c
         return False
 
-    def _note(self, event: FaultEvent, gyro: GyroTarget) -> None:
-        """Record an onset, and put it in the gyro's bus log as a ``fault:<kind>`` entry."""
-        self.events.append(event)
-        if event.kind in CHIP_KINDS:  # flagged on the gyro's next output sample
-            self._pending.setdefault(gyro.index, []).append(
-                (event.time_s, FAULT_FLAGS[event.kind]))
-        log = getattr(gyro.bus, "log", None)
-        if self.log_to_bus and log is not None and getattr(log, "enabled", True):
+    def _note(self, event: FaultEvent, gyro: GyroTarget, fault: Fault | None = None,
+              activation: _Activation | None = None, *, log: bool = True,
+              event_too: bool = True) -> None:
+        """Record an onset, and put it in the gyro's bus log as a ``fault:<kind>`` entry
+        (its description, then the parameters a trace replay needs: :func:`fault_entry_text`)."""
+        if event_too:
+            self.events.append(event)
+            if event.kind in CHIP_KINDS:  # flagged on the gyro's next output sample
+                self._pending.setdefault(gyro.index, []).append(
+                    (event.time_s, FAULT_FLAGS[event.kind]))
+        bus_log = getattr(gyro.bus, "log", None)
+        if log and self.log_to_bus and bus_log is not None and getattr(bus_log, "enabled", True):
             from bmg160_emu.transactions import Transaction
 
-            log.append(Transaction(event.time_s, getattr(gyro.bus, "number", 0), gyro.address,
-                                   f"fault:{event.kind}", written=event.detail.encode()))
+            base_c = _base_temperature(gyro) if event.kind == "temperature_ramp" else None
+            text = fault_entry_text(event.detail, fault, activation, event.time_s, base_c)
+            bus_log.append(Transaction(event.time_s, getattr(gyro.bus, "number", 0), gyro.address,
+                                   f"fault:{event.kind}", written=text.encode()))
 
     # ----------------------------------------------------------------- truth
 
     def flags_at(self, gyro: int, t: float) -> int:
         """The :data:`FAULT_FLAGS` bits of the faults that touched gyro's sample at ``t``."""
         return self._sample_flags.get(gyro, {}).get(t, 0)
+
+
+# ----------------------------------------------------------------- fault entries in a bus log
+
+# Effect parameters of a Fault; its trigger is replaced by the onset (at_s) in a log entry.
+_EFFECT_KEYS = ("duration_s", "axis", "step_dps", "amplitude_dps", "samples", "register", "bit",
+                "rate_c_per_s", "tc_bias_dps_per_c")
+
+
+def fault_entry_text(detail: str, fault: Fault | None = None,
+                     activation: _Activation | None = None, first_sample_s: float | None = None,
+                     base_temperature_c: float | None = None) -> str:
+    """The written bytes of a ``fault:<kind>`` log entry: the description for a person, then
+    (when the fault is known) one JSON line with what the fault did, for trace replay:
+    ``{"fault": {kind, effect parameters}, "activation": {start_s, end_s, first_sample_s,
+    held_dps}, "base_temperature_c": ...}`` (activation for sample faults only).
+    """
+    if fault is None:
+        return detail
+    params: dict[str, Any] = {"kind": fault.kind}
+    defaults = Fault.__dataclass_fields__
+    for key in _EFFECT_KEYS:
+        value = getattr(fault, key)
+        if key == "tc_bias_dps_per_c":
+            if np.any(value):
+                params[key] = [float(v) for v in value]
+        elif value != defaults[key].default:
+            params[key] = value
+    entry: dict[str, Any] = {"fault": params}
+    if activation is not None:
+        entry["activation"] = {
+            "start_s": activation.start_s,
+            "end_s": None if math.isinf(activation.end_s) else activation.end_s,
+            "first_sample_s": first_sample_s,
+            "held_dps": None if activation.held is None else [float(v) for v in activation.held],
+        }
+    if base_temperature_c is not None:
+        entry["base_temperature_c"] = float(base_temperature_c)
+    return detail + "\n" + json.dumps(entry, sort_keys=True)
+
+
+def parse_fault_entry(written: bytes | str) -> tuple[str, dict[str, Any] | None]:
+    """(description, parameters or None) of a ``fault:<kind>`` entry's written bytes.
+
+    Entries written before the parameters were added carry only the description (None)."""
+    text = written.decode("utf-8", "replace") if isinstance(written, (bytes, bytearray)) else written
+    detail, _, rest = text.partition("\n")
+    if not rest.strip():
+        return detail, None
+    try:
+        entry = json.loads(rest)
+    except json.JSONDecodeError:
+        return detail, None
+    if not isinstance(entry, dict) or not isinstance(entry.get("fault"), dict):
+        return detail, None
+    return detail, entry
+
+
+def replay_schedule(entries: Sequence[dict[str, Any]], target: GyroTarget) -> FaultSchedule:
+    """A schedule that acts recorded sample faults again on ``target``, each on exactly the
+    samples it touched in the session (same start, end, first sample and held value).
+
+    ``entries`` are the parameters :func:`parse_fault_entry` gives for ``fault:<kind>``
+    entries of sample faults, in the order of the log. The schedule writes nothing to the bus
+    log; install nothing else for these faults.
+    """
+    faults: list[Fault] = []
+    activations: list[_Activation] = []
+    for entry in entries:
+        act = entry.get("activation")
+        if not isinstance(act, dict) or act.get("start_s") is None:
+            raise FaultError(f"{entry.get('fault')}: the entry does not say when the fault acted")
+        fault = fault_from_dict({**entry["fault"], "at_s": float(act["start_s"])}, "replayed fault")
+        if fault.layer != "sample":
+            raise FaultError(f"{fault.kind} is not a sample fault")
+        end = math.inf if act.get("end_s") is None else float(act["end_s"])
+        count = fault.samples if fault.kind in ("spike", "lost_samples") else None
+        held = None if act.get("held_dps") is None else np.array(act["held_dps"], dtype=float)
+        first = -math.inf if act.get("first_sample_s") is None else float(act["first_sample_s"])
+        faults.append(fault)
+        activations.append(_Activation(fault.at_s or 0.0, end, target.index, count, held,
+                                       not_before_s=first))
+    schedule = FaultSchedule(faults, log_to_bus=False)
+    schedule._gyros = [target]
+    schedule._sample_flags[target.index] = {}
+    target.chip.sample_hooks.append(schedule._sample_hook_for(target))
+    for i, act in enumerate(activations):
+        schedule._activations[i].append(act)
+    return schedule
 
 
 def describe_flags(flags: int) -> list[str]:

@@ -17,6 +17,8 @@ Decoded lines read like "write 0x0F RANGE <- 0x02 (+-500 deg/s)" and
 "burst read 0x02..0x07 -> x=-12 y=3 z=40". --replay rebuilds the chips from the trace's
 header (same seed, same settings), replays every transaction at its recorded time and
 reports the first one whose result differs (exit 1), or that none does (exit 0).
+Faults injected during the session (fault:<kind> lines, failed transactions) are acted
+again on the replay chips at the same points.
 """
 
 
@@ -62,8 +64,17 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"{args.file}: {exc}") from None
     except (ValueError, TypeError) as exc:
         raise CommandError(f"{args.file}: cannot replay: {exc}") from None
+    faults = ""
+    if result.faults_reapplied:
+        faults = f" ({result.faults_reapplied} injected fault(s) re-applied)"
+    if result.faults_skipped:
+        print(f"note: the session had {len(result.faults_skipped)} injected fault(s) that the "
+              "replay cannot act again (entries without parameters); reads after them may differ:",
+              file=sys.stderr)
+        for text in result.faults_skipped:
+            print(f"  {args.file}:{text}", file=sys.stderr)
     if result.ok:
-        print(f"no divergence: {result.transactions} transactions replayed")
+        print(f"no divergence: {result.transactions} transactions replayed{faults}")
         return 0
     print(f"divergence at {args.file}:{result.divergence}", file=sys.stderr)
     return 1
