@@ -20,29 +20,43 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from contextlib import ExitStack
 from typing import Any
 
+from bmg160_emu.linux.i2c_dev_structs import (
+    I2C_DEV_MAX_TRANSFER,
+    I2C_FUNC_I2C,
+    I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
+    I2C_FUNC_SMBUS_EMUL,
+    I2C_FUNC_SMBUS_PROC_CALL,
+    I2C_FUNC_SMBUS_QUICK,
+    I2C_FUNC_SMBUS_READ_BLOCK_DATA,
+    I2C_FUNC_SMBUS_READ_BYTE,
+    I2C_FUNC_SMBUS_READ_BYTE_DATA,
+    I2C_FUNC_SMBUS_READ_I2C_BLOCK,
+    I2C_FUNC_SMBUS_READ_WORD_DATA,
+    I2C_FUNC_SMBUS_WRITE_BLOCK_DATA,
+    I2C_FUNC_SMBUS_WRITE_BYTE,
+    I2C_FUNC_SMBUS_WRITE_BYTE_DATA,
+    I2C_FUNC_SMBUS_WRITE_I2C_BLOCK,
+    I2C_FUNC_SMBUS_WRITE_WORD_DATA,
+    I2C_RDWR_IOCTL_MAX_MSGS,
+    I2C_SMBUS_BLOCK_MAX,
+)
 from bmg160_emu.transactions import TransactionLog, errno_name
 
-I2C_SMBUS_BLOCK_MAX = 32  # linux/i2c.h
-I2C_RDWR_IOCTL_MAX_MSGS = 42  # linux/i2c-dev.h
-I2C_RDWR_MAX_MSG_LEN = 8192  # i2c-dev refuses longer messages (drivers/i2c/i2c-dev.c)
+__all__ = [
+    "DEFAULT_FUNCS",
+    "I2C_FUNC_SMBUS_QUICK",
+    "I2C_SMBUS_BLOCK_MAX",
+    "I2CBus",
+    "I2CMessage",
+    "emulated_bus",
+    "emulated_bus_for_path",
+    "os_error",
+    "register_bus",
+    "smbus_pec",
+    "unregister_bus",
+]
 
-# Functionality bits (linux/i2c.h, the values smbus2.I2cFunc names).
-I2C_FUNC_I2C = 0x00000001
-I2C_FUNC_SMBUS_PEC = 0x00000008
-I2C_FUNC_SMBUS_BLOCK_PROC_CALL = 0x00008000
-I2C_FUNC_SMBUS_QUICK = 0x00010000
-I2C_FUNC_SMBUS_READ_BYTE = 0x00020000
-I2C_FUNC_SMBUS_WRITE_BYTE = 0x00040000
-I2C_FUNC_SMBUS_READ_BYTE_DATA = 0x00080000
-I2C_FUNC_SMBUS_WRITE_BYTE_DATA = 0x00100000
-I2C_FUNC_SMBUS_READ_WORD_DATA = 0x00200000
-I2C_FUNC_SMBUS_WRITE_WORD_DATA = 0x00400000
-I2C_FUNC_SMBUS_PROC_CALL = 0x00800000
-I2C_FUNC_SMBUS_READ_BLOCK_DATA = 0x01000000
-I2C_FUNC_SMBUS_WRITE_BLOCK_DATA = 0x02000000
-I2C_FUNC_SMBUS_READ_I2C_BLOCK = 0x04000000
-I2C_FUNC_SMBUS_WRITE_I2C_BLOCK = 0x08000000
-I2C_FUNC_SMBUS_EMUL = 0x0EFF0008  # what the i2c core emulates over plain I2C
+I2C_RDWR_MAX_MSG_LEN = I2C_DEV_MAX_TRANSFER  # i2c-dev refuses longer messages
 
 # A plain-I2C adapter with the core's SMBus emulation plus receive-length support (so SMBus
 # block reads and block process calls work, as the spec's mapping asks).

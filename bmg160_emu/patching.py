@@ -29,53 +29,100 @@ from typing import Any
 from bmg160_emu.i2c_bus import (
     I2C_SMBUS_BLOCK_MAX,
     I2CBus,
-    I2CMessage,
     emulated_bus_for_path,
     os_error,
     register_bus,
     unregister_bus,
 )
+from bmg160_emu.i2c_dev import ULONG_MASK, I2CDevFile, unsigned_long
 from bmg160_emu.smbus import FakeSMBus
 from bmg160_emu.spi import FakeSpiDev, register_spi_device, unregister_spi_device
 
 __all__ = ["I2cDevKernel", "LegacySMBus", "patch_smbus", "patch_spidev"]
 
-# linux/i2c-dev.h ioctl requests and linux/i2c.h sizes
-I2C_SLAVE = 0x0703
-I2C_SLAVE_FORCE = 0x0706
-I2C_FUNCS = 0x0705
-I2C_RDWR = 0x0707
-I2C_PEC = 0x0708
-I2C_SMBUS = 0x0720
-I2C_SMBUS_READ = 1
-I2C_SMBUS_QUICK = 0
-I2C_SMBUS_BYTE = 1
-I2C_SMBUS_BYTE_DATA = 2
-I2C_SMBUS_WORD_DATA = 3
-I2C_SMBUS_PROC_CALL = 4
-I2C_SMBUS_BLOCK_DATA = 5
-I2C_SMBUS_I2C_BLOCK_BROKEN = 6
-I2C_SMBUS_BLOCK_PROC_CALL = 7
-I2C_SMBUS_I2C_BLOCK_DATA = 8
-I2C_M_RD = 0x0001
-I2C_M_TEN = 0x0010
+IOCTL_BUFSZ = 1024  # CPython's fcntl.ioctl copies a buffer argument through 1024 bytes
+USER_POINTER = 0x7FFF_0000_0000  # what the kernel sees as the argument when it is a buffer
 
 
-class _OpenI2CFile:
-    """What the kernel keeps per open /dev/i2c-N: the adapter, client address, PEC flag."""
+def _c_int(value: int) -> int:
+    """fcntl.ioctl passes an integer argument as a C int."""
+    if value > 0x7FFFFFFF:
+        raise OverflowError("signed integer is greater than maximum")
+    if value < -0x80000000:
+        raise OverflowError("signed integer is less than minimum")
+    return value
 
-    def __init__(self, bus: I2CBus) -> None:
-        self.bus = bus
-        self.address = 0
-        self.pec = False
+
+class _AddressMemory:
+    """Memory of this process at an address, reached as the kernel reaches user memory."""
+
+    __slots__ = ("address", "size")
+
+    def __init__(self, address: int, size: int) -> None:
+        self.address, self.size = address, size
+
+    def read(self) -> bytes:
+        return ctypes.string_at(self.address, self.size)
+
+    def write(self, data: bytes) -> None:
+        ctypes.memmove(self.address, data, min(len(data), self.size))
+
+    def follow(self, offset: int, size: int) -> _AddressMemory:
+        return _pointee(ctypes.string_at(self.address + offset, 8), size)
+
+
+class _BufferMemory:
+    """A buffer given to ``fcntl.ioctl``: the memory the argument points to."""
+
+    __slots__ = ("size", "view")
+
+    def __init__(self, view: memoryview, size: int) -> None:
+        self.view, self.size = view, size
+
+    def read(self) -> bytes:  # beyond a short buffer the kernel reads fcntl's zeroed copy
+        return self.view[: self.size].tobytes().ljust(self.size, b"\0")
+
+    def write(self, data: bytes) -> None:
+        n = min(len(data), len(self.view))
+        self.view[:n] = data[:n]
+
+    def follow(self, offset: int, size: int) -> _AddressMemory:
+        return _pointee(self.view[offset : offset + 8].tobytes(), size)
+
+
+def _pointee(raw: bytes, size: int) -> _AddressMemory:
+    address = unsigned_long(raw.ljust(8, b"\0"))
+    if address == 0:
+        raise os_error(errno.EFAULT)
+    return _AddressMemory(address, size)
+
+
+class _IoctlArgument:
+    """``fcntl.ioctl``'s third argument as i2c-dev sees it: an integer, or a pointer to a
+    buffer (a ctypes structure, a bytearray)."""
+
+    __slots__ = ("number", "view")
+
+    def __init__(self, number: int | None, view: memoryview | None) -> None:
+        self.number, self.view = number, view
+
+    @property
+    def value(self) -> int:
+        return USER_POINTER if self.number is None else self.number & ULONG_MASK
+
+    def memory(self, size: int) -> _AddressMemory | _BufferMemory:
+        if self.view is not None:
+            return _BufferMemory(self.view, size)
+        return _pointee(self.value.to_bytes(8, "little"), size)
 
 
 class I2cDevKernel:
-    """The i2c-dev character device, emulated for smbus2: ``open``/``close`` of device paths
-    and the ioctls smbus2 issues (I2C_SLAVE[_FORCE], I2C_FUNCS, I2C_PEC, I2C_SMBUS, I2C_RDWR)."""
+    """The i2c-dev character device for smbus2: ``open``/``close`` of emulated device paths,
+    and ``fcntl.ioctl`` on their descriptors marshalled to :class:`~bmg160_emu.i2c_dev.I2CDevFile`
+    (argument conversions and buffer copies as CPython's fcntl makes them)."""
 
     def __init__(self) -> None:
-        self.files: dict[int, _OpenI2CFile] = {}
+        self.files: dict[int, I2CDevFile] = {}
         self.lock = threading.Lock()
 
     def open(self, path: Any, flags: int, mode: int = 0o777, *, dir_fd: int | None = None) -> int:
@@ -85,7 +132,7 @@ class I2cDevKernel:
             return os.open(path, flags, mode, dir_fd=dir_fd)
         fd = os.open(os.devnull, os.O_RDWR)  # a real, unique descriptor number
         with self.lock:
-            self.files[fd] = _OpenI2CFile(bus)
+            self.files[fd] = I2CDevFile(bus)
         return fd
 
     def close(self, fd: int) -> None:
@@ -94,108 +141,19 @@ class I2cDevKernel:
         os.close(fd)
 
     def ioctl(self, fd: Any, request: int, arg: Any = 0, mutate_flag: bool = True) -> Any:
-        key = fd if isinstance(fd, int) else None
-        handle = self.files.get(key) if key is not None else None
+        handle = self.files.get(fd) if isinstance(fd, int) else None
         if handle is None:
             return fcntl.ioctl(fd, request, arg, mutate_flag)
-        bus = handle.bus
-        if request in (I2C_SLAVE, I2C_SLAVE_FORCE):
-            address = int(arg)
-            if not -(2**31) <= address < 2**31:
-                raise OverflowError("signed integer is greater than maximum")
-            bus.check_address(
-                address & 0xFFFFFFFF if address < 0 else address, request == I2C_SLAVE_FORCE
-            )
-            handle.address = address
-            return 0
-        if request == I2C_FUNCS:
-            arg.value = bus.funcs
-            return 0
-        if request == I2C_PEC:
-            handle.pec = bool(arg)
-            return 0
-        if request == I2C_SMBUS:
-            self._smbus(handle, arg)
-            return 0
-        if request == I2C_RDWR:
-            self._rdwr(bus, arg)
-            return 0
-        raise os_error(errno.ENOTTY)
-
-    @staticmethod
-    def _smbus(handle: _OpenI2CFile, msg: Any) -> None:
-        bus, address, pec = handle.bus, handle.address, handle.pec
-        read = msg.read_write == I2C_SMBUS_READ
-        if msg.read_write not in (0, 1):
-            raise os_error(errno.EINVAL)
-        command, size = msg.command, msg.size
-        data: Any = msg.data.contents if msg.data else None
-        if data is None and size != I2C_SMBUS_QUICK and not (size == I2C_SMBUS_BYTE and not read):
-            raise os_error(errno.EFAULT)  # i2c-dev: these kinds need a data buffer
-        if size == I2C_SMBUS_QUICK:
-            bus.write_quick(address, read=read)
-        elif size == I2C_SMBUS_BYTE:
-            if read:
-                data.byte = bus.read_byte(address, pec)
-            else:
-                bus.write_byte(address, command, pec)
-        elif size == I2C_SMBUS_BYTE_DATA:
-            if read:
-                data.byte = bus.read_byte_data(address, command, pec)
-            else:
-                bus.write_byte_data(address, command, data.byte, pec)
-        elif size == I2C_SMBUS_WORD_DATA:
-            if read:
-                data.word = bus.read_word_data(address, command, pec)
-            else:
-                bus.write_word_data(address, command, data.word, pec)
-        elif size == I2C_SMBUS_PROC_CALL:
-            data.word = bus.process_call(address, command, data.word, pec)
-        elif size == I2C_SMBUS_BLOCK_DATA:
-            if read:
-                _put_block(data, bus.read_block_data(address, command, pec))
-            else:
-                bus.write_block_data(address, command, _get_block(data), pec)
-        elif size == I2C_SMBUS_BLOCK_PROC_CALL:
-            _put_block(data, bus.block_process_call(address, command, _get_block(data), pec))
-        elif size in (I2C_SMBUS_I2C_BLOCK_DATA, I2C_SMBUS_I2C_BLOCK_BROKEN):
-            if read:
-                count = I2C_SMBUS_BLOCK_MAX if size == I2C_SMBUS_I2C_BLOCK_BROKEN else data.block[0]
-                _put_block(data, bus.read_i2c_block_data(address, command, count))
-            else:
-                bus.write_i2c_block_data(address, command, _get_block(data))
-        else:
-            raise os_error(errno.EINVAL)
-
-    @staticmethod
-    def _rdwr(bus: I2CBus, arg: Any) -> None:
-        count = arg.nmsgs
-        if not 0 < count <= 42 or not arg.msgs:
-            raise os_error(errno.EINVAL)
-        raw = [arg.msgs[i] for i in range(count)]
-        messages = []
-        for m in raw:
-            if m.flags & I2C_M_TEN:
-                raise os_error(errno.EINVAL)  # the emulated adapter has no 10-bit addressing
-            if m.flags & I2C_M_RD:
-                messages.append(I2CMessage(m.addr, True, b"", m.len))
-            else:
-                messages.append(I2CMessage(m.addr, False, ctypes.string_at(m.buf, m.len)))
-        bus.i2c_transfer(messages)
-        for m, message in zip(raw, messages):
-            if message.read and message.data:
-                ctypes.memmove(m.buf, message.data, len(message.data))
-
-
-def _put_block(data: Any, payload: bytes) -> None:
-    data.block[0] = len(payload)
-    for i, value in enumerate(payload, 1):
-        data.block[i] = value
-
-
-def _get_block(data: Any) -> bytes:
-    count = data.block[0]
-    return bytes(data.block[1 : min(count, I2C_SMBUS_BLOCK_MAX + 1) + 1])
+        if isinstance(arg, int):
+            return handle.ioctl(request, _IoctlArgument(_c_int(operator.index(arg)), None))
+        view = memoryview(arg).cast("B")
+        if view.readonly or not mutate_flag:  # fcntl works on a copy and returns it
+            if len(view) > IOCTL_BUFSZ:
+                raise ValueError("ioctl string arg too long")
+            copy = bytearray(view)
+            handle.ioctl(request, _IoctlArgument(None, memoryview(copy)))
+            return bytes(copy)
+        return handle.ioctl(request, _IoctlArgument(None, view))
 
 
 class _OsProxy(types.ModuleType):

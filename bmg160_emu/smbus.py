@@ -27,15 +27,13 @@ from bmg160_emu.i2c_bus import (
     emulated_bus,
     emulated_bus_for_path,
 )
+from bmg160_emu.linux.i2c_dev_structs import I2C_M_RD
 from bmg160_emu.transactions import TransactionLog
 
 if TYPE_CHECKING:
     from typing_extensions import Self
 
 __all__ = ["FakeSMBus", "I2cFunc", "i2c_msg"]
-
-I2C_M_RD = 0x0001  # linux/i2c.h
-
 
 def _u8(value: Any) -> int:
     """A ctypes c_uint8 field assignment: __index__ then truncation."""

@@ -1,15 +1,14 @@
-"""The Linux i2c-dev user-space ABI: ioctl numbers, flags and structures.
+"""The Linux i2c-dev user-space ABI: ioctl numbers, flags, functionality bits and structures.
 
-Named as in the kernel headers ``<linux/i2c-dev.h>`` and ``<linux/i2c.h>`` so that the
-umockdev handler (which answers these ioctls) and the i2c-stub adapter (which issues them)
-read like the kernel code they mirror. Layouts are those of x86-64 and other LP64 ABIs.
+The one place these numbers are written down, named as in the kernel headers
+``<linux/i2c-dev.h>`` and ``<linux/i2c.h>``, so that the adapter (``i2c_bus``), the i2c-dev
+emulation (``i2c_dev``) and the i2c-stub adapter read like the kernel code they mirror.
+Layouts are those of x86-64 and other LP64 ABIs.
 """
 
 from __future__ import annotations
 
 import ctypes
-import struct
-from dataclasses import dataclass
 
 # ioctl request numbers (<linux/i2c-dev.h>)
 I2C_RETRIES = 0x0701
@@ -142,39 +141,3 @@ I2C_MSG_SIZE = ctypes.sizeof(i2c_msg)  # 16
 I2C_MSG_BUF_OFFSET = i2c_msg.buf.offset  # 8
 RDWR_IOCTL_DATA_SIZE = ctypes.sizeof(i2c_rdwr_ioctl_data)  # 16
 
-
-@dataclass(frozen=True)
-class SMBusRequest:
-    """The scalar part of ``struct i2c_smbus_ioctl_data`` (the data union is behind a pointer)."""
-
-    read_write: int
-    command: int
-    size: int
-
-    @classmethod
-    def unpack(cls, raw: bytes) -> SMBusRequest:
-        read_write, command, size = struct.unpack_from("=BB2xI", raw)
-        return cls(read_write, command, size)
-
-
-@dataclass(frozen=True)
-class I2CMessage:
-    """``struct i2c_msg`` without its buffer pointer."""
-
-    addr: int
-    flags: int
-    length: int
-
-    @property
-    def is_read(self) -> bool:
-        return bool(self.flags & I2C_M_RD)
-
-    @classmethod
-    def unpack(cls, raw: bytes, offset: int = 0) -> I2CMessage:
-        addr, flags, length = struct.unpack_from("=HHH", raw, offset)
-        return cls(addr, flags, length)
-
-
-def unpack_rdwr_count(raw: bytes) -> int:
-    """``nmsgs`` of ``struct i2c_rdwr_ioctl_data``."""
-    return struct.unpack_from("=I", raw, i2c_rdwr_ioctl_data.nmsgs.offset)[0]
