@@ -24,6 +24,8 @@ JSON_FORMAT_VERSION = 1
 
 # The column header i2cdump prints in byte mode (i2c-tools tools/i2cdump.c).
 I2CDUMP_HEADER = "     0  1  2  3  4  5  6  7  8  9  a  b  c  d  e  f    0123456789abcdef"
+# First line of a table dump, and the title of each chip's block when several are dumped.
+DUMP_TITLE = "# bmg160-emu register dump"
 
 
 class DumpFormatError(ValueError):
@@ -220,6 +222,8 @@ def parse_i2cdump(text: str, source: str = "<dump>") -> bytes:
     for lineno, line in enumerate(text.splitlines(), 1):
         if not line.strip() or line.startswith(I2CDUMP_HEADER.rstrip()[:10]):
             continue
+        if line.startswith(DUMP_TITLE):  # the block title of a several-chip dump
+            continue
         match = _I2CDUMP_ROW.match(line)
         if not match:
             raise DumpFormatError(f"{source}:{lineno}: not an i2cdump byte-mode row: {line!r}")
@@ -329,7 +333,7 @@ def format_table(dump: RegisterDump, sensitivity: str | None = None) -> str:
     sensitivity = sensitivity or dump.metadata.get("sensitivity") or spec_choices.DEFAULT_SENSITIVITY
     where = [] if dump.address is None else [f"address=0x{dump.address:02x}"]
     when = [] if dump.time_s is None else [f"t={dump.time_s:.9f} s"]
-    lines = ["# " + "  ".join(["bmg160-emu register dump", *where, *when, f"sensitivity={sensitivity}"])]
+    lines = ["  ".join([DUMP_TITLE, *where, *when, f"sensitivity={sensitivity}"])]
     width = max(len(r.name) for r in registers.REGISTERS)
     for reg, value in enumerate(dump.values):
         lines.append(
@@ -389,10 +393,15 @@ def format_dump(dump: RegisterDump, fmt: str = "table") -> str:
 
 def detect_format(text: str) -> str:
     """Which of the three formats a text is, from its first meaningful line."""
-    for line in text.splitlines():
+    lines = text.splitlines()
+    for line in lines:
         stripped = line.strip()
         if not stripped:
             continue
+        if line.startswith(DUMP_TITLE) and any(
+            other.strip() and not other.startswith("#") for other in lines
+        ):
+            continue  # a title: the lines after it tell the format
         if stripped.startswith("{"):
             return "json"
         if line.rstrip() == I2CDUMP_HEADER or _I2CDUMP_ROW.match(line):
@@ -403,6 +412,13 @@ def detect_format(text: str) -> str:
 
 def parse_dump(text: str, source: str = "<dump>") -> RegisterDump:
     """Read a dump in any of the three formats (detected from the text)."""
+    if _block_count(text) > 1:
+        dumps = parse_dumps(text, source)
+        where = ", ".join("?" if d.address is None else f"0x{d.address:02x}" for d in dumps)
+        raise DumpFormatError(
+            f"{source}: holds the dumps of {len(dumps)} chips ({where}); "
+            "take one chip's dump (bmg160-emu dump --chip ADDRESS)"
+        )
     try:
         fmt = detect_format(text)
     except DumpFormatError:
@@ -412,6 +428,80 @@ def parse_dump(text: str, source: str = "<dump>") -> RegisterDump:
     if fmt == "i2cdump":
         return RegisterDump(parse_i2cdump(text, source))
     return parse_table(text, source)
+
+
+# --------------------------------------------------------------------------- several chips
+
+
+def format_dumps(dumps: Sequence[RegisterDump], fmt: str = "table") -> str:
+    """Several chips' dumps in one text; one dump gives exactly :func:`format_dump`.
+
+    i2cdump and table: one block per chip, blocks separated by an empty line, each opened by
+    a title line naming its address (the table's own first line is that title), so every
+    i2cdump block is byte for byte what i2cdump prints for that address. json: a list of
+    the single-chip documents.
+    """
+    if not dumps:
+        raise ValueError("no dump to format")
+    if len(dumps) == 1:
+        return format_dump(dumps[0], fmt)
+    if fmt == "json":
+        return json.dumps([json.loads(format_json(d)) for d in dumps], indent=1) + "\n"
+    blocks = []
+    for dump in dumps:
+        title = ""
+        if fmt == "i2cdump":
+            where = "" if dump.address is None else f"  address=0x{dump.address:02x}"
+            when = "" if dump.time_s is None else f"  t={dump.time_s:.9f} s"
+            title = f"{DUMP_TITLE}{where}{when}\n"
+        blocks.append(title + format_dump(dump, fmt))
+    return "\n".join(blocks)
+
+
+def _block_count(text: str) -> int:
+    if text.lstrip().startswith("["):
+        try:
+            document = json.loads(text)
+        except json.JSONDecodeError:
+            return 1
+        return len(document) if isinstance(document, list) else 1
+    return max(1, sum(1 for line in text.splitlines() if line.startswith(DUMP_TITLE)))
+
+
+def parse_dumps(text: str, source: str = "<dump>") -> list[RegisterDump]:
+    """Read one or several chips' dumps (:func:`format_dumps`), in any of the formats.
+
+    Errors name the line in the whole text."""
+    if text.lstrip().startswith("["):
+        try:
+            documents = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise DumpFormatError(f"{source}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+        if not isinstance(documents, list) or not documents:
+            raise DumpFormatError(f"{source}: a list of dumps must hold at least one")
+        return [parse_json(json.dumps(doc), f"{source}[{i}]") for i, doc in enumerate(documents)]
+    lines = text.splitlines()
+    starts = [i for i, line in enumerate(lines) if line.startswith(DUMP_TITLE)]
+    if len(starts) <= 1:
+        return [parse_dump(text, source)]
+    if any(line.strip() for line in lines[: starts[0]]):
+        raise DumpFormatError(f"{source}:1: text before the first dump's title line")
+    dumps = []
+    for start, end in zip(starts, [*starts[1:], len(lines)]):
+        # blank lines in front keep the line numbers of errors those of the whole text
+        block = "\n" * start + "\n".join(lines[start:end]) + "\n"
+        dump = parse_dump(block, source)
+        if dump.address is None or dump.time_s is None:  # i2cdump blocks: from the title
+            title = lines[start]
+            address = re.search(r"address=0x([0-9a-fA-F]{2})", title)
+            time_s = re.search(r"t=([0-9.eE+-]+) s", title)
+            dump = RegisterDump(
+                dump.values,
+                int(address.group(1), 16) if address else dump.address,
+                float(time_s.group(1)) if time_s else dump.time_s,
+            )
+        dumps.append(dump)
+    return dumps
 
 
 # --------------------------------------------------------------------------- diff

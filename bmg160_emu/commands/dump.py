@@ -8,13 +8,24 @@ from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
 
+
+def _address(text: str) -> int:
+    try:
+        return int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an I2C address: {text!r}") from None
+
 EPILOG = """\
 examples:
   bmg160-emu dump                                   # decoded table after power-up
   bmg160-emu dump --format i2cdump > bmg160.dump    # sudo i2c-stub-from-dump 0x68 bmg160.dump
   bmg160-emu dump --range 500 --after bringup.script --format json
+  bmg160-emu dump --address 0x68 --address 0x69 --format i2cdump
+  bmg160-emu dump --address 0x68 --address 0x69 --after two.script --chip 0x69
 
 The i2cdump format is byte for byte what `i2cdump -y -r 0x00-0x3f BUS 0x68 b` prints.
+With several --address options every chip is dumped, one block per address (json: a
+list); --chip dumps one of them (for i2c-stub-from-dump, which loads one chip per file).
 The dump reads no register through the bus: it has no read side effects (FIFO, shadowing).
 """
 
@@ -36,6 +47,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--after", type=Path, metavar="SCRIPT", default=None,
         help="run this register script first (its log goes to stderr)",
     )
+    parser.add_argument(
+        "--chip", type=_address, metavar="ADDRESS", default=None,
+        help="dump only the chip at this address (one of --address; default: every chip)",
+    )
     parser.add_argument("-o", "--output", type=Path, default=None, help="write to FILE")
     add_chip_options(parser)
     parser.set_defaults(func=run)
@@ -43,11 +58,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.register_dump import RegisterDump, format_dump
+    from bmg160_emu.register_dump import RegisterDump, format_dumps
     from bmg160_emu.register_script import ScriptFailure, ScriptSyntaxError, run_script
 
     chips = chips_from_args(args)
     chip = next(iter(chips.values()))
+    if args.chip is not None and args.chip not in chips:
+        emulated = ", ".join(f"0x{a:02x}" for a in chips)
+        raise CommandError(f"--chip 0x{args.chip:02x} is not an emulated chip ({emulated}); "
+                           "add it with --address")
     if args.after is not None:
         from bmg160_emu.i2c_bus import I2CBus
 
@@ -66,9 +85,14 @@ def run(args: argparse.Namespace) -> int:
         except ScriptFailure as exc:
             print(f"script failed: {exc}", file=sys.stderr)
             return 1
-    dump = RegisterDump.from_chip(chip)
-    dump.metadata["sensitivity"] = getattr(args, "sensitivity", None)
-    text = format_dump(dump, args.format)
+    dumps = []
+    for address, each in chips.items():
+        if args.chip is not None and address != args.chip:
+            continue
+        dump = RegisterDump.from_chip(each)
+        dump.metadata["sensitivity"] = getattr(args, "sensitivity", None)
+        dumps.append(dump)
+    text = format_dumps(dumps, args.format)
     if args.output is not None:
         try:
             args.output.write_text(text, encoding="utf-8")
