@@ -509,9 +509,10 @@ class _FaultReplayer:
 
     def _chip(self, record: dict, line: int) -> Any:
         address = record.get("address")
-        chip = self.replayer.chips.get(address)
+        chip = self.replayer.chips.get(address) if isinstance(address, int) else None
         if chip is None:
-            raise TraceFormatError(f"line {line}: fault entry for a chip at {address!r} that the "
+            where = f"0x{address:02x}" if isinstance(address, int) else repr(address)
+            raise TraceFormatError(f"line {line}: fault entry for a chip at {where} that the "
                                    "header does not describe")
         return chip
 

@@ -193,3 +193,39 @@ def test_every_fault_kind_replays_and_is_needed_for_it(tmp_path, fault):
     result = replay_trace(header_dict, records)
     assert result.ok, str(result.divergence)
     assert not replay_trace(header_dict, [r for r in records if not r["kind"].startswith("fault:")]).ok
+
+
+def test_a_timeout_that_stalled_the_bus_replays(tmp_path):
+    """No entry for bus faults: the failed transaction carries ETIMEDOUT, and the stall is in
+    the recorded times of the transactions after it."""
+    chip = BMG160(SEED, clock=VirtualClock(), address=0x68)
+    bus = I2CBus(1, {0x68: chip})
+    header = TraceHeader(SEED)
+    header.add_chip({"address": 0x68})
+    FaultSchedule([{"kind": "timeout", "on_transaction": 3, "stall_s": 0.0123}]).install(
+        [SimpleNamespace(index=0, chip=chip, bus=bus, address=0x68)])
+    path = tmp_path / "timeout.jsonl"
+    with TraceWriter(path, header) as writer:
+        bus.log.sinks.append(writer)
+        for _ in range(8):
+            chip.advance(0.002)
+            try:
+                bus.read_i2c_block_data(0x68, 0x02, 6)
+            except OSError:
+                pass
+    header_dict, records = read_trace(path)
+    assert [r["error"] for r in records].count("ETIMEDOUT") == 1
+    assert replay_trace(header_dict, records).ok
+
+
+def test_a_fault_entry_for_a_chip_the_header_lacks_is_a_clear_error(faulty_trace, capsys):
+    path, _ = faulty_trace
+    lines = path.read_text().splitlines()
+    for i, line in enumerate(lines):
+        record = json.loads(line)
+        if record.get("kind") == "fault:stuck_axis":
+            record["address"] = 0x69
+            lines[i] = json.dumps(record)
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["trace", str(path), "--replay"]) == 2
+    assert "fault entry for a chip at 0x69 that the header does not describe" in capsys.readouterr().err
