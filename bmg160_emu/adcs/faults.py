@@ -21,7 +21,9 @@ Bus faults act in ``I2CBus.transaction_hooks``, sample faults in ``BMG160.sample
 rate in the sensor frame, deg/s, before scaling to counts), chip faults between two
 transactions. Every onset is a :class:`FaultEvent` in :attr:`FaultSchedule.events`; a bus
 fault is the failed transaction itself in the bus's transaction log, any other fault adds a
-``fault:<kind>`` entry there (its description as the written bytes); every output sample a
+``fault:<kind>`` entry there (a chip fault when it acts, a sample fault at the first sample
+it touches): its description, then a JSON line of what it did (:func:`fault_entry_text`),
+from which a trace replay acts it again (:func:`replay_schedule`); every output sample a
 fault touched carries its :data:`FAULT_FLAGS` bit in the rig's truth record, and a bus or
 chip fault flags the gyro's next output sample.
 
