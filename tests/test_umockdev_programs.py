@@ -527,3 +527,60 @@ def test_run_passes_sigterm_on_to_the_program():
     finally:
         if process.poll() is None:
             process.kill()
+
+
+def test_run_trace_records_the_session_for_bmg160_emu_trace(tmp_path: Path):
+    """--trace writes every transaction of the program as JSON Lines with a header naming
+    the chips; `bmg160-emu trace` decodes it register by register."""
+    trace = tmp_path / "session.jsonl"
+    client = tmp_path / "client.py"
+    client.write_text(
+        "from smbus2 import SMBus\n"
+        "with SMBus(1) as bus:\n"
+        "    bus.read_byte_data(0x68, 0x00)\n"
+        "    bus.write_byte_data(0x68, 0x0F, 0x02)\n"
+        "    bus.read_i2c_block_data(0x68, 0x02, 6)\n"
+        "    try:\n"
+        "        bus.read_byte_data(0x50, 0x00)\n"
+        "    except OSError:\n"
+        "        pass\n"
+    )
+    result = run_emulated([*CHIP_OPTIONS, "--trace", str(trace), "--", sys.executable, str(client)])
+    assert result.returncode == 0, result.stderr
+    header, *lines = [json.loads(line) for line in trace.read_text().splitlines()]
+    assert header["format"] == "bmg160-emu trace" and header["seed"] == 3
+    assert header["chips"][0]["true_rate_dps"] == list(TRUE_RATE_DPS)
+    assert [(r["kind"], r["address"], r["error"]) for r in lines] == [
+        ("read_byte_data", 0x68, None),
+        ("write_byte_data", 0x68, None),
+        ("read_i2c_block_data", 0x68, None),
+        ("read_byte_data", 0x50, "EREMOTEIO"),
+    ]
+    assert lines[0]["read"] == [0x0F]
+    times = [r["time"] for r in lines]
+    assert times == sorted(times)
+
+    decoded = subprocess.run(
+        [sys.executable, "-m", "bmg160_emu", "trace", str(trace)],
+        capture_output=True, text=True, timeout=60, check=False,
+    )
+    assert decoded.returncode == 0, decoded.stderr
+    text = decoded.stdout.splitlines()
+    assert len(text) == 4
+    assert "CHIP_ID -> 0x0f" in text[0]
+    assert "RANGE <- 0x02" in text[1]
+    assert "x=" in text[2] and "z=" in text[2]  # the rate burst decoded as words
+
+
+def test_run_trace_without_seed_records_the_seed_it_chose(tmp_path: Path):
+    trace = tmp_path / "session.jsonl"
+    result = run_emulated(["--trace", str(trace), "--", "sh", "-c", "exit 0"])
+    assert result.returncode == 0, result.stderr
+    (header,) = [json.loads(line) for line in trace.read_text().splitlines()]
+    assert isinstance(header["seed"], int)  # a replay can rebuild the same chips
+
+
+def test_run_trace_to_an_unwritable_path_is_a_clear_error(tmp_path: Path):
+    result = run_emulated(["--trace", str(tmp_path / "no" / "such" / "dir.jsonl"), "--", "true"])
+    assert result.returncode == 2
+    assert "cannot write" in result.stderr and "Traceback" not in result.stderr

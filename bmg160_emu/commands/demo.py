@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
+from bmg160_emu.commands._common import add_bus_option, add_command_parser, integer_at_least
 
 # Register addresses (spec section 3) and values the session writes.
 CHIP_ID, RATE_X_LSB, TEMP, INT_STATUS_1, FIFO_STATUS = 0x00, 0x02, 0x08, 0x0A, 0x0E
@@ -37,23 +38,21 @@ examples:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "demo",
-        help="run a short driver-style session (smbus2) against the emulated chip",
-        description=(
+        "run a short driver-style session (smbus2) against the emulated chip",
+        (
             "Run a driver-style session written against plain smbus2 under patch_smbus: "
             "chip ID, soft reset, normal mode, range and bandwidth, samples streamed by "
             "polling the new-data status, then a FIFO read; print what was read."
         ),
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
-    parser.add_argument(
-        "--bus", type=_non_negative, default=1, metavar="N", help="I2C bus number (default 1)"
-    )
+    add_bus_option(parser, "I2C bus number (default 1)", default=1)
     parser.add_argument(
         "--samples",
-        type=_positive,
+        type=integer_at_least(1, "samples"),
         default=8,
         metavar="N",
         help="samples to stream by polling (default 8)",
@@ -69,25 +68,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=run)
 
 
-def _non_negative(text: str) -> int:
-    try:
-        value = int(text, 0)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, not {text!r}")
-    return value
-
-
-def _positive(text: str) -> int:
-    value = _non_negative(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, not {text!r}")
-    return value
-
-
 def _fifo_frames(text: str) -> int:
-    value = _positive(text)
+    value = integer_at_least(1, "FIFO frames")(text)
     if value > 100:  # FIFO capacity (spec 6.5)
         raise argparse.ArgumentTypeError(f"the FIFO holds at most 100 frames, not {value}")
     return value

@@ -4,18 +4,23 @@ from __future__ import annotations
 
 import argparse
 import os
+import secrets
 import shutil
 import signal
+import subprocess
 import sys
-from pathlib import Path
+from typing import Any
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+from bmg160_emu.commands._common import add_bus_option, add_command_parser, add_file_option
 
 EPILOG = """\
 examples:
   bmg160-emu run -- i2cget -y 1 0x68 0x00          # prints 0x0f
   bmg160-emu run --bus 3 --seed 7 -- python3 my_driver.py
   bmg160-emu run --address 0x68 --address 0x69 -- i2cdetect -y -r 1
+  bmg160-emu run --seed 7 --trace session.jsonl -- i2cdump -y 1 0x68 i
+  bmg160-emu trace session.jsonl                    # the session, register by register
 
 The program runs under umockdev's preload library: its open/ioctl/read/write on
 /dev/i2c-BUS are answered by the emulator, in real time. Statically linked programs,
@@ -24,36 +29,27 @@ raw syscalls and setuid programs are not intercepted. Exit status: the program's
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "run",
-        help="run a program against emulated chips on a virtual /dev/i2c-N (umockdev)",
-        description=(
+        "run a program against emulated chips on a virtual /dev/i2c-N (umockdev)",
+        (
             "Run an unmodified program (i2c-tools, smbus2 scripts, C code using ioctl) with a "
             "virtual /dev/i2c-BUS whose transactions the emulated BMG160 answers."
         ),
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
-    parser.add_argument(
-        "--bus", type=_bus_number, default=1, help="I2C bus number N of /dev/i2c-N (default 1)"
+    add_bus_option(parser, "I2C bus number N of /dev/i2c-N (default 1)", default=1)
+    add_file_option(
+        parser, "--log", "FILE", "write the transaction log to FILE when the program ends"
     )
-    parser.add_argument(
-        "--log", type=Path, default=None, metavar="FILE",
-        help="write the transaction log to FILE when the program ends",
+    add_file_option(
+        parser, "--trace", "OUT.jsonl",
+        "record every transaction as a JSON Lines trace (decode: bmg160-emu trace FILE)",
     )
     add_chip_options(parser)
     parser.add_argument("program", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
     parser.set_defaults(func=run)
-
-
-def _bus_number(text: str) -> int:
-    try:
-        value = int(text, 0)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"bus must be an integer >= 0, not {text!r}")
-    return value
 
 
 def _is_static(path: str) -> bool:
@@ -86,28 +82,67 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     args.realtime = True  # an unmodified program lives in real time
+    if args.trace is not None and args.seed is None:
+        args.seed = secrets.randbits(32)  # a trace always names the seed of its chips
     chips = chips_from_args(args)
     bus = I2CBus(args.bus, chips)
     try:
         devices = VirtualI2CDevices([bus])
     except UMockdevUnavailable as exc:
         raise CommandError(str(exc)) from None
-    with devices:
-        process = devices.popen(program)
-        # ^C reaches the child from the terminal; SIGTERM and SIGHUP sent to us are passed on,
-        # so the program never outlives the emulator that answers it.
-        previous = {
-            signal.SIGINT: signal.signal(signal.SIGINT, signal.SIG_IGN),
-            signal.SIGTERM: signal.signal(signal.SIGTERM, lambda n, _: process.send_signal(n)),
-            signal.SIGHUP: signal.signal(signal.SIGHUP, lambda n, _: process.send_signal(n)),
-        }
-        try:
-            status = process.wait()
-        finally:
-            for number, handler in previous.items():
-                signal.signal(number, handler)
-        for error in devices.handler_errors():
-            print(f"bmg160-emu run: internal error answered as EIO: {error}", file=sys.stderr)
+    writer = _trace_writer(args, bus)
+    try:
+        with devices:
+            status = _run_program(devices, program)
+            for error in devices.handler_errors():
+                print(f"bmg160-emu run: internal error answered as EIO: {error}", file=sys.stderr)
+    finally:
+        if writer is not None:
+            writer.close()
     if args.log is not None:
         args.log.write_text(str(bus.log) + os.linesep)
     return 128 - status if status < 0 else status
+
+
+def _trace_writer(args: argparse.Namespace, bus: Any) -> Any:
+    """A TraceWriter fed by the bus's log (None without --trace)."""
+    if args.trace is None:
+        return None
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.trace import TraceWriter, header_from_chip_args
+
+    try:
+        writer = TraceWriter(args.trace, header_from_chip_args(args))
+    except OSError as exc:
+        raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
+    bus.log.sinks.append(writer)
+    return writer
+
+
+def _run_program(devices: Any, program: list[str]) -> int:
+    """Start the program under the testbed and wait for it; its wait status."""
+    process: subprocess.Popen | None = None
+    pending: list[int] = []
+
+    def pass_on(number: int, _frame: object) -> None:
+        if process is None:
+            pending.append(number)  # arrived before the program started
+        else:
+            process.send_signal(number)
+
+    # ^C reaches the child from the terminal; SIGTERM and SIGHUP sent to us are passed on,
+    # so the program never outlives the emulator that answers it. The handlers are in place
+    # before the program starts: it may signal us (through a test harness) at once.
+    previous = {
+        signal.SIGINT: signal.signal(signal.SIGINT, signal.SIG_IGN),
+        signal.SIGTERM: signal.signal(signal.SIGTERM, pass_on),
+        signal.SIGHUP: signal.signal(signal.SIGHUP, pass_on),
+    }
+    try:
+        process = devices.popen(program)
+        for number in pending:
+            process.send_signal(number)
+        return process.wait()
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)

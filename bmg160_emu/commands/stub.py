@@ -6,9 +6,9 @@ import argparse
 import json
 import signal
 import sys
-from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+from bmg160_emu.commands._common import add_bus_option, add_command_parser, add_file_option
 
 EPILOG = """\
 example (as root, on a machine or VM that can load modules):
@@ -24,48 +24,35 @@ the driver writes. Docs: docs/i2c-stub.md.
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "stub",
-        help="serve the emulated chip to kernel drivers through the i2c-stub module",
-        description=(
+        "serve the emulated chip to kernel drivers through the i2c-stub module",
+        (
             "Keep the register memory of a Linux i2c-stub chip in step with the emulated "
             "BMG160, so kernel drivers (the kernel's bmg160 IIO driver) read live data."
         ),
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
-    parser.add_argument(
-        "--bus", type=_bus_number, required=True, help="number N of the i2c-stub bus /dev/i2c-N"
-    )
+    add_bus_option(parser, "number N of the i2c-stub bus /dev/i2c-N", required=True)
     parser.add_argument(
         "--duration", type=float, default=None, metavar="SECONDS",
         help="stop after this many seconds (default: run until interrupted)",
     )
-    parser.add_argument(
-        "--stats", type=Path, default=None, metavar="FILE",
-        help="write refresh timing (period, jitter, CPU use) and the client writes applied "
-        "to the model as JSON to FILE at exit",
+    add_file_option(
+        parser, "--stats", "FILE",
+        "write refresh timing (period, jitter, CPU use) and the client writes applied to the "
+        "model as JSON to FILE at exit",
     )
     parser.add_argument(
         "--max-refresh-hz", type=float, default=None, metavar="HZ",
         help="refresh at most this often even at higher output data rates (default 500)",
     )
-    parser.add_argument(
-        "--ready-file", type=Path, default=None, metavar="FILE",
-        help="create FILE once the register map is preloaded (for scripts)",
+    add_file_option(
+        parser, "--ready-file", "FILE", "create FILE once the register map is preloaded (for scripts)"
     )
     add_chip_options(parser)
     parser.set_defaults(func=run)
-
-
-def _bus_number(text: str) -> int:
-    try:
-        value = int(text, 0)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"bus must be an integer >= 0, not {text!r}")
-    return value
 
 
 def run(args: argparse.Namespace) -> int:

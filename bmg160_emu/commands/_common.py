@@ -1,0 +1,53 @@
+"""Argument types and options shared by the bus-serving sub-commands (run, stub, demo)."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+
+
+def integer_at_least(minimum: int, what: str) -> Callable[[str], int]:
+    """An argparse type: an integer (``0x`` and ``0o`` prefixes allowed) of at least
+    ``minimum``; anything else is a usage error naming ``what``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text, 0)
+        except ValueError:
+            value = minimum - 1
+        if value < minimum:
+            raise argparse.ArgumentTypeError(
+                f"{what} must be an integer >= {minimum}, not {text!r}"
+            )
+        return value
+
+    parse.__name__ = what.replace(" ", "_")  # argparse names the type in some messages
+    return parse
+
+
+bus_number = integer_at_least(0, "bus")
+
+
+def add_bus_option(parser: argparse.ArgumentParser, help_text: str, **kwargs: object) -> None:
+    """``--bus N``: the I2C bus number of ``/dev/i2c-N``."""
+    parser.add_argument("--bus", type=bus_number, metavar="N", help=help_text, **kwargs)
+
+
+def add_command_parser(
+    subparsers: argparse._SubParsersAction, name: str, summary: str, description: str, epilog: str
+) -> argparse.ArgumentParser:
+    """The sub-command's parser: one-line ``summary`` for the command list, ``description``
+    and an ``epilog`` of examples shown as written."""
+    return subparsers.add_parser(
+        name,
+        help=summary,
+        description=description,
+        epilog=epilog,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+
+
+def add_file_option(parser: argparse.ArgumentParser, flag: str, metavar: str, help_text: str) -> None:
+    """An optional ``flag FILE`` giving a path (None when absent)."""
+    parser.add_argument(flag, type=Path, default=None, metavar=metavar, help=help_text)
