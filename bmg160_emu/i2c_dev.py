@@ -29,7 +29,6 @@ from __future__ import annotations
 import errno
 import os
 import struct
-from collections.abc import Callable
 from typing import Protocol
 
 from bmg160_emu.i2c_bus import I2CBus, I2CMessage
@@ -90,6 +89,10 @@ def smbus_data_size(size: int) -> int:
     if size in (I2C_SMBUS_WORD_DATA, I2C_SMBUS_PROC_CALL):
         return 2
     return SMBUS_DATA_SIZE
+
+
+_DATA_SIZES = {size: smbus_data_size(size) for size in SMBUS_SIZE_NAMES}
+_SMBUS_IOCTL_DATA = struct.Struct("=BB2xIQ")  # read_write, command, size, data pointer
 
 
 def unsigned_long(raw: bytes, offset: int = 0) -> int:
@@ -179,27 +182,16 @@ class I2CDevFile:
     # ------------------------------------------------------------------ I2C_SMBUS
 
     def _smbus_ioctl(self, arg: IoctlArgument) -> int:
+        """``I2C_SMBUS`` (i2cdev_ioctl_smbus): the request structure, then its data union."""
         block = arg.memory(SMBUS_IOCTL_DATA_SIZE)
-        raw = block.read()
-        read_write, command, size = struct.unpack_from("=BB2xI", raw)
-        has_data = unsigned_long(raw, SMBUS_DATA_OFFSET) != 0
+        read_write, command, size, pointer = _SMBUS_IOCTL_DATA.unpack_from(block.read())
+        return self.smbus(read_write, command, size, block if pointer else None)
 
-        def data(length: int) -> UserMemory | None:
-            return block.follow(SMBUS_DATA_OFFSET, length) if has_data else None
-
-        return self.smbus(read_write, command, size, data)
-
-    def smbus(
-        self,
-        read_write: int,
-        command: int,
-        size: int,
-        data: Callable[[int], UserMemory | None],
-    ) -> int:
-        """One ``I2C_SMBUS`` request (i2cdev_ioctl_smbus). ``data(n)`` gives the first ``n``
-        bytes of the caller's ``union i2c_smbus_data`` as :class:`UserMemory`, or None for a
-        NULL pointer; it is called only once the request is known to be well formed."""
-        if size not in SMBUS_SIZE_NAMES:
+    def smbus(self, read_write: int, command: int, size: int, request: UserMemory | None) -> int:
+        """One ``I2C_SMBUS`` request. ``request`` is the caller's ``struct
+        i2c_smbus_ioctl_data`` (its data pointer is followed only once the request is known
+        to be well formed), or None when that pointer is NULL."""
+        if size not in _DATA_SIZES:
             raise kernel_error(errno.EINVAL)
         if read_write not in (I2C_SMBUS_READ, I2C_SMBUS_WRITE):
             raise kernel_error(errno.EINVAL)
@@ -211,20 +203,21 @@ class I2CDevFile:
         if size == I2C_SMBUS_BYTE and not reading:
             bus.write_byte(self._target(), command, pec)
             return 0
-        datasize = smbus_data_size(size)
-        user = data(datasize)
-        if user is None:
+        if request is None:
             raise kernel_error(errno.EINVAL)
-        temp = bytearray(SMBUS_DATA_SIZE)
-        if not reading or size in _COPIED_IN:
-            temp[:datasize] = user.read()[:datasize]
+        datasize = _DATA_SIZES[size]
+        user = request.follow(SMBUS_DATA_OFFSET, datasize)
+        if not reading or size in _COPIED_IN:  # copy_from_user into the kernel's union
+            temp = bytearray(user.read()[:datasize].ljust(SMBUS_DATA_SIZE, b"\0"))
+        else:
+            temp = bytearray(SMBUS_DATA_SIZE)
         if size == I2C_SMBUS_I2C_BLOCK_BROKEN:  # the old convention, converted
             size = I2C_SMBUS_I2C_BLOCK_DATA
             if reading:
                 temp[0] = I2C_SMBUS_BLOCK_MAX
         self._smbus_transfer(reading, command, size, temp)
         if reading or size in _PROC_CALLS:
-            user.write(bytes(temp[:datasize]))
+            user.write(bytes(temp) if datasize == SMBUS_DATA_SIZE else bytes(temp[:datasize]))
         return 0
 
     def _smbus_transfer(self, reading: bool, command: int, size: int, temp: bytearray) -> None:

@@ -19,6 +19,7 @@ import errno
 import fcntl
 import operator
 import os
+import struct
 import sys
 import threading
 import types
@@ -34,7 +35,7 @@ from bmg160_emu.i2c_bus import (
     register_bus,
     unregister_bus,
 )
-from bmg160_emu.i2c_dev import ULONG_MASK, I2CDevFile, unsigned_long
+from bmg160_emu.i2c_dev import ULONG_MASK, I2CDevFile
 from bmg160_emu.smbus import FakeSMBus
 from bmg160_emu.spi import FakeSpiDev, register_spi_device, unregister_spi_device
 
@@ -53,22 +54,29 @@ def _c_int(value: int) -> int:
     return value
 
 
+_POINTER = struct.Struct("=Q")
+_CHAR_ARRAYS: dict[int, Any] = {}  # size -> ctypes.c_char * size (building a type is slow)
+
+
 class _AddressMemory:
     """Memory of this process at an address, reached as the kernel reaches user memory."""
 
-    __slots__ = ("address", "size")
+    __slots__ = ("address", "cells")
 
     def __init__(self, address: int, size: int) -> None:
-        self.address, self.size = address, size
+        array = _CHAR_ARRAYS.get(size)
+        if array is None:
+            array = _CHAR_ARRAYS.setdefault(size, ctypes.c_char * size)
+        self.address, self.cells = address, array.from_address(address)
 
     def read(self) -> bytes:
-        return ctypes.string_at(self.address, self.size)
+        return self.cells.raw
 
     def write(self, data: bytes) -> None:
-        ctypes.memmove(self.address, data, min(len(data), self.size))
+        self.cells.raw = data[: len(self.cells)]
 
     def follow(self, offset: int, size: int) -> _AddressMemory:
-        return _pointee(ctypes.string_at(self.address + offset, 8), size)
+        return _pointee(ctypes.c_uint64.from_address(self.address + offset).value, size)
 
 
 class _BufferMemory:
@@ -79,19 +87,22 @@ class _BufferMemory:
     def __init__(self, view: memoryview, size: int) -> None:
         self.view, self.size = view, size
 
-    def read(self) -> bytes:  # beyond a short buffer the kernel reads fcntl's zeroed copy
-        return self.view[: self.size].tobytes().ljust(self.size, b"\0")
+    def read(self) -> bytes:
+        view, size = self.view, self.size
+        if len(view) == size:
+            return bytes(view)
+        return view[:size].tobytes().ljust(size, b"\0")  # beyond it: fcntl's zeroed copy
 
     def write(self, data: bytes) -> None:
         n = min(len(data), len(self.view))
         self.view[:n] = data[:n]
 
     def follow(self, offset: int, size: int) -> _AddressMemory:
-        return _pointee(self.view[offset : offset + 8].tobytes(), size)
+        raw = self.view[offset : offset + 8].tobytes().ljust(8, b"\0")
+        return _pointee(_POINTER.unpack(raw)[0], size)
 
 
-def _pointee(raw: bytes, size: int) -> _AddressMemory:
-    address = unsigned_long(raw.ljust(8, b"\0"))
+def _pointee(address: int, size: int) -> _AddressMemory:
     if address == 0:
         raise os_error(errno.EFAULT)
     return _AddressMemory(address, size)
@@ -113,7 +124,7 @@ class _IoctlArgument:
     def memory(self, size: int) -> _AddressMemory | _BufferMemory:
         if self.view is not None:
             return _BufferMemory(self.view, size)
-        return _pointee(self.value.to_bytes(8, "little"), size)
+        return _pointee(self.value, size)
 
 
 class I2cDevKernel:
