@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 
 def integer_at_least(minimum: int, what: str) -> Callable[[str], int]:
@@ -29,7 +30,7 @@ def integer_at_least(minimum: int, what: str) -> Callable[[str], int]:
 bus_number = integer_at_least(0, "bus")
 
 
-def add_bus_option(parser: argparse.ArgumentParser, help_text: str, **kwargs: object) -> None:
+def add_bus_option(parser: argparse.ArgumentParser, help_text: str, **kwargs: Any) -> None:
     """``--bus N``: the I2C bus number of ``/dev/i2c-N``."""
     parser.add_argument("--bus", type=bus_number, metavar="N", help=help_text, **kwargs)
 
