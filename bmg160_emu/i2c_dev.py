@@ -27,11 +27,10 @@ with EOPNOTSUPP after i2c-dev's own checks.
 from __future__ import annotations
 
 import errno
-import os
 import struct
 from typing import Protocol
 
-from bmg160_emu.i2c_bus import I2CBus, I2CMessage
+from bmg160_emu.i2c_bus import I2CBus, I2CMessage, os_error
 from bmg160_emu.linux.i2c_dev_structs import (
     I2C_DEV_MAX_TRANSFER,
     I2C_FUNC_I2C,
@@ -75,11 +74,6 @@ ULONG_MASK = 0xFFFFFFFFFFFFFFFF  # an ioctl argument is an unsigned long (LP64)
 # i2cdev_ioctl_smbus: kinds whose data union is copied in even for a read
 _COPIED_IN = frozenset((I2C_SMBUS_PROC_CALL, I2C_SMBUS_BLOCK_PROC_CALL, I2C_SMBUS_I2C_BLOCK_DATA))
 _PROC_CALLS = frozenset((I2C_SMBUS_PROC_CALL, I2C_SMBUS_BLOCK_PROC_CALL))
-
-
-def kernel_error(code: int) -> OSError:
-    """The OSError a failed system call gives: ``OSError(22, 'Invalid argument')``."""
-    return OSError(code, os.strerror(code))
 
 
 def smbus_data_size(size: int) -> int:
@@ -161,14 +155,14 @@ class I2CDevFile:
             return 0
         if request in (I2C_RETRIES, I2C_TIMEOUT):
             if arg.value > INT_MAX:
-                raise kernel_error(errno.EINVAL)
+                raise os_error(errno.EINVAL)
             return 0  # the emulated adapter never retries nor times out
-        raise kernel_error(errno.ENOTTY)
+        raise os_error(errno.ENOTTY)
 
     def set_address(self, address: int, force: bool = False) -> None:
         """``I2C_SLAVE`` (``force``: ``I2C_SLAVE_FORCE``)."""
         if address > (0x3FF if self.tenbit else 0x7F):
-            raise kernel_error(errno.EINVAL)
+            raise os_error(errno.EINVAL)
         if address <= 0x7F:
             self.bus.check_address(address, force=force)
         self.address = address
@@ -176,7 +170,7 @@ class I2CDevFile:
     def _target(self) -> int:
         """The address a transfer goes to; a 10-bit one finds no device on this adapter."""
         if self.tenbit and self.address > 0x7F:
-            raise kernel_error(errno.ENXIO)
+            raise os_error(errno.ENXIO)
         return self.address
 
     # ------------------------------------------------------------------ I2C_SMBUS
@@ -192,9 +186,9 @@ class I2CDevFile:
         i2c_smbus_ioctl_data`` (its data pointer is followed only once the request is known
         to be well formed), or None when that pointer is NULL."""
         if size not in _DATA_SIZES:
-            raise kernel_error(errno.EINVAL)
+            raise os_error(errno.EINVAL)
         if read_write not in (I2C_SMBUS_READ, I2C_SMBUS_WRITE):
-            raise kernel_error(errno.EINVAL)
+            raise os_error(errno.EINVAL)
         reading = read_write == I2C_SMBUS_READ
         bus, pec = self.bus, self.pec
         if size == I2C_SMBUS_QUICK:  # these two carry no data
@@ -204,7 +198,7 @@ class I2CDevFile:
             bus.write_byte(self._target(), command, pec)
             return 0
         if request is None:
-            raise kernel_error(errno.EINVAL)
+            raise os_error(errno.EINVAL)
         datasize = _DATA_SIZES[size]
         user = request.follow(SMBUS_DATA_OFFSET, datasize)
         if not reading or size in _COPIED_IN:  # copy_from_user into the kernel's union
@@ -244,15 +238,15 @@ class I2CDevFile:
                 _put_block(temp, bus.read_block_data(address, command, pec))
             else:
                 if count > I2C_SMBUS_BLOCK_MAX:
-                    raise kernel_error(errno.EINVAL)
+                    raise os_error(errno.EINVAL)
                 bus.write_block_data(address, command, bytes(temp[1 : 1 + count]), pec)
         elif size == I2C_SMBUS_BLOCK_PROC_CALL:
             if count > I2C_SMBUS_BLOCK_MAX:
-                raise kernel_error(errno.EINVAL)
+                raise os_error(errno.EINVAL)
             _put_block(temp, bus.block_process_call(address, command, bytes(temp[1 : 1 + count]), pec))
         else:  # I2C_SMBUS_I2C_BLOCK_DATA: block[0] is the count both ways, no PEC
             if count > I2C_SMBUS_BLOCK_MAX:
-                raise kernel_error(errno.EINVAL)
+                raise os_error(errno.EINVAL)
             if reading:
                 temp[1 : 1 + count] = bus.read_i2c_block_data(address, command, count)
             else:
@@ -266,11 +260,11 @@ class I2CDevFile:
         raw = block.read()
         count = struct.unpack_from("=I", raw, 8)[0]
         if unsigned_long(raw) == 0 or count == 0 or count > I2C_RDWR_IOCTL_MAX_MSGS:
-            raise kernel_error(errno.EINVAL)
+            raise os_error(errno.EINVAL)
         table = block.follow(0, count * I2C_MSG_SIZE)
         headers = table.read()
         if not self.bus.funcs & I2C_FUNC_I2C:
-            raise kernel_error(errno.EOPNOTSUPP)
+            raise os_error(errno.EOPNOTSUPP)
         messages: list[I2CMessage] = []
         buffers: list[UserMemory | None] = []
         ten_bit = recv_len = False
@@ -278,17 +272,17 @@ class I2CDevFile:
             offset = i * I2C_MSG_SIZE
             address, flags, length = struct.unpack_from("=HHH", headers, offset)
             if length > I2C_DEV_MAX_TRANSFER:
-                raise kernel_error(errno.EINVAL)
+                raise os_error(errno.EINVAL)
             buffer = None
             payload = b""
             if length:  # memdup_user of every buffer (EFAULT for a NULL one)
                 if unsigned_long(headers, offset + I2C_MSG_BUF_OFFSET) == 0:
-                    raise kernel_error(errno.EFAULT)
+                    raise os_error(errno.EFAULT)
                 buffer = table.follow(offset + I2C_MSG_BUF_OFFSET, length)
                 payload = buffer.read()[:length]
             if flags & I2C_M_RECV_LEN:
                 if not flags & I2C_M_RD or not length or length < payload[0] + I2C_SMBUS_BLOCK_MAX:
-                    raise kernel_error(errno.EINVAL)
+                    raise os_error(errno.EINVAL)
                 recv_len = True
             ten_bit = ten_bit or bool(flags & I2C_M_TEN)
             if flags & I2C_M_RD:
@@ -297,9 +291,9 @@ class I2CDevFile:
                 messages.append(I2CMessage(address, False, payload))
             buffers.append(buffer)
         if ten_bit:
-            raise kernel_error(errno.ENXIO)
+            raise os_error(errno.ENXIO)
         if recv_len:
-            raise kernel_error(errno.EOPNOTSUPP)
+            raise os_error(errno.EOPNOTSUPP)
         self.bus.i2c_transfer(messages)
         for message, buffer in zip(messages, buffers):
             if message.read and buffer is not None and message.data:
@@ -311,14 +305,14 @@ class I2CDevFile:
     def read(self, count: int) -> bytes:
         """``read(fd, buf, count)``: a plain I2C read, 8192 bytes at most."""
         if not self.bus.funcs & I2C_FUNC_I2C:
-            raise kernel_error(errno.EOPNOTSUPP)
+            raise os_error(errno.EOPNOTSUPP)
         count = min(count, I2C_DEV_MAX_TRANSFER)
         return self.bus.i2c_read(self._target(), count)
 
     def write(self, payload: bytes) -> int:
         """``write(fd, buf, count)``: a plain I2C write, 8192 bytes at most; returns the count."""
         if not self.bus.funcs & I2C_FUNC_I2C:
-            raise kernel_error(errno.EOPNOTSUPP)
+            raise os_error(errno.EOPNOTSUPP)
         payload = bytes(payload[:I2C_DEV_MAX_TRANSFER])
         self.bus.i2c_write(self._target(), payload)
         return len(payload)

@@ -221,3 +221,31 @@ def test_immutable_buffer_argument_returns_the_result_as_bytes(node):
     fd, ioctl, _, bus = node
     out = ioctl(fd, I2C_FUNCS, bytes(8))
     assert int.from_bytes(out, "little") == bus.funcs
+
+
+def test_read_and_write_are_plain_i2c_capped_at_8192_bytes():
+    from bmg160_emu.i2c_dev import I2CDevFile
+
+    chip = RegisterFileChip()
+    file = I2CDevFile(I2CBus(1, {0x68: chip}))
+    file.set_address(0x68)
+    assert file.write(bytes([0x10]) + bytes(9000)) == 8192  # i2c-dev truncates the write
+    assert chip.writes[-1] == (0x10, bytes(8191))
+    assert len(file.read(10_000)) == 8192
+
+
+def test_adapter_without_plain_i2c_refuses_read_write_and_rdwr():
+    from bmg160_emu.i2c_bus import DEFAULT_FUNCS
+    from bmg160_emu.i2c_dev import I2CDevFile
+    from bmg160_emu.linux.i2c_dev_structs import I2C_FUNC_I2C
+
+    bus = I2CBus(1, {0x68: RegisterFileChip()}, funcs=DEFAULT_FUNCS & ~I2C_FUNC_I2C)
+    file = I2CDevFile(bus)
+    file.set_address(0x68)
+    assert errno_of(file.read, 1) == errno.EOPNOTSUPP
+    assert errno_of(file.write, b"\x00") == errno.EOPNOTSUPP
+    with patch_smbus({1: bus}), smbus2.SMBus(1) as handle:
+        out = (ctypes.c_uint8 * 1)()
+        request = rdwr_request(i2c_msg(0x68, I2C_M_RD, 1, out))
+        assert errno_of(smbus2_impl.ioctl, handle.fd, I2C_RDWR, request) == errno.EOPNOTSUPP
+    assert len(bus.log) == 0

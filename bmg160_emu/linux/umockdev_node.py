@@ -21,8 +21,8 @@ import subprocess
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
-from bmg160_emu.i2c_bus import I2CBus
-from bmg160_emu.i2c_dev import I2CDevFile, kernel_error, unsigned_long
+from bmg160_emu.i2c_bus import I2CBus, os_error
+from bmg160_emu.i2c_dev import I2CDevFile, unsigned_long
 
 PRELOAD_LIBRARY = "libumockdev-preload.so.0"
 I2C_DEV_MAJOR = 89  # Documentation/admin-guide/devices.txt: "89 char I2C bus interface"
@@ -82,7 +82,7 @@ class _ClientMemory:
             return known
         target = self.data.resolve(offset, size)
         if target is None:
-            raise kernel_error(errno.EFAULT)
+            raise os_error(errno.EFAULT)
         self.pointees[offset] = _ClientMemory(target)
         return self.pointees[offset]
 
