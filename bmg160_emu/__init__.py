@@ -28,7 +28,7 @@ _EXPORTS = {
     "load_profile": "bmg160_emu.noise",
 }
 
-__all__ = sorted(_EXPORTS) + ["__version__"]
+__all__ = [*_EXPORTS, "__version__"]
 
 
 def __getattr__(name: str) -> Any:
