@@ -28,7 +28,22 @@ _EXPORTS = {
     "load_profile": "bmg160_emu.noise",
 }
 
-__all__ = [*_EXPORTS, "__version__"]
+__all__ = [
+    "BMG160",
+    "FakeSMBus",
+    "FakeSpiDev",
+    "I2CBus",
+    "NoiseGenerator",
+    "RealTimeClock",
+    "Transaction",
+    "TransactionLog",
+    "VirtualClock",
+    "__version__",
+    "load_profile",
+    "patch_smbus",
+    "patch_spidev",
+    "virtual_sleep",
+]
 
 
 def __getattr__(name: str) -> Any:
@@ -41,4 +56,4 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return __all__
+    return list(__all__)
