@@ -2,8 +2,8 @@
 (spec 5.1). Expected values come from the chip's sensitivity table, never literals."""
 
 import pytest
-
 from _chip_helpers import period_s, quiet_chip, rates
+
 from bmg160_emu import spec_choices
 from bmg160_emu.chip import BMG160
 

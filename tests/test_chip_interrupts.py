@@ -1,7 +1,6 @@
 """Interrupts (spec 6.3, 6.4): data_int, any-motion, high-rate, latching, pins."""
 
 import pytest
-
 from _chip_helpers import period_s, quiet_chip
 
 

@@ -1,8 +1,8 @@
 """Noise on the output: seeded, independent per address, polling-pattern invariant."""
 
 import numpy as np
-
 from _chip_helpers import period_s, rates
+
 from bmg160_emu.chip import BMG160
 from bmg160_emu.clock import VirtualClock
 

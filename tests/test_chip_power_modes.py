@@ -1,8 +1,8 @@
 """Soft reset (6.6) and power modes (6.7): what each mode allows and when data returns."""
 
 import pytest
-
 from _chip_helpers import period_s, quiet_chip, rates
+
 from bmg160_emu.chip import BMG160
 
 

@@ -3,7 +3,6 @@
 import struct
 
 import pytest
-
 from _chip_helpers import period_s, quiet_chip, rates
 
 

@@ -1,7 +1,6 @@
 """Every register reads its spec reset value (spec section 3), at power-up and after reset."""
 
 import pytest
-
 from _chip_helpers import quiet_chip
 
 # Spec section 3 table (with 4.22 for TRIM_NVM_CTRL and 4.25 for BIST); dynamic registers

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-
 from _chip_helpers import period_s, quiet_chip, rates
+
 from bmg160_emu.chip import BMG160
 
 

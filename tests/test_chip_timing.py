@@ -3,8 +3,8 @@
 import time
 
 import pytest
-
 from _chip_helpers import quiet_chip
+
 from bmg160_emu.chip import BMG160
 from bmg160_emu.clock import RealTimeClock, VirtualClock
 

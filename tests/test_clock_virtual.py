@@ -59,9 +59,8 @@ def test_virtual_sleep_restores_time_sleep():
 
 
 def test_virtual_sleep_needs_a_virtual_clock():
-    with pytest.raises(TypeError):
-        with virtual_sleep(RealTimeClock()):
-            pass
+    with pytest.raises(TypeError), virtual_sleep(RealTimeClock()):
+        pass
 
 
 def test_driver_that_sleeps_between_reads_sees_new_samples():
