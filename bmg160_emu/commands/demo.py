@@ -194,6 +194,8 @@ def run(args: argparse.Namespace) -> int:
                     driver.bring_up(range_code, bw_code)
                     driver.stream(args.samples, chip.sensitivity, chip.odr_hz)
                     driver.fifo(args.fifo_frames, chip.sensitivity, chip.odr_hz)
+                except BrokenPipeError:
+                    raise  # the reader went away (e.g. `| head`): not a bus failure
                 except (RuntimeError, OSError) as exc:
                     raise CommandError(f"session failed: {exc}") from None
             print()
