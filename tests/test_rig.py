@@ -106,3 +106,17 @@ def test_bad_rigs_are_refused():
         GyroSpec(mounting=[[1, 0, 0], [0, 1, 0], [0, 0, -1]])
     with pytest.raises(ScenarioError, match="unknown keys"):
         gyro_spec_from_dict({"adress": 0x68}, 0)
+
+
+def test_truth_holds_every_sample_due_by_now_even_on_a_gyro_nobody_has_read():
+    # The chips make their samples lazily, when next accessed; truth asked after
+    # rig.advance() must still cover every output period up to the rig's time.
+    rig = GyroRig(Scenario.constant([0.0, 0.0, 0.06], 5.0),
+                  [GyroSpec(noise=False), GyroSpec(address=0x69, noise=False)], seed=1)
+    rig.bus().write_byte_data(0x68, 0x10, 0x04)  # gyro 0 at 200 Hz; gyro 1 keeps 2000 Hz
+    rig.advance(1.0)
+    first, second = rig.truth(0), rig.truth(1)
+    assert first.times_s[-1] > rig.time - 0.005  # the last 200 Hz period before now
+    assert second.times_s[-1] > rig.time - 0.0005  # the last 2000 Hz period before now
+    assert second.times_s.size > 1900  # 2000 Hz for 1 s, less the start-up time
+    assert np.allclose(second.rate_dps, [0.0, 0.0, 0.06])

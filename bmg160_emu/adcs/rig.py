@@ -229,7 +229,10 @@ class GyroRig:
         """The truth of every output sample of ``gyro`` produced so far.
 
         Extended incrementally: asking after every poll costs only the new samples.
+        The chip is first brought up to the rig's clock (it makes samples lazily, when next
+        accessed), so the truth covers every output period up to now.
         """
+        self.gyros[gyro].chip.peek(0x00)  # CHIP_ID: no side effect, catches the chip up
         cached = self._truth_cache.get(gyro)
         done = 0 if cached is None else cached.times_s.size
         new_times = np.array(self._times[gyro][done:], dtype=float)
