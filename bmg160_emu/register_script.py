@@ -426,6 +426,11 @@ class ScriptRunner:
             self._say(s, f"advance {_seconds_text(s.seconds)}")
         elif s.command == "rate":
             chip.set_true_rate(s.rate_dps)
+            log = getattr(self.bus, "log", None)
+            if log is not None and getattr(log, "enabled", True):
+                from bmg160_emu.trace import true_rate_entry  # a trace replays the change
+
+                log.append(true_rate_entry(chip.time, self.bus.number, chip.address, s.rate_dps))
             x, y, z = s.rate_dps
             self._say(s, f"true rate x={x:g} y={y:g} z={z:g} deg/s")
         elif s.command == "fault":

@@ -29,10 +29,39 @@ TRACE_FORMAT_VERSION = 1
 RATE_REGISTERS = range(0x02, 0x08)  # RATE_X_LSB..RATE_Z_MSB (spec 4.2)
 FIFO_DATA = 0x3F  # the pointer does not advance here (spec 2.4)
 FAULT_KIND_PREFIX = "fault:"  # entries bmg160_emu.adcs.faults adds at a fault's onset
+TRUE_RATE_KIND = "true_rate"  # the session changed a chip's true rate (a script's `rate`)
 
 
 class TraceFormatError(ValueError):
     """A trace file that cannot be read; the message names the line."""
+
+
+# --------------------------------------------------------------------------- true-rate entries
+
+
+def true_rate_entry(time_s: float, bus: int | str, address: int,
+                    rate_dps: Iterable[float]) -> Transaction:
+    """A log entry saying the chip's true rate became ``rate_dps`` (deg/s) at ``time_s``.
+
+    Not bus traffic: replay needs it to give the fresh chip the same input. ``written`` is
+    UTF-8 text like a fault entry's: a description, then ``{"true_rate_dps": [x, y, z]}``.
+    """
+    x, y, z = (float(v) for v in rate_dps)
+    text = f"true rate x={x:g} y={y:g} z={z:g} deg/s\n" + json.dumps({"true_rate_dps": [x, y, z]})
+    return Transaction(time_s, bus, address, TRUE_RATE_KIND, written=text.encode())
+
+
+def parse_true_rate_entry(written: bytes | str) -> tuple[float, float, float]:
+    """The rate (deg/s) a ``true_rate`` entry carries; TraceFormatError if it has none."""
+    text = written.decode("utf-8", "replace") if isinstance(written, (bytes, bytearray)) else written
+    try:
+        values = json.loads(text.partition("\n")[2])["true_rate_dps"]
+        x, y, z = (float(v) for v in values)
+    except (ValueError, KeyError, TypeError):
+        raise TraceFormatError("a true_rate entry without its 'true_rate_dps' [x, y, z]") from None
+    if not all(math.isfinite(v) for v in (x, y, z)):
+        raise TraceFormatError("a true_rate entry with a rate that is not finite")
+    return x, y, z
 
 
 # --------------------------------------------------------------------------- reading text
@@ -142,6 +171,8 @@ def describe_transaction(record: dict) -> str:
 
         detail, _ = parse_fault_entry(written)
         return head + f"FAULT injected: {detail or kind[len(FAULT_KIND_PREFIX):]}  [{kind}]"
+    if kind == TRUE_RATE_KIND:  # the session changed the chip's input, not bus traffic
+        return head + f"{written.decode('utf-8', 'replace').partition(chr(10))[0]}  [{kind}]"
     if kind == "spi_xfer" and written and not error:  # a raw frame, command byte first
         return head + _describe_spi_frame(written, read) + f"  [{kind}]"
     if kind == "spi_write" and isinstance(register, int) and len(written) > 1 and not error:
@@ -632,6 +663,9 @@ def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayR
         if str(record.get("kind", "")).startswith(FAULT_KIND_PREFIX):
             faults.act(record, line)
             continue
+        if record.get("kind") == TRUE_RATE_KIND:
+            _set_true_rate(replayer, record, line)
+            continue
         t = Transaction.from_dict(record)
         if t.time < replayer.clock_chip.time - 1e-12:
             return result(Divergence(
@@ -645,6 +679,24 @@ def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayR
                 line, t.time, _outcome_text(t, t.read, t.error), _outcome_text(t, read, error)
             ))
     return result(None)
+
+
+def _set_true_rate(replayer: _Replayer, record: dict, line: int) -> None:
+    """A ``true_rate`` entry: bring the clock to its time, then give its chip the rate."""
+    address = record.get("address")
+    chip = replayer.chips.get(address) if isinstance(address, int) else None
+    if chip is None:
+        raise TraceFormatError(f"line {line}: true_rate entry for a chip at {address!r} that "
+                               "the header does not describe")
+    try:
+        rate = parse_true_rate_entry(_as_bytes(_get(record, "written", "data_out", "write")))
+    except TraceFormatError as exc:
+        raise TraceFormatError(f"line {line}: {exc}") from None
+    time_s = float(record.get("time", record.get("time_s", 0.0)))
+    clock_chip = replayer.clock_chip
+    if time_s > clock_chip.time:
+        clock_chip.advance(time_s - clock_chip.time)
+    chip.set_true_rate(rate)
 
 
 def header_from_chip_args(args: Any) -> TraceHeader:

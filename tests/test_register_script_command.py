@@ -61,3 +61,27 @@ def test_a_traced_script_session_replays_without_divergence(tmp_path, capsys):
     assert replay_trace(header, records).ok
     assert main(["trace", str(trace), "--replay"]) == 0
     assert "no divergence: 4 transactions replayed" in capsys.readouterr().out
+
+
+def test_a_traced_script_without_seed_records_the_seed_it_chose(tmp_path, capsys):
+    # Without --seed the chips draw a random seed; the trace must name it, or its replay
+    # gets other noise and diverges at the first rate read.
+    trace = tmp_path / "s.jsonl"
+    assert main(["script", str(_script(tmp_path)), "--trace", str(trace), "-q"]) == 0
+    header, records = read_trace(trace)
+    assert isinstance(header["seed"], int)
+    assert replay_trace(header, records).ok
+
+
+def test_a_traced_script_that_changes_the_true_rate_replays_without_divergence(tmp_path):
+    # `rate` changes the chip's input mid-session: the trace must carry the change, or the
+    # replay keeps the old true rate (65.6 LSB/(deg/s) at 500 deg/s: 40 deg/s is ~2600
+    # counts, far beyond the noise).
+    text = SCRIPT + "rate 40 -20 10\nadvance 50ms\nburst RATE_X_LSB 6\n"
+    trace = tmp_path / "s.jsonl"
+    args = ["script", str(_script(tmp_path, text)), "--seed", "8", "--trace", str(trace), "-q"]
+    assert main(args) == 0
+    header, records = read_trace(trace)
+    result = replay_trace(header, records)
+    assert result.ok, str(result.divergence)
+    assert result.transactions == 5

@@ -71,6 +71,10 @@ def run(args: argparse.Namespace) -> int:
         ) from None
     if args.trace is not None and getattr(args, "realtime", False):
         raise CommandError("--trace needs virtual time (a real-time session cannot be replayed)")
+    if args.trace is not None and args.seed is None:
+        import secrets
+
+        args.seed = secrets.randbits(32)  # a trace names the seed of its chips, or replay diverges
     chips = chips_from_args(args)
     chip = next(iter(chips.values()))
     bus = I2CBus(1, chips)
