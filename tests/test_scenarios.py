@@ -136,6 +136,16 @@ def test_a_python_callable_is_a_scenario_and_scalar_times_give_3_vectors():
     assert np.allclose(scenario.rate_dps(np.array([0.0, 1.0])), [[0, 0, 0.06], [math.sin(1), 0, 0.06]])
 
 
+
+@pytest.mark.parametrize("times", [[0.5, 1.0, 2.0], [0.5, 1.0], [0.5, 1.0, 2.0, 3.0]])
+def test_a_vectorised_callable_returning_one_row_per_axis_is_read_right_for_three_times(times):
+    # f(t) -> [x(t), y(t), z(t)] gives a (3, n) array: with n == 3 it is also (n, 3) in
+    # shape, and must still be read as one row per axis.
+    scenario = Scenario.from_callable(lambda t: np.array([np.sin(t), 0 * t, 0.06 + 0 * t]), 5.0)
+    expected = [[math.sin(t), 0.0, 0.06] for t in times]
+    assert np.allclose(scenario.rate_dps(np.array(times)), expected)
+
+
 @pytest.mark.parametrize(
     "data, message",
     [

@@ -258,9 +258,18 @@ class CallableMotion(Motion):
             values = np.asarray(function(t), dtype=np.float64)
         except Exception:  # noqa: BLE001 - a scalar-only callable: called per time instead
             return None
+        if t.size == 3 and values.shape == (3, 3):
+            # (n, 3) or (3, n)? A call with two times tells which layout the callable uses.
+            try:
+                probe = np.asarray(function(t[:2]), dtype=np.float64)
+            except Exception:  # noqa: BLE001 - no clear layout: called per time instead
+                return None
+            if probe.shape == (2, 3):
+                return values
+            return values.T if probe.shape == (3, 2) else None
         if values.shape == (t.size, 3):
             return values
-        if values.shape == (3, t.size) and t.size != 3:
+        if values.shape == (3, t.size):
             return values.T
         return None
 
