@@ -163,3 +163,30 @@ def test_progress_bar_counts_runs_when_asked(capsys):
     run_montecarlo(_short(), [1, 2], scheduler="sync", progress=True)
     err = capsys.readouterr().err
     assert "monte carlo" in err and "2/2" in err
+
+
+@pytest.mark.parametrize(
+    "args, seeds",
+    [
+        ([], list(range(100))),  # --runs defaults to 100, seeds from 0
+        (["--seeds", "5000"], list(range(5000, 5100))),  # START with the default 100 runs
+        (["--seeds", "5000", "--runs", "3"], [5000, 5001, 5002]),
+        (["--seeds", "4:7"], [4, 5, 6]),
+        (["--seeds", "1,5,9"], [1, 5, 9]),
+    ],
+)
+def test_command_runs_the_seeds_its_help_promises(tmp_path, monkeypatch, args, seeds):
+    from bmg160_emu.adcs import montecarlo
+
+    asked = []
+
+    def fake_run_montecarlo(scenario, seed_list, **options):
+        asked.append(list(seed_list))
+        return reduce_runs("s", [montecarlo.RunResult(s, np.array([1.0]), np.array([0.0]))
+                                 for s in seed_list])
+
+    monkeypatch.setattr(montecarlo, "run_montecarlo", fake_run_montecarlo)
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(SCENARIO_TOML)
+    assert main(["montecarlo", str(scenario), "--scheduler", "sync", *args]) == 0
+    assert asked == [seeds]

@@ -66,7 +66,9 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("--runs must be at least 1")
     if args.workers is not None and args.workers < 1:
         raise CommandError("--workers must be at least 1")
-    runs = args.runs if args.runs is not None or args.seeds is not None else 100
+    runs = args.runs
+    if runs is None and (args.seeds is None or not any(c in args.seeds for c in ":,")):
+        runs = 100  # the default run count, also for a START seed (A:B and lists count themselves)
     try:
         seeds = parse_seeds(args.seeds, runs)
         percentiles = [float(p) for p in args.percentiles.split(",") if p.strip()]
