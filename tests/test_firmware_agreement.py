@@ -361,3 +361,51 @@ def test_no_frame_is_lost_while_a_long_fifo_burst_is_read(bus, chip):
     # every output period since the FIFO was configured left one frame (+-1 for the phase
     # of the first sample and for the period in progress)
     assert abs(total - (chip.time - start) * 200) <= 1.5, (total, chip.time - start)
+
+
+def test_temp_reads_zero_at_23_degrees(bus, chip):
+    # spec 4.3 / 5.2: signed, 0.5 K per LSB, 0 <-> 23 degC; both backends sit at 23 degC
+    chip.advance(0.05)
+    assert bus.read_byte_data(ADDRESS, 0x08) == 0x00
+
+
+def _offset_registers(x: int, y: int, z: int) -> dict[int, int]:
+    """OFC1..OFC4 and TRIM_GP0 for 12-bit offsets (spec 4.24), gp0 bits left at 0."""
+    x, y, z = (v & 0xFFF for v in (x, y, z))
+    return {
+        0x36: (x >> 2 & 0x3) << 6 | (y >> 1 & 0x7) << 3 | (z >> 1 & 0x7),
+        0x37: x >> 4, 0x38: y >> 4, 0x39: z >> 4,
+        0x3A: (x & 0x3) << 2 | (y & 0x1) << 1 | (z & 0x1),
+    }
+
+
+def _mean_rates(bus, chip, samples: int = 40) -> list[float]:
+    sums = [0.0, 0.0, 0.0]
+    for _ in range(samples):
+        chip.advance(0.005)
+        for axis, value in enumerate(rates(bus)):
+            sums[axis] += value
+    return [s / samples for s in sums]
+
+
+def test_offset_registers_shift_the_output_and_offset_reset_clears_them(bus, chip):
+    # spec 6.9: the 12-bit offset is added before range scaling; 1 offset LSB is one LSB of
+    # the +-2000 deg/s range (16.4 or 16.384 per deg/s: 0.1 % apart, far inside the bound)
+    bus.write_byte_data(ADDRESS, BW, BW_200HZ)  # RANGE stays 0: +-2000 deg/s
+    chip.advance(0.05)
+    before = _mean_rates(bus, chip)
+    offsets = (400, -300, 1000)
+    for reg, value in _offset_registers(*offsets).items():
+        bus.write_byte_data(ADDRESS, reg, value)
+    chip.advance(0.01)
+    shifted = _mean_rates(bus, chip)
+    # 40 samples of noise with std 0.25 deg/s (4 LSB): each mean is within about 0.7 LSB,
+    # and the bias drifts far less in 0.4 s; 8 LSB is over 5 sigma of the difference.
+    for axis in range(3):
+        assert abs(shifted[axis] - before[axis] - offsets[axis]) < 8, (axis, before, shifted)
+    bus.write_byte_data(ADDRESS, 0x21, 0x40)  # offset_reset (spec 4.19)
+    assert [bus.read_byte_data(ADDRESS, r) for r in range(0x36, 0x3B)] == [0] * 5
+    chip.advance(0.01)
+    after = _mean_rates(bus, chip)
+    for axis in range(3):
+        assert abs(after[axis] - before[axis]) < 8, (axis, before, after)
