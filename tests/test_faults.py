@@ -219,3 +219,26 @@ def test_faults_from_scenario_tables_and_their_errors():
         fault_from_dict({"kind": "nack", "at_s": 1, "when": 3}, "fault 2")
     with pytest.raises(FaultError, match="gyro 3 does not exist"):
         _rig([Fault("nack", at_s=1.0, gyro=3)])
+
+
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        ({"kind": "bias_step", "at_s": "3"}, "at_s must be a finite number"),
+        ({"kind": "bias_step", "at_s": float("nan")}, "at_s must be a finite number"),
+        ({"kind": "nack", "probability": "0.1"}, "probability must be a finite number"),
+        ({"kind": "spike", "at_s": 1.0, "amplitude_dps": "5"}, "amplitude_dps must be a finite"),
+        ({"kind": "timeout", "at_s": 1.0, "stall_s": "x"}, "stall_s must be a finite number"),
+        ({"kind": "nack", "on_transaction": 1.5}, "on_transaction must be a whole number"),
+        ({"kind": "nack", "at_s": 1.0, "gyro": True}, "gyro must be a whole number"),
+        ({"kind": "seu", "at_s": 1.0, "register": "0x0F"}, "register must be a whole number"),
+        ({"kind": "temperature_ramp", "at_s": 1.0, "tc_bias_dps_per_c": [1.0, 2.0]},
+         "tc_bias_dps_per_c must be one number or 3"),
+        ({"kind": "nack", "probability": 0.1, "max_count": 0}, "max_count must be"),
+    ],
+)
+def test_fault_parameters_of_the_wrong_type_are_refused_by_name(entry, message):
+    # a TOML value in quotes or a fraction where a count is meant would otherwise be kept
+    # and fail later, mid-run, with a Python error (or never fire at all)
+    with pytest.raises(FaultError, match=message):
+        fault_from_dict(entry)

@@ -90,6 +90,13 @@ class FaultEvent:
                 "transaction": self.transaction, "detail": self.detail}
 
 
+_NUMBER_FIELDS = ("at_s", "probability", "duration_s", "step_dps", "amplitude_dps",
+                  "rate_c_per_s", "stall_s")
+_COUNT_FIELDS = ("on_transaction", "gyro", "samples", "register", "bit", "max_count")
+_OPTIONAL_FIELDS = {"at_s", "probability", "duration_s", "on_transaction", "gyro", "register",
+                    "max_count"}
+
+
 @dataclass
 class Fault:
     """One scheduled fault: a trigger, an effect and its parameters (see the module table)."""
@@ -114,6 +121,7 @@ class Fault:
     def __post_init__(self) -> None:
         if self.kind not in FAULT_KINDS:
             raise FaultError(f"fault kind must be one of {list(FAULT_KINDS)}, not {self.kind!r}")
+        self._check_types()
         triggers = [self.at_s is not None, self.on_transaction is not None,
                     self.probability is not None]
         if sum(triggers) != 1:
@@ -143,11 +151,36 @@ class Fault:
                 raise FaultError("seu: register must be an address 0x00..0x3F")
             if not 0 <= self.bit <= 7:
                 raise FaultError("seu: bit must be 0..7")
-        self.tc_bias_dps_per_c = np.broadcast_to(
-            np.asarray(self.tc_bias_dps_per_c, dtype=float), (3,)
-        ).copy()
+        try:
+            self.tc_bias_dps_per_c = np.broadcast_to(
+                np.asarray(self.tc_bias_dps_per_c, dtype=float), (3,)
+            ).copy()
+        except (TypeError, ValueError):
+            raise FaultError(f"{self.kind}: tc_bias_dps_per_c must be one number or 3 (x, y, z) "
+                             f"in deg/s per degC, not {self.tc_bias_dps_per_c!r}") from None
+        if not np.all(np.isfinite(self.tc_bias_dps_per_c)):
+            raise FaultError(f"{self.kind}: tc_bias_dps_per_c must be finite")
+        if self.max_count is not None and self.max_count < 1:
+            raise FaultError(f"{self.kind}: max_count must be at least 1")
         if self.stall_s < 0:
             raise FaultError(f"{self.kind}: stall_s must not be negative")
+
+    def _check_types(self) -> None:
+        """Numbers where numbers are meant, whole numbers where counts are: a quoted TOML
+        value would otherwise be kept and fail mid-run (or a fractional count never fire)."""
+        for name in _NUMBER_FIELDS:
+            value = getattr(self, name)
+            if value is None and name in _OPTIONAL_FIELDS:
+                continue
+            if (isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
+                    or not math.isfinite(value)):
+                raise FaultError(f"{self.kind}: {name} must be a finite number, not {value!r}")
+        for name in _COUNT_FIELDS:
+            value = getattr(self, name)
+            if value is None and name in _OPTIONAL_FIELDS:
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise FaultError(f"{self.kind}: {name} must be a whole number, not {value!r}")
 
     @property
     def layer(self) -> str:
