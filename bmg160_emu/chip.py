@@ -189,6 +189,7 @@ class BMG160:
         self._msb_latch: list[int | None] = [None, None, None]
         self._foc: dict[str, Any] | None = None
         self._bist_start: int | None = None
+        self._temp_frozen: tuple[int, int] | None = None  # (raw, last sample ns) when stopped
         self._reset_state(self.clock.now_ns(), powered=choice.POWERED_UP_AT_CONSTRUCTION)
         self._apply_true_rate(true_rate, None)
 
@@ -553,6 +554,8 @@ class BMG160:
     def _stop_sampling(self) -> None:
         self._invalidate()
         self._next_ns = NEVER
+        # 5.2: TEMP keeps its last conversion until the next sample (frozen while not sampling)
+        self._temp_frozen = (self._temp_raw(), self._last_sample_ns)
 
     # ------------------------------------------------------------------ data path
 
@@ -1006,6 +1009,9 @@ class BMG160:
     def _temp_raw(self) -> int:
         if not self._have_sample:
             return 0
+        frozen = self._temp_frozen
+        if frozen is not None and self._last_sample_ns <= frozen[1]:
+            return frozen[0]
         temp = self._temperature
         if callable(temp):
             temp = float(temp(self._last_sample_ns / NS_PER_S))
@@ -1070,6 +1076,11 @@ class BMG160:
         elif OFC1 <= addr <= 0x3B:
             if old != new and addr != 0x3B:
                 self._invalidate()
+        elif addr == INT_EN_0:
+            if new & ~old & 0x80:
+                # 6.3: data_int is set only by samples taken while data_en = 1, so a held
+                # data_int (hold_data_int) starts from the first sample after enabling
+                self._data_ready_pending = False
         elif addr in (FIFO_CONFIG_0, FIFO_CONFIG_1):
             self._fifo.clear(overrun=addr == FIFO_CONFIG_1)
             self._bypass_seq = self._sample_seq

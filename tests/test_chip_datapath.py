@@ -169,3 +169,18 @@ def test_poke_changes_content_without_access_rules():
 def test_bad_constructor_options_are_clear_errors(kwargs, error):
     with pytest.raises(error):
         BMG160(**kwargs)
+
+
+def test_temperature_is_frozen_while_not_sampling_and_converts_again_after_wake_up():
+    chip = quiet_chip(temperature_c=30.0)
+    chip.advance(0.01)
+    assert chip.read(0x08)[0] == round((30.0 - 23.0) / 0.5)
+    chip.write(0x11, b"\x80")  # suspend: no conversions (spec 5.2, unconfirmed choice)
+    chip.set_temperature(40.0)
+    chip.advance(0.1)
+    assert chip.read(0x08)[0] == round((30.0 - 23.0) / 0.5)
+    chip.write(0x11, b"\x00")  # normal: the first sample after the wake-up time converts
+    chip.advance(0.001)
+    assert chip.read(0x08)[0] == round((30.0 - 23.0) / 0.5)
+    chip.advance(0.05)
+    assert chip.read(0x08)[0] == round((40.0 - 23.0) / 0.5)

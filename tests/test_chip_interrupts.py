@@ -182,3 +182,12 @@ def test_high_rate_clears_only_below_threshold_minus_hysteresis():
     chip.set_true_rate((120.0, 0, 0))  # 1966 LSB
     chip.advance(period_s(chip))
     assert chip.read(0x09)[0] == 0
+
+
+def test_held_data_int_counts_only_samples_taken_after_data_en():
+    chip = quiet_chip(hold_data_int=True)
+    chip.advance(period_s(chip))  # a sample while data_en = 0: no data-ready for it (6.3)
+    chip.write(0x15, b"\x80")
+    assert _status1(chip) & 0x80 == 0
+    chip.advance(period_s(chip))
+    assert _status1(chip) & 0x80
