@@ -120,3 +120,27 @@ def test_truth_holds_every_sample_due_by_now_even_on_a_gyro_nobody_has_read():
     assert second.times_s[-1] > rig.time - 0.0005  # the last 2000 Hz period before now
     assert second.times_s.size > 1900  # 2000 Hz for 1 s, less the start-up time
     assert np.allclose(second.rate_dps, [0.0, 0.0, 0.06])
+
+
+@pytest.mark.parametrize(
+    "entry, message",
+    [
+        ({"address": "0x68"}, "address must be 0x68 or 0x69"),
+        ({"bus": "two"}, "bus must be a whole number"),
+        ({"bus": -1}, "bus must be a whole number"),
+        ({"scale_factor_error": "x"}, "scale_factor_error must be"),
+        ({"scale_factor_error": [0.1, 0.2]}, "scale_factor_error must be"),
+        ({"temperature_c": "hot"}, "temperature_c must be a finite number"),
+        ({"noise": "yes"}, "noise must be true or false"),
+        ({"noise_mode": "fast"}, "noise_mode must be 'physical' or 'paper'"),
+        ({"profile": "nope"}, "unknown noise profile 'nope'"),
+        ({"misalignment_rad": "x"}, "misalignment_rad must be a 3x3 matrix"),
+    ],
+)
+def test_a_bad_gyro_table_is_refused_by_name_before_the_run(entry, message):
+    # A [[gyro]] table read from TOML: every mistake is a ScenarioError naming the gyro (the
+    # montecarlo command prints it as one line), never a Python error from deep in the chip.
+    scenario = scenario_from_dict({"duration_s": 1.0, "gyro": [entry]})
+    with pytest.raises(ScenarioError, match=message) as caught:
+        GyroRig(scenario, seed=0)
+    assert "gyro0" in str(caught.value)

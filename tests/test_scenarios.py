@@ -209,3 +209,10 @@ def test_a_table_file_with_text_in_its_rows_is_refused(tmp_path):
         'duration_s = 1.0\n[[motion]]\nkind = "table"\nfile = "bad.csv"\n')
     with pytest.raises(ScenarioError, match="line 3: not numbers"):
         load_scenario(tmp_path / "s.toml")
+
+
+@pytest.mark.parametrize("key, value", [("start_s", "a"), ("end_s", "b"), ("start_s", float("nan"))])
+def test_a_motion_window_that_is_not_a_number_is_refused_by_name(key, value):
+    entry = {"kind": "jitter", "amplitude_dps": [1.0, 1.0, 1.0], "frequency_hz": 1.0, key: value}
+    with pytest.raises(ScenarioError, match=f"motion 1: {key} must be a finite number"):
+        scenario_from_dict({"duration_s": 2.0, "motion": [entry]})

@@ -76,15 +76,42 @@ class GyroSpec:
     temperature_c: float = 23.0
 
     def __post_init__(self) -> None:
-        if self.address not in VALID_ADDRESSES:
-            raise ScenarioError(f"{self.name}: the BMG160 answers at 0x68 or 0x69 only, "
-                                f"not 0x{self.address:02x}")
+        if not _is_whole(self.address) or self.address not in VALID_ADDRESSES:
+            shown = f"0x{self.address:02x}" if _is_whole(self.address) else repr(self.address)
+            raise ScenarioError(f"{self.name}: address must be 0x68 or 0x69 (the BMG160 answers "
+                                f"at these only), not {shown}")
+        if not _is_whole(self.bus) or self.bus < 0:
+            raise ScenarioError(f"{self.name}: bus must be a whole number >= 0, not {self.bus!r}")
+        if not isinstance(self.noise, bool):
+            raise ScenarioError(f"{self.name}: noise must be true or false, not {self.noise!r}")
+        if self.noise_mode not in ("physical", "paper"):
+            raise ScenarioError(f"{self.name}: noise_mode must be 'physical' or 'paper', "
+                                f"not {self.noise_mode!r}")
+        if (isinstance(self.temperature_c, bool) or not isinstance(self.temperature_c, (int, float))
+                or not math.isfinite(self.temperature_c)):
+            raise ScenarioError(f"{self.name}: temperature_c must be a finite number, "
+                                f"not {self.temperature_c!r}")
         self.mounting = _mounting_matrix(self.mounting, self.name)
-        self.scale_factor_error = np.broadcast_to(
-            np.asarray(self.scale_factor_error, dtype=float), (3,)).copy()
-        self.misalignment_rad = np.asarray(self.misalignment_rad, dtype=float)
-        if self.misalignment_rad.shape != (3, 3):
-            raise ScenarioError(f"{self.name}: misalignment_rad must be a 3x3 matrix")
+        self.scale_factor_error = _finite_array(
+            self.scale_factor_error, (3,), f"{self.name}: scale_factor_error must be one number "
+            "or 3 (x, y, z), fractions of the true scale (0.01 = +1 %)")
+        self.misalignment_rad = _finite_array(
+            self.misalignment_rad, (3, 3), f"{self.name}: misalignment_rad must be a 3x3 matrix "
+            "of finite angles in radians")
+
+
+def _is_whole(value: Any) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def _finite_array(value: Any, shape: tuple[int, ...], message: str) -> np.ndarray:
+    try:
+        array = np.broadcast_to(np.asarray(value, dtype=float), shape).copy()
+    except (TypeError, ValueError):
+        raise ScenarioError(message) from None
+    if not np.all(np.isfinite(array)):
+        raise ScenarioError(message)
+    return array
 
 
 _SPEC_KEYS = set(GyroSpec.__dataclass_fields__)
@@ -173,7 +200,10 @@ class GyroRig:
         self._truth_cache: dict[int, Truth] = {}
         for index, (spec, child) in enumerate(zip(self.specs, children)):
             chip_seed = int(child.generate_state(1, dtype=np.uint64)[0])
-            chip = make_chip(spec, chip_seed, self.clock)
+            try:
+                chip = make_chip(spec, chip_seed, self.clock)
+            except ValueError as exc:  # the profile, as the noise engine judges it
+                raise ScenarioError(f"{spec.name}: {exc}") from None
             chip.set_true_rate(scenario.rate_dps)
             bus = self.buses.get(spec.bus)
             if bus is None:

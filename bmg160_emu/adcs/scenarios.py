@@ -327,6 +327,12 @@ def _check_duration(duration_s: Any) -> float:
     return float(duration_s)
 
 
+def _finite(value: Any, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ScenarioError(f"{what} must be a finite number of seconds, not {value!r}")
+    return float(value)
+
+
 def _vector(value: Any, what: str) -> np.ndarray:
     try:
         array = np.asarray(value, dtype=float)
@@ -428,11 +434,13 @@ def motion_from_dict(
     unknown = set(entry) - _MOTION_KEYS[kind] - {"kind", "start_s", "end_s"}
     if unknown:
         raise ScenarioError(f"{where}: unknown keys for a {kind} motion: {sorted(unknown)}")
-    start = float(entry.get("start_s", 0.0))
+    start = _finite(entry.get("start_s", 0.0), f"{where}: start_s")
     end = entry.get("end_s")
-    if end is not None and not float(end) > start:
-        raise ScenarioError(f"{where}: end_s must be after start_s")
-    window: dict[str, Any] = {"start_s": start, "end_s": None if end is None else float(end)}
+    if end is not None:
+        end = _finite(end, f"{where}: end_s")
+        if not end > start:
+            raise ScenarioError(f"{where}: end_s must be after start_s")
+    window: dict[str, Any] = {"start_s": start, "end_s": end}
 
     if kind == "rest":
         return Rest(**window)
