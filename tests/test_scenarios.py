@@ -216,3 +216,17 @@ def test_a_motion_window_that_is_not_a_number_is_refused_by_name(key, value):
     entry = {"kind": "jitter", "amplitude_dps": [1.0, 1.0, 1.0], "frequency_hz": 1.0, key: value}
     with pytest.raises(ScenarioError, match=f"motion 1: {key} must be a finite number"):
         scenario_from_dict({"duration_s": 2.0, "motion": [entry]})
+
+
+@pytest.mark.parametrize(
+    "motion, message",
+    [
+        ({"kind": "tumble", "initial_rate_dps": [1, 2, 3], "inertia_kg_m2": ["a", 1, 1]},
+         "inertia_kg_m2 must be 3 principal moments or a 3x3 matrix"),
+        ({"kind": "table", "samples": [[0, 1, 2, 3], [1, "a", 2, 3]]},
+         "a rate table needs rows of 4 numbers"),
+    ],
+)
+def test_text_where_numbers_belong_in_a_motion_is_refused_by_name(motion, message):
+    with pytest.raises(ScenarioError, match=f"motion 1: {message}"):
+        scenario_from_dict({"duration_s": 2.0, "motion": [motion]})

@@ -361,7 +361,10 @@ def _positive(entry: dict[str, Any], key: str, where: str, default: float | None
 
 
 def _inertia(value: Any, where: str) -> np.ndarray:
-    array = np.asarray(value, dtype=float)
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        array = np.zeros(0)
     if array.shape == (3,):
         array = np.diag(array)
     if array.shape != (3, 3) or not np.allclose(array, array.T):
@@ -395,7 +398,11 @@ def _read_csv_table(path: Path, where: str) -> np.ndarray:
 
 def _load_table(entry: dict[str, Any], where: str, base: Path | None) -> np.ndarray:
     if "samples" in entry:
-        data = np.asarray(entry["samples"], dtype=float)
+        try:
+            data = np.asarray(entry["samples"], dtype=float)
+        except (TypeError, ValueError):
+            raise ScenarioError(
+                f"{where}: a rate table needs rows of 4 numbers: t_s, x, y, z") from None
     elif "file" in entry:
         path = Path(entry["file"])
         if not path.is_absolute() and base is not None:
