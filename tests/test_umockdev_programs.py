@@ -603,3 +603,31 @@ def test_run_trace_to_an_unwritable_path_is_a_clear_error(tmp_path: Path):
     result = run_emulated(["--trace", str(tmp_path / "no" / "such" / "dir.jsonl"), "--", "true"])
     assert result.returncode == 2
     assert "cannot write" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_run_trace_of_a_real_time_session_replays_without_divergence(tmp_path: Path):
+    """The program polls in real time (ODR 2000 Hz: a sample every 0.5 ms, so a sample
+    falls between two of its reads) and drains the FIFO; the trace still replays exactly:
+    the chips start sampling at t = 0 as the replay's do, and each request happens at the
+    one instant its trace line carries."""
+    trace = tmp_path / "session.jsonl"
+    client = tmp_path / "client.py"
+    client.write_text(
+        "from smbus2 import SMBus, i2c_msg\n"
+        "with SMBus(1) as bus:\n"
+        "    for _ in range(200):\n"
+        "        bus.read_i2c_block_data(0x68, 0x02, 6)\n"
+        "    bus.write_byte_data(0x68, 0x3E, 0x40)\n"
+        "    for _ in range(30):\n"
+        "        n = bus.read_byte_data(0x68, 0x0E) & 0x7F\n"
+        "        if n:\n"
+        "            bus.i2c_rdwr(i2c_msg.write(0x68, [0x3F]), i2c_msg.read(0x68, 6 * n))\n"
+    )
+    result = run_emulated([*CHIP_OPTIONS, "--trace", str(trace), "--", sys.executable, str(client)])
+    assert result.returncode == 0, result.stderr
+    replayed = subprocess.run(
+        [sys.executable, "-m", "bmg160_emu", "trace", "--replay", str(trace)],
+        capture_output=True, text=True, timeout=120, check=False,
+    )
+    assert replayed.returncode == 0, replayed.stdout + replayed.stderr
+    assert "no divergence" in replayed.stdout

@@ -65,7 +65,11 @@ def _is_static(path: str) -> bool:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
     from bmg160_emu.i2c_bus import I2CBus
-    from bmg160_emu.linux.umockdev_node import UMockdevUnavailable, VirtualI2CDevices
+    from bmg160_emu.linux.umockdev_node import (
+        RequestClock,
+        UMockdevUnavailable,
+        VirtualI2CDevices,
+    )
 
     program = list(args.program)
     if program and program[0] == "--":
@@ -81,10 +85,18 @@ def run(args: argparse.Namespace) -> int:
             f"/dev/i2c-{args.bus} will not reach the emulator",
             file=sys.stderr,
         )
-    args.realtime = True  # an unmodified program lives in real time
     if args.trace is not None and args.seed is None:
         args.seed = secrets.randbits(32)  # a trace always names the seed of its chips
+    # An unmodified program lives in real time. The chips are built and set up at t = 0 of
+    # a virtual clock, as a trace replay builds them, then run on real time from 0 on: built
+    # on a running clock they would start sampling wherever their construction ended
+    # (~15 ms each), and a replay of the session would sample at other instants.
+    args.realtime = False
     chips = chips_from_args(args)
+    clock = RequestClock()
+    for chip in chips.values():
+        with chip.lock:
+            chip.clock = clock
     bus = I2CBus(args.bus, chips)
     try:
         devices = VirtualI2CDevices([bus])

@@ -15,12 +15,14 @@ run with ``LD_PRELOAD=libumockdev-preload.so.0`` and the testbed's ``UMOCKDEV_DI
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import subprocess
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import Any
 
+from bmg160_emu.clock import RealTimeClock
 from bmg160_emu.i2c_bus import I2CBus, os_error
 from bmg160_emu.i2c_dev import I2CDevFile, unsigned_long
 
@@ -58,6 +60,57 @@ def preload_available() -> bool:
         if os.path.exists(os.path.join(folder, PRELOAD_LIBRARY)):
             return True
     return False
+
+
+class RequestClock(RealTimeClock):
+    """Real time that stands still while one client request is answered.
+
+    Why: a request (one ioctl, read or write) is one bus transaction, or one combined
+    I2C_RDWR transfer, so the chip must catch up once, at the request's start, and the
+    transaction log must carry that same instant. With a running clock the log took its
+    time after the chip had answered, and a trace replay (which advances virtual time to
+    the logged instants) could place a sample or an ODR change on the other side of it.
+    """
+
+    def __init__(self, origin_ns: int | None = None) -> None:
+        super().__init__()
+        if origin_ns is not None:
+            self._origin_ns = origin_ns  # continue another RealTimeClock's time base
+        self._held_ns: int | None = None
+
+    def now_ns(self) -> int:
+        held = self._held_ns
+        return super().now_ns() if held is None else held
+
+    @contextlib.contextmanager
+    def request(self) -> Iterator[None]:
+        """Hold the time at its current value until the block ends (nested: the outer one)."""
+        if self._held_ns is not None:
+            yield
+            return
+        self._held_ns = super().now_ns()
+        try:
+            yield
+        finally:
+            self._held_ns = None
+
+
+def hold_time_per_request(buses: Iterable[I2CBus]) -> list[RequestClock]:
+    """Give the chips on ``buses`` that run on a plain RealTimeClock a RequestClock with the
+    same time base (one per original clock, so chips that shared a clock still do)."""
+    converted: dict[int, RequestClock] = {}
+    for bus in buses:
+        for chip in bus.devices.values():
+            clock = getattr(chip, "clock", None)
+            if isinstance(clock, RequestClock):
+                converted.setdefault(id(clock), clock)
+            elif type(clock) is RealTimeClock:
+                new = converted.get(id(clock))
+                if new is None:
+                    new = converted[id(clock)] = RequestClock(clock._origin_ns)
+                with chip.lock:
+                    chip.clock = new
+    return list({id(c): c for c in converted.values()}.values())
 
 
 class _ClientMemory:
@@ -109,9 +162,10 @@ def _handler_class(UMockdev: Any) -> type:
     class I2CDevHandler(UMockdev.IoctlBase):
         """Moves bytes between umockdev's clients and one :class:`I2CDevFile` per open file."""
 
-        def __init__(self, bus: I2CBus) -> None:
+        def __init__(self, bus: I2CBus, clocks: Sequence[RequestClock] = ()) -> None:
             super().__init__()
             self.bus = bus
+            self.clocks = list(clocks)
             self._files: dict[int, I2CDevFile] = {}
             self.errors: list[str] = []
 
@@ -120,7 +174,10 @@ def _handler_class(UMockdev: Any) -> type:
 
         def _answer(self, client: Any, call: Callable[[], int]) -> bool:
             try:
-                result = call()
+                with contextlib.ExitStack() as held:
+                    for clock in self.clocks:  # the request happens at one instant
+                        held.enter_context(clock.request())
+                    result = call()
             except OSError as exc:
                 client.complete(-1, exc.errno or errno.EIO)
             except Exception as exc:  # noqa: BLE001 - never leave a client hanging on a bug
@@ -161,7 +218,8 @@ class VirtualI2CDevices:
 
     Use as a context manager; :meth:`environment` gives what a child process needs, and
     :meth:`run` starts one and waits for it. Requests are answered on umockdev's worker
-    thread while the caller waits.
+    thread while the caller waits. Chips on a RealTimeClock get a :class:`RequestClock`
+    (same time base) so each request happens at one instant, as its log entry says.
     """
 
     def __init__(self, buses: Iterable[I2CBus]) -> None:
@@ -188,6 +246,7 @@ class VirtualI2CDevices:
         UMockdev = self._umockdev
         self.testbed = UMockdev.Testbed.new()
         handler_class = _handler_class(UMockdev)
+        clocks = hold_time_per_request(self.buses)
         for bus in self.buses:
             n = bus.number
             description = (
@@ -201,7 +260,7 @@ class VirtualI2CDevices:
             )
             if not self.testbed.add_from_string(description):
                 raise RuntimeError(f"umockdev refused the description of /dev/i2c-{n}")
-            handler = handler_class(bus)
+            handler = handler_class(bus, clocks)
             if not self.testbed.attach_ioctl(f"/dev/i2c-{n}", handler):
                 raise RuntimeError(f"umockdev could not attach a handler to /dev/i2c-{n}")
             self.handlers.append(handler)
