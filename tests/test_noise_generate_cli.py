@@ -79,3 +79,18 @@ def test_progress_bar_only_on_a_terminal(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
     assert main(["generate", "--duration", "10s", "--seed", "1", "-o", out]) == 0
     assert "2.00k/2.00k" in capsys.readouterr().err
+
+
+def test_without_seed_a_random_seed_is_named_and_repeats_the_record(tmp_path, capsys):
+    first, again = tmp_path / "a.csv", tmp_path / "b.csv"
+    assert main(["generate", "--duration", "1s", "-o", str(first)]) == 0
+    header = first.read_text().splitlines()[0]
+    seed = int(header.split("seed=")[1].split()[0])
+    assert f"seed {seed}" in capsys.readouterr().err
+    assert main(["generate", "--duration", "1s", "--seed", str(seed), "-o", str(again)]) == 0
+    assert again.read_text() == first.read_text()
+
+
+def test_negative_seed_is_named_in_the_error(tmp_path, capsys):
+    assert main(["generate", "--duration", "1s", "--seed=-1", "-o", str(tmp_path / "n.npy")]) == 2
+    assert "--seed must be a non-negative integer" in capsys.readouterr().err

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import secrets
 import sys
 from pathlib import Path
 
@@ -45,7 +46,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--duration", required=True, metavar="TIME", help="simulated time: 10s, 5min, 2h, 1d"
     )
-    parser.add_argument("--seed", type=int, default=None, help="noise seed (default: random)")
+    parser.add_argument(
+        "--seed", type=int, default=None,
+        help="noise seed (default: random, chosen, printed and written to a CSV header)",
+    )
     parser.add_argument(
         "--mode",
         choices=("physical", "paper"),
@@ -64,6 +68,11 @@ def run(args: argparse.Namespace) -> int:
     suffix = args.output.suffix.lower()
     if suffix not in (".npy", ".csv"):
         raise CommandError(f"output must end in .npy or .csv, not {args.output.name!r}")
+    chosen_seed = args.seed is None
+    if chosen_seed:
+        args.seed = secrets.randbits(32)  # a record names its seed: a random run can be repeated
+    elif args.seed < 0:
+        raise CommandError(f"--seed must be a non-negative integer, not {args.seed}")
     try:
         duration = parse_duration(args.duration)
         gen = NoiseGenerator(args.profile, rate_hz=args.rate, seed=args.seed, mode=args.mode)
@@ -76,6 +85,9 @@ def run(args: argparse.Namespace) -> int:
         f"bmg160-emu generate: profile={gen.profile.name} mode={gen.mode} "
         f"rate_hz={gen.rate_hz:g} seed={args.seed} samples={total}"
     )
+    if chosen_seed:
+        print(f"bmg160-emu generate: seed {args.seed} (random; --seed {args.seed} repeats it)",
+              file=sys.stderr)
     bar = _progress(total)
     try:
         with open(args.output, "wb") as handle:
