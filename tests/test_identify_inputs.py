@@ -134,3 +134,16 @@ def test_constant_column_is_rejected(samples):
     samples[:, 2] = 0.5
     with pytest.raises(IdentificationError, match="column 2 is constant"):
         identify(samples, 200.0)
+
+
+def test_errors_quote_plain_numbers_not_numpy_reprs(tmp_path, samples):
+    t = np.arange(samples.shape[0]) / 200.0
+    t[10] = t[8]
+    path = tmp_path / "bad.csv"
+    write_csv(path, np.column_stack([t, samples]), ["time", "x", "y", "z"])
+    with pytest.raises(RecordError, match=r"sample 10: 0\.045 after 0\.045\)") as info:
+        load_rate_record(path)
+    assert "np." not in str(info.value)
+    samples[:, 2] = 0.5
+    with pytest.raises(IdentificationError, match=r"\(0\.5 throughout\)"):
+        identify(samples, 200.0)

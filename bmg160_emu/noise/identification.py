@@ -487,7 +487,7 @@ def check_record(rate_dps: np.ndarray, rate_hz: float) -> np.ndarray:
     flat = np.flatnonzero(np.ptp(data, axis=0) == 0)
     if flat.size:
         raise IdentificationError(
-            f"column {int(flat[0])} is constant ({data[0, flat[0]]!r} throughout): "
+            f"column {int(flat[0])} is constant ({float(data[0, flat[0]])!r} throughout): "
             "a record without noise has nothing to identify"
         )
     return data

@@ -87,7 +87,7 @@ def _resolve_rate(path: Path, t: np.ndarray | None, rate_hz: float | None, n: in
         i = int(np.argmax(steps <= 0))
         raise RecordError(
             f"{path}: the time column is not strictly increasing "
-            f"(sample {i + 1}: {t[i + 1]!r} after {t[i]!r})"
+            f"(sample {i + 1}: {float(t[i + 1])!r} after {float(t[i])!r})"
         )
     if n < 2:
         if rate_hz is None:
