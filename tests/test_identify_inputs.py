@@ -141,7 +141,7 @@ def test_errors_quote_plain_numbers_not_numpy_reprs(tmp_path, samples):
     t[10] = t[8]
     path = tmp_path / "bad.csv"
     write_csv(path, np.column_stack([t, samples]), ["time", "x", "y", "z"])
-    with pytest.raises(RecordError, match=r"sample 10: 0\.045 after 0\.045\)") as info:
+    with pytest.raises(RecordError, match=r"sample 10: 0\.04 after 0\.045\)") as info:
         load_rate_record(path)
     assert "np." not in str(info.value)
     samples[:, 2] = 0.5
