@@ -360,6 +360,34 @@ class I2CRegisterPort:
         return bytes(self.bus.i2c_transfer(messages)[1].data)
 
 
+class SpiRegisterPort:
+    """Register access through the SPI front end (spec 2.2), as an spidev driver does it:
+    a read is one frame, the command byte ``0x80 | reg`` then one byte per register
+    (auto-increment); a write is one frame of the address, its data byte, then an
+    (address, data) pair per further register. Every frame is in the device's log, so a
+    script session over SPI can be traced too."""
+
+    def __init__(self, spi):
+        self.spi = spi
+
+    @property
+    def log(self):
+        return self.spi.log
+
+    @property
+    def bus_name(self) -> str:
+        return self.spi.name
+
+    def write(self, register: int, data: bytes) -> None:
+        frame: list[int] = []
+        for offset, value in enumerate(data):
+            frame += [(register + offset) & 0x7F, value]
+        self.spi.xfer2(frame)
+
+    def read(self, register: int, count: int) -> bytes:
+        return bytes(self.spi.xfer2([0x80 | register] + [0] * count)[1:])
+
+
 class ScriptRunner:
     """Plays parsed statements against a chip.
 
@@ -426,11 +454,7 @@ class ScriptRunner:
             self._say(s, f"advance {_seconds_text(s.seconds)}")
         elif s.command == "rate":
             chip.set_true_rate(s.rate_dps)
-            log = getattr(self.bus, "log", None)
-            if log is not None and getattr(log, "enabled", True):
-                from bmg160_emu.trace import true_rate_entry  # a trace replays the change
-
-                log.append(true_rate_entry(chip.time, self.bus.number, chip.address, s.rate_dps))
+            self._log_true_rate(s.rate_dps)
             x, y, z = s.rate_dps
             self._say(s, f"true rate x={x:g} y={y:g} z={z:g} deg/s")
         elif s.command == "fault":
@@ -442,6 +466,17 @@ class ScriptRunner:
             text = format_dump(RegisterDump.from_chip(chip), s.dump_format)
             for out in text.rstrip("\n").split("\n"):
                 self.log("      " + out)
+
+    def _log_true_rate(self, rate_dps) -> None:
+        """Put a ``true_rate`` entry in the log the accesses go to, so a trace replays it."""
+        from bmg160_emu.trace import true_rate_entry
+
+        if isinstance(self.port, SpiRegisterPort):
+            log, bus = self.port.log, self.port.bus_name
+        else:
+            log, bus = getattr(self.bus, "log", None), getattr(self.bus, "number", 0)
+        if log is not None and getattr(log, "enabled", True):
+            log.append(true_rate_entry(self.chip.time, bus, self.chip.address, rate_dps))
 
     def _select(self, s: Statement) -> None:
         """``chip ADDRESS``: later statements address the chip at ADDRESS on the same bus."""

@@ -85,3 +85,22 @@ def test_a_traced_script_that_changes_the_true_rate_replays_without_divergence(t
     result = replay_trace(header, records)
     assert result.ok, str(result.divergence)
     assert result.transactions == 5
+
+
+def test_a_script_over_spi_is_traced_and_replays_without_divergence(tmp_path, capsys):
+    text = SCRIPT + "rate 40 -20 10\nadvance 50ms\nburst RATE_X_LSB 6\n"
+    trace = tmp_path / "s.jsonl"
+    args = ["script", str(_script(tmp_path, text)), "--spi", "--seed", "8",
+            "--trace", str(trace), "-q"]
+    assert main(args) == 0
+    header, records = read_trace(trace)
+    assert {r["kind"] for r in records} == {"spi_read", "spi_write", "true_rate"}
+    result = replay_trace(header, records)
+    assert result.ok, str(result.divergence)
+    assert result.transactions == 5
+
+
+def test_spi_with_two_chips_is_a_clear_error(tmp_path, capsys):
+    path = _script(tmp_path)
+    assert main(["script", str(path), "--spi", "--address", "0x68", "--address", "0x69"]) == 2
+    assert "--spi drives one chip" in capsys.readouterr().err

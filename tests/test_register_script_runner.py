@@ -102,3 +102,25 @@ def test_chip_statement_switches_to_the_other_address_on_the_bus():
     with pytest.raises(ScriptFailure, match=r":5: no chip at 0x6a on this bus"):
         run_script(script, chips[0x68], lines.append, "t.script", bus=I2CBus(1, chips))
     assert (chips[0x68].peek(0x0F), chips[0x69].peek(0x0F)) == (0x01, 0x03)
+
+
+def test_the_same_script_over_spi_reads_what_it_reads_over_i2c():
+    """Whichever front end carries the accesses, a seeded chip gives the same session: the
+    SPI port sends read frames (0x80 | reg, auto-increment) and (address, data) pairs."""
+    from bmg160_emu.register_script import ScriptRunner, SpiRegisterPort
+    from bmg160_emu.spi import FakeSpiDev
+
+    text = BRING_UP.replace("dump table\n", "") + (
+        "write RANGE 0x03 0x04\n"          # two registers in one write: RANGE and BW
+        "read BW == 0x84\n"
+        "rate 12 -4 7\nadvance 20ms\nburst RATE_X_LSB 6\nburst FIFO_STATUS 3\n"
+    )
+    statements = parse_script(text, "t.script")
+    i2c_lines: list[str] = []
+    run_script(text, BMG160(seed=5), i2c_lines.append, source="t.script")
+    chip = BMG160(seed=5)
+    spi = FakeSpiDev(chip)
+    spi_lines: list[str] = []
+    ScriptRunner(chip, spi_lines.append, "t.script", port=SpiRegisterPort(spi)).run(statements)
+    assert spi_lines == i2c_lines
+    assert {t.kind for t in spi.log} == {"spi_read", "spi_write", "true_rate"}

@@ -12,6 +12,7 @@ EPILOG = """\
 examples:
   bmg160-emu script bringup.script --seed 7
   bmg160-emu script regression.script --range 500 --trace session.jsonl --quiet
+  bmg160-emu script bringup.script --spi --seed 7       # the same session over SPI
 
 A script is one statement per line (docs/script-format.md):
   read CHIP_ID == 0x0F
@@ -23,7 +24,8 @@ A script is one statement per line (docs/script-format.md):
 
 Mistakes in the script are all reported with line and column before anything runs
 (exit 2). The first failed expectation stops the run with its line number and the
-decoded difference (exit 1). Register accesses go through an emulated I2C bus 1.
+decoded difference (exit 1). Register accesses go through an emulated I2C bus 1, or
+with --spi through SPI frames on a FakeSpiDev (spec 2.2).
 """
 
 
@@ -40,6 +42,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--trace", type=Path, metavar="OUT.jsonl", default=None,
         help="record every bus transaction to a JSON Lines trace (docs/trace-format.md)",
+    )
+    parser.add_argument(
+        "--spi", action="store_true",
+        help="make the register accesses SPI frames on a FakeSpiDev instead of I2C transactions",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="print only failures")
     add_chip_options(parser)
@@ -75,22 +81,32 @@ def run(args: argparse.Namespace) -> int:
         import secrets
 
         args.seed = secrets.randbits(32)  # a trace names the seed of its chips, or replay diverges
+    if args.spi and len(set(args.addresses or [0x68])) > 1:
+        raise CommandError("--spi drives one chip (one chip select): give --address once")
     chips = chips_from_args(args)
     chip = next(iter(chips.values()))
-    bus = I2CBus(1, chips)
+    bus, port, log_ = I2CBus(1, chips), None, None
+    if args.spi:
+        from bmg160_emu.register_script import SpiRegisterPort
+        from bmg160_emu.spi import FakeSpiDev
+
+        spi = FakeSpiDev(chip)
+        bus, port, log_ = None, SpiRegisterPort(spi), spi.log
+    else:
+        log_ = bus.log
     writer = None
     if args.trace is not None:
         try:
             writer = TraceWriter(args.trace, header_from_chip_args(args))
         except OSError as exc:
             raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
-        bus.log.sinks.append(writer)
+        log_.sinks.append(writer)
 
     def log(line: str) -> None:
         if not args.quiet:
             print(line)
 
-    runner = ScriptRunner(chip, log, str(args.file), bus=bus)
+    runner = ScriptRunner(chip, log, str(args.file), port=port, bus=bus)
     try:
         runner.run(statements)
     except ScriptFailure as exc:
