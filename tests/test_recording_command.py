@@ -70,6 +70,15 @@ def test_replay_errors_name_the_line(tmp_path, capsys):
     assert "lab.csv:3: 3 columns, expected 4" in capsys.readouterr().err
 
 
+def test_replay_gap_error_names_the_line_and_the_option_that_allows_it(tmp_path, capsys):
+    data = tmp_path / "lab.csv"
+    data.write_text("t,x,y,z\n0.0,1,2,3\n0.01,1,2,3\n0.02,1,2,3\n0.5,1,2,3\n")
+    assert main(["replay", str(data), "-o", str(tmp_path / "o.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "lab.csv:5: gap of 0.48 s" in err and "--max-gap-factor" in err
+    assert main(["replay", str(data), "--max-gap-factor", "100", "-o", str(tmp_path / "o.csv")]) == 0
+
+
 def test_replay_can_drive_a_register_script(tmp_path, capsys):
     data = tmp_path / "lab.csv"
     rows = [f"{0.005 * k:.3f},100,0,0" for k in range(400)]

@@ -68,8 +68,8 @@ def run(args: argparse.Namespace) -> int:
         lsb = table[RANGE_CODE_BY_DPS[args.data_range]]
     try:
         data = load_replay_data(args.data, args.unit, lsb, args.max_gap_factor)
-    except ReplayDataError as exc:
-        raise CommandError(str(exc)) from None
+    except ReplayDataError as exc:  # the library's parameter, named as this command spells it
+        raise CommandError(str(exc).replace("(max_gap_factor)", "(--max-gap-factor)")) from None
     chips = chips_from_args(args)
     chip = next(iter(chips.values()))
     ReplaySource(data, loop=args.loop).attach(chip)
