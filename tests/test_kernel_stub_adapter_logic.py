@@ -175,3 +175,22 @@ def test_refresh_period_follows_odr_with_a_cap(rig):
     stub.client_write(0x10, 0x04)  # ODR 200 Hz
     adapter.refresh()
     assert adapter.refresh_period_s() == pytest.approx(1 / 200)
+
+
+def test_stub_stats_to_an_unwritable_path_is_refused_before_the_adapter_runs(
+    tmp_path, monkeypatch, capsys
+):
+    """`bmg160-emu stub --stats` writes at exit, possibly hours later: a bad path is a
+    one-line error at start, before the bus is opened (the bus checks are stubbed here)."""
+    from bmg160_emu.cli import main
+    from bmg160_emu.linux import i2c_stub_adapter
+
+    monkeypatch.setattr(i2c_stub_adapter, "check_stub_bus", lambda bus, address: tmp_path)
+
+    def no_adapter(*args, **kwargs):
+        raise AssertionError("the adapter must not start")
+
+    monkeypatch.setattr(i2c_stub_adapter, "I2CStubAdapter", no_adapter)
+    stats = tmp_path / "no" / "such" / "stats.json"
+    assert main(["stub", "--bus", "0", "--stats", str(stats)]) == 2
+    assert f"cannot write {stats}" in capsys.readouterr().err

@@ -90,3 +90,15 @@ def test_replay_can_drive_a_register_script(tmp_path, capsys):
     )
     assert main(["replay", str(data), "--bandwidth", "6", "--script", str(script)]) == 0
     assert f"x={counts}" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", ["record", "replay"])
+def test_an_unwritable_output_is_refused_before_any_work(tmp_path, capsys, command):
+    out = tmp_path / "missing-folder" / "out.csv"
+    data = tmp_path / "lab.csv"
+    data.write_text("t,x,y,z\n" + "".join(f"{0.01 * k:.2f},1,2,3\n" for k in range(10)))
+    # a day of chip time would take minutes to record: refused at once instead
+    args = ["record", "--duration", "1d"] if command == "record" else ["replay", str(data)]
+    assert main([*args, "-o", str(out)]) == 2
+    assert f"cannot write {out}" in capsys.readouterr().err
+    assert not out.parent.exists()

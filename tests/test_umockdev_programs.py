@@ -631,3 +631,12 @@ def test_run_trace_of_a_real_time_session_replays_without_divergence(tmp_path: P
     )
     assert replayed.returncode == 0, replayed.stdout + replayed.stderr
     assert "no divergence" in replayed.stdout
+
+
+def test_run_log_to_an_unwritable_path_is_refused_before_the_program_runs(tmp_path: Path):
+    marker = tmp_path / "ran"
+    log = tmp_path / "no" / "such" / "dir.log"
+    result = run_emulated(["--log", str(log), "--", "touch", str(marker)])
+    assert result.returncode == 2
+    assert f"cannot write {log}" in result.stderr and "Traceback" not in result.stderr
+    assert not marker.exists()

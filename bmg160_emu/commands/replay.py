@@ -60,6 +60,8 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("give -o OUT (record the chip's output) or --script FILE, one of them")
     if args.output is not None and args.output.suffix.lower() not in (".csv", ".npz"):
         raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
+    if args.output is not None:
+        _check_writable(args.output)
     if not args.max_gap_factor > 1:
         raise CommandError("--max-gap-factor must be greater than 1")
     lsb = None
@@ -100,3 +102,18 @@ def run(args: argparse.Namespace) -> int:
         print(f"FAILED {exc}", file=sys.stderr)
         return 1
     return 0
+
+
+def _check_writable(path: Path) -> None:
+    """Refuse an output path that cannot be written before any work is done (a long
+    recording would otherwise be lost at the end)."""
+    from bmg160_emu.cli import CommandError
+
+    existed = path.exists()
+    try:
+        with open(path, "ab"):
+            pass
+    except OSError as exc:
+        raise CommandError(f"cannot write {path}: {exc.strerror}") from None
+    if not existed:
+        path.unlink()

@@ -102,6 +102,12 @@ def run(args: argparse.Namespace) -> int:
         devices = VirtualI2CDevices([bus])
     except UMockdevUnavailable as exc:
         raise CommandError(str(exc)) from None
+    log_file = None
+    if args.log is not None:
+        try:  # opened now: a bad path is an error before the program runs, not after
+            log_file = args.log.open("w", encoding="utf-8")
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.log}: {exc.strerror}") from None
     writer = _trace_writer(args, bus)
     try:
         with devices:
@@ -111,8 +117,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if writer is not None:
             writer.close()
-    if args.log is not None:
-        args.log.write_text(str(bus.log) + os.linesep)
+        if log_file is not None:
+            with log_file:
+                log_file.write(str(bus.log) + os.linesep)
     return 128 - status if status < 0 else status
 
 

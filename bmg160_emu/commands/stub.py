@@ -67,6 +67,12 @@ def run(args: argparse.Namespace) -> int:
         check_stub_bus(args.bus, address)
     except StubSetupError as exc:
         raise CommandError(str(exc)) from None
+    stats_file = None
+    if args.stats is not None:
+        try:  # opened now: a bad path is an error before the adapter runs, not at its end
+            stats_file = args.stats.open("w", encoding="utf-8")
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.stats}: {exc.strerror}") from None
     args.realtime = True  # a kernel driver lives in real time
     chip = chips_from_args(args)[address]
     try:
@@ -93,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"i2c-stub access failed: {exc}") from None
     finally:
         adapter.close()
-        if args.stats is not None:
+        if stats_file is not None:
             report = {
                 "summary": adapter.stats.summary(),
                 "events": adapter.events,
@@ -103,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
                     "registers": chip.dump().hex(),
                 },
             }
-            args.stats.write_text(json.dumps(report, indent=1) + "\n")
+            with stats_file:
+                stats_file.write(json.dumps(report, indent=1) + "\n")
     print(f"bmg160-emu stub: {adapter.stats.summary().get('refreshes', 0):.0f} refreshes",
           file=sys.stderr)
     return 0
