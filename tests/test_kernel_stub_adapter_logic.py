@@ -125,6 +125,20 @@ def test_client_write_reaches_the_model_and_read_only_bits_are_written_back(rig)
     assert len(adapter.events) == 2
 
 
+def test_word_reads_of_configuration_slots_follow_client_writes(rig):
+    """A word read of RANGE (slot 0x0F) is RANGE | BW << 8 on the chip (a 2-byte burst);
+    after the client changed BW the slot's high byte must be the model's BW, not the
+    preloaded one."""
+    chip, stub, adapter = rig
+    stub.client_write(0x10, 0x07)  # BW: ODR 100 Hz
+    stub.client_write(0x11, 0x80)  # LPM1: suspend
+    adapter.refresh()
+    image = chip.dump()
+    for register in (0x0F, 0x10):
+        assert stub.words[register] == image[register] | image[register + 1] << 8
+    assert stub.words[0x0F] >> 8 == 0x87
+
+
 def test_soft_reset_is_applied_first_and_cleared(rig):
     chip, stub, adapter = rig
     stub.client_write(0x0F, 0x02)

@@ -280,6 +280,19 @@ class I2CStubAdapter:
                 continue  # the client wrote again meanwhile: handle it next period
             self.smbus.write_byte_data(self.address, register, image[register])
             self.shadow[register] = image[register]
+        # Word reads of a configuration slot return reg[r] | reg[r+1] << 8: when reg[r+1]
+        # changed (a client write, a reset), rewrite the slot's high byte. A word write sets
+        # the low byte too, so it is made only while the stub still holds the adapter's low
+        # byte (re-read first), as for the write-back above.
+        for register in range(CONFIG_FIRST, CONFIG_LAST + 1):
+            high = image[register + 1] if register + 1 < len(image) else 0
+            low = self.shadow[register]
+            if self.high[register] == high or low is None:
+                continue
+            if self.smbus.read_byte_data(self.address, register) != low:
+                continue  # the client wrote this register meanwhile: next period
+            self.smbus.write_word_data(self.address, register, low | high << 8)
+            self.high[register] = high
 
     def output_data_rate_hz(self) -> float:
         return float(self.chip.odr_hz)
