@@ -230,3 +230,11 @@ def test_a_motion_window_that_is_not_a_number_is_refused_by_name(key, value):
 def test_text_where_numbers_belong_in_a_motion_is_refused_by_name(motion, message):
     with pytest.raises(ScenarioError, match=f"motion 1: {message}"):
         scenario_from_dict({"duration_s": 2.0, "motion": [motion]})
+
+
+def test_a_slew_with_end_s_is_refused_since_its_profile_sets_its_end():
+    # end_s was silently dropped: the slew ends when its rate profile does
+    entry = {"kind": "slew", "axis": [0, 0, 1], "angle_deg": 90.0, "max_rate_dps": 3.0,
+             "max_accel_dps2": 1.0, "end_s": 5.0}
+    with pytest.raises(ScenarioError, match="motion 1: a slew ends by itself"):
+        scenario_from_dict({"duration_s": 60.0, "motion": [entry]})

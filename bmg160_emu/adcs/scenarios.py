@@ -467,6 +467,9 @@ def motion_from_dict(
         angle = entry.get("angle_deg")
         if not isinstance(angle, (int, float)):
             raise ScenarioError(f"{where}: a slew needs angle_deg (a number)")
+        if end is not None:
+            raise ScenarioError(f"{where}: a slew ends by itself when its rate profile does; "
+                                "give start_s only (end_s is for the other motions)")
         return Slew(
             axis=_unit(entry.get("axis"), f"{where}: axis"),
             angle_deg=float(angle),
