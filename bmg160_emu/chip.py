@@ -163,6 +163,10 @@ class BMG160:
                 mode=noise_mode)
         self._noise_buf = np.zeros((0, 3))
         self._noise_k0 = 0
+        # (sample index, generator checkpoint) before each draw: on an ODR change the generator
+        # goes back to the first unused sample, so the noise does not depend on how far ahead
+        # the data path had computed (i.e. on the driver's polling pattern)
+        self._noise_marks: list[tuple[int, Any]] = []
         self.set_temperature(temperature_c)
         if nvm_image is None:
             nvm_image = choice.NVM_DEFAULT_IMAGE
@@ -576,10 +580,14 @@ class BMG160:
         self._period_ns = NS_PER_S // odr
         self._filter = LowPass(odr, bandwidth)
         if old_odr != odr:
-            keep = max(self._k + 1 - self._noise_k0, 0)
-            self._noise_buf = self._noise_buf[:keep]
+            used_end = self._k + 1  # index of the first sample not yet produced
+            keep = max(used_end - self._noise_k0, 0)
             if self._noise_gen is not None:
+                if self._noise_k0 + len(self._noise_buf) > used_end:
+                    self._rewind_noise(used_end)
+                self._noise_marks = []
                 self._noise_gen.set_rate(float(odr))
+            self._noise_buf = self._noise_buf[:keep]
         if restart:
             self._filter_restart = True
 
@@ -639,13 +647,33 @@ class BMG160:
         start = k0 - self._noise_k0
         if start < 0 or start > len(self._noise_buf):
             self._noise_buf, self._noise_k0, start = np.zeros((0, 3)), k0, 0
+            self._noise_marks = []
         elif start > 0:
             self._noise_buf, self._noise_k0, start = self._noise_buf[start:], k0, 0
+            marks = self._noise_marks
+            first = 0
+            while first + 1 < len(marks) and marks[first + 1][0] <= k0:
+                first += 1
+            del marks[:first]
         missing = n - len(self._noise_buf)
         if missing > 0:
+            self._noise_marks.append(
+                (self._noise_k0 + len(self._noise_buf), self._noise_gen.checkpoint()))
             fresh = np.asarray(self._noise_gen.generate(max(missing, _NOISE_CHUNK)), dtype=float)
             self._noise_buf = np.concatenate([self._noise_buf, fresh.reshape(-1, 3)])
         return self._noise_buf[:n]
+
+    def _rewind_noise(self, used_end: int) -> None:
+        """Put the noise generator back at sample ``used_end`` (noise drawn ahead unused)."""
+        gen = self._noise_gen
+        assert gen is not None
+        marks = [m for m in self._noise_marks if m[0] <= used_end]
+        if not marks:
+            return  # no checkpoint before it: continue from where the generator stands
+        index, checkpoint = marks[-1]
+        gen.restore(checkpoint)
+        if used_end > index:
+            gen.generate(used_end - index)
 
     def _build_block(self, k0: int, n: int) -> _Block:
         body = self._true_body(k0, n)

@@ -46,6 +46,25 @@ def test_noise_does_not_depend_on_the_polling_pattern():
     assert a.read(0x3F, 600) == b.read(0x3F, 600)
 
 
+def _stream_after_odr_changes(advances):
+    chip = BMG160(seed=9)
+    for seconds in advances:  # the data path computes ahead by as much as each advance needs
+        chip.advance(seconds)
+    out = []
+    for bw in (b"\x04", b"\x00", b"\x05"):  # 200, 2000, 100 Hz
+        chip.write(0x10, bw)
+        for _ in range(50):
+            chip.advance(period_s(chip))
+            out.append(chip.read(0x02, 6))
+    return out
+
+
+def test_noise_after_an_odr_change_does_not_depend_on_the_polling_pattern():
+    one_long = _stream_after_odr_changes([0.6])
+    many_short = _stream_after_odr_changes([0.001] * 600)
+    assert one_long == many_short
+
+
 def test_noise_false_gives_a_noiseless_chip():
     chip = BMG160(seed=1, noise=False)
     assert not _series(chip, 100).any()

@@ -152,3 +152,16 @@ def test_rate_ramp_adds_r_times_t():
     # sample k at t = (k + 1) dt: 1 s after 100 samples at 100 Hz, then 1 s more at 1000 Hz
     assert first[-1, 0] == pytest.approx(1.0 + 0.5 * 1.0)
     assert second[-1, 0] == pytest.approx(1.0 + 0.5 * 2.0)
+
+
+def test_restoring_a_checkpoint_replays_the_stream_and_a_later_rate_change():
+    gen = NoiseGenerator("paper", rate_hz=200.0, seed=11)
+    gen.generate(10)
+    saved = gen.checkpoint()
+    first = gen.generate(3000)
+    gen.set_rate(400.0)
+    after = gen.generate(500)
+    gen.restore(saved)
+    np.testing.assert_array_equal(gen.generate(3000), first)
+    gen.set_rate(400.0)
+    np.testing.assert_array_equal(gen.generate(500), after)

@@ -231,6 +231,33 @@ class NoiseGenerator:
             ]
             self._fill_buffer_from(kept, self._k, pending)
 
+    def checkpoint(self) -> tuple[Any, ...]:
+        """The generator's state now, for ``restore``: a consumer that drew samples ahead (the
+        device model) can go back to the last sample it used and continue from there, e.g.
+        at another rate, exactly as if it had never drawn further (chunk invariance)."""
+        axes = tuple(
+            (
+                {name: rng.bit_generator.state for name, rng in stream.rng.items()},
+                stream.gm_prev,
+                stream.rw_prev,
+                stream.quant_prev,
+                stream.coef,
+            )
+            for stream in self._axes
+        )
+        # the buffer arrays are replaced, never written in place: references are enough
+        return (axes, self._rate_hz, self._t_ref, self._k_ref, self._k, self._buf_start,
+                self._buf_out, self._buf_normals, self._buf_parts, self._buf_state_before)
+
+    def restore(self, checkpoint: tuple[Any, ...]) -> None:
+        """Go back to the state saved by ``checkpoint`` (of this generator)."""
+        (axes, self._rate_hz, self._t_ref, self._k_ref, self._k, self._buf_start,
+         self._buf_out, self._buf_normals, self._buf_parts, self._buf_state_before) = checkpoint
+        for stream, (rng_states, gm, rw, q, coef) in zip(self._axes, axes):
+            for name, state in rng_states.items():
+                stream.rng[name].bit_generator.state = state
+            stream.gm_prev, stream.rw_prev, stream.quant_prev, stream.coef = gm, rw, q, coef
+
     # -- internals ---------------------------------------------------------------------------
 
     def _apply_rate(self, rate: float, coefs: list[AxisCoefficients] | None = None) -> None:
