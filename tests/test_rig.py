@@ -144,3 +144,16 @@ def test_a_bad_gyro_table_is_refused_by_name_before_the_run(entry, message):
     with pytest.raises(ScenarioError, match=message) as caught:
         GyroRig(scenario, seed=0)
     assert "gyro0" in str(caught.value)
+
+
+def test_scale_factor_and_misalignment_from_a_gyro_table_reach_the_registers():
+    # [[gyro]] keys as a user writes them: +2 % scale on x, and sensor x picking up 1 % of
+    # body y (a small-angle misalignment of 0.01 rad); both off on the other axes.
+    spec = gyro_spec_from_dict({"noise": False, "scale_factor_error": [0.02, 0.0, 0.0],
+                                "misalignment_rad": [[0, 0.01, 0], [0, 0, 0], [0, 0, 0]]}, 0)
+    rig = GyroRig(Scenario.constant([50.0, 100.0, 0.0], 5.0), [spec], seed=0)
+    rates = _rates(rig, 0, 1.0, range_dps=250)
+    lsb = 1 / 131.072  # deg/s per count at +-250 deg/s (spec 5.1, binary table)
+    # sensor = (I + M)(I + S) R body (docs/scenarios.md): x = 1.02 * 50 + 0.01 * 100 = 52.0
+    # (the other order would give 52.02, 2.6 LSB away); y and z untouched
+    assert np.allclose(rates[-1], [52.0, 100.0, 0.0], atol=lsb)
