@@ -409,3 +409,25 @@ def test_offset_registers_shift_the_output_and_offset_reset_clears_them(bus, chi
     after = _mean_rates(bus, chip)
     for axis in range(3):
         assert abs(after[axis] - before[axis]) < 8, (axis, before, after)
+
+
+def test_self_test_reports_ready_and_passed_within_the_10_ms_drivers_wait(bus, chip):
+    # spec 4.25 / 6.8: trig_bist starts the test and reads 0; bist_rdy comes up (the
+    # emulators take 5 ms, under the 10 ms BAPI waits) with bist_fail = 0; rate_ok stays 1
+    bus.write_byte_data(ADDRESS, BW, BW_200HZ)
+    chip.advance(0.05)
+    bus.write_byte_data(ADDRESS, BIST, 0x01)
+    assert bus.read_byte_data(ADDRESS, BIST) & 0x07 == 0x00  # running: not ready, trig reads 0
+    chip.advance(0.010)
+    status = bus.read_byte_data(ADDRESS, BIST)
+    assert status & 0x02 and not status & 0x04 and status & 0x10, hex(status)
+
+
+def test_nvm_load_brings_back_the_nvm_offsets(bus, chip):
+    # spec 4.22 / 4.24: the offsets are NVM-backed; nvm_load reloads them from the NVM image,
+    # which both backends keep at its factory content, all zero (nothing was programmed)
+    for reg, value in _offset_registers(400, -300, 1000).items():
+        bus.write_byte_data(ADDRESS, reg, value)
+    bus.write_byte_data(ADDRESS, 0x33, 0x08)
+    chip.advance(0.001)
+    assert [bus.read_byte_data(ADDRESS, r) for r in range(0x36, 0x3B)] == [0] * 5
