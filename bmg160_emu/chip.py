@@ -628,8 +628,15 @@ class BMG160:
         if kind == "callable":
             out = np.empty((n, 3))
             for i, t in enumerate(times_ns / NS_PER_S):
-                row = np.asarray(self._rate_func(float(t)), dtype=float).reshape(3)
-                out[i] = row
+                try:
+                    row = np.asarray(self._rate_func(float(t)), dtype=float)
+                except (TypeError, ValueError) as exc:
+                    raise ValueError(f"the true-rate function must return 3 numbers in deg/s: "
+                                     f"at t = {float(t):g} s {exc}") from None
+                if row.size != 3:
+                    raise ValueError(f"the true-rate function must return 3 numbers in deg/s, "
+                                     f"got {row.size} at t = {float(t):g} s")
+                out[i] = row.reshape(3)
             if not np.all(np.isfinite(out)):
                 raise ValueError("the true-rate function returned a non-finite value")
             return out

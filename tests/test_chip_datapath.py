@@ -184,3 +184,15 @@ def test_temperature_is_frozen_while_not_sampling_and_converts_again_after_wake_
     assert chip.read(0x08)[0] == round((30.0 - 23.0) / 0.5)
     chip.advance(0.05)
     assert chip.read(0x08)[0] == round((40.0 - 23.0) / 0.5)
+
+
+@pytest.mark.parametrize("func, message", [
+    (lambda t: (1.0, 2.0), "must return 3 numbers in deg/s, got 2"),
+    (lambda t: ("a", 0.0, 0.0), "must return 3 numbers in deg/s"),
+    (lambda t: (float("nan"), 0.0, 0.0), "non-finite"),
+])
+def test_a_true_rate_function_returning_the_wrong_thing_is_a_clear_error(func, message):
+    chip = quiet_chip()
+    chip.set_true_rate(func)
+    with pytest.raises(ValueError, match=message):
+        chip.advance(0.01)
