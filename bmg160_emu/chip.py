@@ -820,7 +820,11 @@ class BMG160:
                 result = hook(self, t_s, rate)
                 if result is None:
                     return  # a lost sample: no data-ready, no register update
-                rate = np.asarray(result, dtype=np.float64).reshape(3)
+                rate = np.asarray(result, dtype=np.float64)
+                if rate.size != 3:
+                    raise ValueError(f"sample hook {hook!r} must return 3 numbers in deg/s or "
+                                     f"None, got {rate.size} at t = {t_s:g} s")
+                rate = rate.reshape(3)
             counts = np.clip(np.rint(rate * self._sens_now()), -32768, 32767).astype(np.int16)
             rate_bytes = counts.astype("<i2").tobytes()
             counts_f = counts_u = counts

@@ -196,3 +196,10 @@ def test_a_true_rate_function_returning_the_wrong_thing_is_a_clear_error(func, m
     chip.set_true_rate(func)
     with pytest.raises(ValueError, match=message):
         chip.advance(0.01)
+
+
+def test_a_sample_hook_returning_the_wrong_shape_is_a_clear_error():
+    chip = quiet_chip()
+    chip.sample_hooks.append(lambda c, t, rate: rate[:2])
+    with pytest.raises(ValueError, match="must return 3 numbers in deg/s or None, got 2"):
+        chip.advance(0.01)
