@@ -19,6 +19,8 @@ NS_PER_S = 1_000_000_000
 
 def seconds_to_ns(seconds: float) -> int:
     """Seconds to whole nanoseconds (rounded), refusing negative or non-finite values."""
+    if isinstance(seconds, (str, bytes)):  # float("1") would take it: a caller's mistake
+        raise TypeError(f"time must be a number of seconds, not {seconds!r}")
     try:
         value = float(seconds)
     except (TypeError, ValueError):

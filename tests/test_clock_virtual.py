@@ -71,3 +71,12 @@ def test_driver_that_sleeps_between_reads_sees_new_samples():
             seen.append(chip.read(0x02, 2))
             time.sleep(0.01)
     assert len(set(seen)) == 5
+
+
+def test_a_string_is_not_a_time_step():
+    clock = VirtualClock()
+    with pytest.raises(TypeError, match="number of seconds"):
+        clock.advance("1")
+    with pytest.raises(TypeError, match="number of seconds"):
+        BMG160(seed=1, noise=False).advance("0.5")
+    assert clock.now() == 0.0
