@@ -260,7 +260,11 @@ class BMG160:
             self._invalidate()
             self._rate_kind, self._rate_func = "callable", rate
             return
-        arr = np.asarray(rate, dtype=float)
+        try:
+            arr = np.asarray(rate, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError("true rate must be 3 numbers in deg/s, a callable of t or (n, 3) "
+                             f"samples, not {rate!r}") from None
         if arr.shape == (3,):
             if not np.all(np.isfinite(arr)):
                 raise ValueError("true rate must be finite")

@@ -203,3 +203,9 @@ def test_a_sample_hook_returning_the_wrong_shape_is_a_clear_error():
     chip.sample_hooks.append(lambda c, t, rate: rate[:2])
     with pytest.raises(ValueError, match="must return 3 numbers in deg/s or None, got 2"):
         chip.advance(0.01)
+
+
+@pytest.mark.parametrize("bad", ["abc", [1, "x", 2], {"x": 1}])
+def test_a_true_rate_that_is_not_numbers_says_what_is_expected(bad):
+    with pytest.raises(ValueError, match="true rate must be 3 numbers in deg/s"):
+        quiet_chip().set_true_rate(bad)
