@@ -147,3 +147,18 @@ def test_errors_quote_plain_numbers_not_numpy_reprs(tmp_path, samples):
     samples[:, 2] = 0.5
     with pytest.raises(IdentificationError, match=r"\(0\.5 throughout\)"):
         identify(samples, 200.0)
+
+
+def test_a_gap_in_the_time_column_is_refused_but_jitter_is_not(tmp_path, samples):
+    n = samples.shape[0]
+    jitter = np.random.default_rng(1).uniform(-0.001, 0.001, n)  # +-20 % of a 5 ms period
+    jittered = tmp_path / "jitter.csv"
+    write_csv(jittered, np.column_stack([np.arange(n) / 200.0 + jitter, samples]),
+              ["time", "x", "y", "z"])
+    assert load_rate_record(jittered).rate_hz == pytest.approx(200.0, rel=1e-3)
+    t = np.arange(n) / 200.0
+    t[100:] += 0.5  # 100 samples missing after sample 99
+    gapped = tmp_path / "gap.csv"
+    write_csv(gapped, np.column_stack([t, samples]), ["time", "x", "y", "z"])
+    with pytest.raises(RecordError, match="gap of 0.505 s after sample 99"):
+        load_rate_record(gapped)

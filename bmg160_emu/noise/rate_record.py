@@ -68,6 +68,10 @@ def load_rate_record(
     return RateRecord(data, rate, tuple(_axis_label(n) for n in names), str(path))
 
 
+# A step this many times the median step is a gap (samples missing), not timestamp jitter.
+GAP_FACTOR = 2.5
+
+
 def _axis_label(name: str) -> str:
     return name.removesuffix("_dps")
 
@@ -93,6 +97,15 @@ def _resolve_rate(path: Path, t: np.ndarray | None, rate_hz: float | None, n: in
         if rate_hz is None:
             raise RecordError(f"{path}: too few samples to read the rate from the time column")
         return float(rate_hz)
+    typical = float(np.median(steps))
+    wide = np.flatnonzero(steps > GAP_FACTOR * typical)
+    if wide.size:
+        i = int(wide[0])
+        raise RecordError(
+            f"{path}: the time column has a gap of {float(steps[i]):g} s after sample {i} "
+            f"({float(steps[i]) / typical:.1f} sample periods of {typical:g} s): Allan deviation "
+            "and PSD need evenly spaced samples; split the record at the gap"
+        )
     from_time = (n - 1) / float(t[-1] - t[0])
     if rate_hz is not None:
         if abs(from_time / rate_hz - 1.0) > 0.01:
