@@ -181,6 +181,7 @@ class BMG160:
         self._rate_kind = "constant"
         self._rate_const = np.zeros(3)
         self._rate_func: Callable[[float], Any] = lambda t: (0.0, 0.0, 0.0)
+        self._rate_func_failed = False
         self._rate_samples = np.zeros((1, 3))
         self._rate_samples_t0 = 0
         self._rate_samples_hz: float | None = None
@@ -252,7 +253,13 @@ class BMG160:
         ``(n, 3)`` array of samples. Samples are taken one per output sample from the next
         one on (or at ``sample_rate_hz``, held between rows); the last row then holds."""
         with self.lock:
-            self._catch_up(self.clock.now_ns())
+            try:
+                self._catch_up(self.clock.now_ns())
+            except Exception:
+                if not (self._rate_kind == "callable" and self._rate_func_failed):
+                    raise
+                # the failing function is being replaced: the samples it could not produce
+                # come from the new true rate
             self._apply_true_rate(rate, sample_rate_hz)
 
     def _apply_true_rate(self, rate: Any, sample_rate_hz: float | None) -> None:
@@ -631,9 +638,11 @@ class BMG160:
         times_ns = self._anchor_ns + (np.arange(k0, k0 + n) - self._anchor_k) * self._period_ns
         if kind == "callable":
             out = np.empty((n, 3))
+            self._rate_func_failed = True  # until it has served the block (set_true_rate)
             for i, t in enumerate(times_ns / NS_PER_S):
+                value = self._rate_func(float(t))
                 try:
-                    row = np.asarray(self._rate_func(float(t)), dtype=float)
+                    row = np.asarray(value, dtype=float)
                 except (TypeError, ValueError) as exc:
                     raise ValueError(f"the true-rate function must return 3 numbers in deg/s: "
                                      f"at t = {float(t):g} s {exc}") from None
@@ -643,6 +652,7 @@ class BMG160:
                 out[i] = row.reshape(3)
             if not np.all(np.isfinite(out)):
                 raise ValueError("the true-rate function returned a non-finite value")
+            self._rate_func_failed = False
             return out
         samples = self._rate_samples
         if self._rate_samples_hz is None:

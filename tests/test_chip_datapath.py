@@ -209,3 +209,14 @@ def test_a_sample_hook_returning_the_wrong_shape_is_a_clear_error():
 def test_a_true_rate_that_is_not_numbers_says_what_is_expected(bad):
     with pytest.raises(ValueError, match="true rate must be 3 numbers in deg/s"):
         quiet_chip().set_true_rate(bad)
+
+
+def test_a_failing_true_rate_function_can_be_replaced():
+    chip = quiet_chip()
+    chip.set_true_rate(lambda t: 1 / 0)
+    with pytest.raises(ZeroDivisionError):
+        chip.advance(0.01)
+    chip.set_true_rate((10.0, 0.0, 0.0))  # the samples the function could not produce use this
+    assert rates(chip)[0] == round(10.0 * chip.sensitivity)
+    chip.advance(0.01)
+    assert rates(chip)[0] == round(10.0 * chip.sensitivity)
