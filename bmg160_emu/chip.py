@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import logging
 import math
-import operator
 import threading
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -31,6 +30,7 @@ from bmg160_emu import spec_choices as choice
 from bmg160_emu.clock import NS_PER_S, RealTimeClock, VirtualClock, seconds_to_ns
 from bmg160_emu.interrupts import AnyMotion, HighRate, InterruptStatus, latch_hold_ns
 from bmg160_emu.lowpass import LowPass
+from bmg160_emu.primitive_args import check_count, check_data, check_register
 from bmg160_emu.registers import (
     FIRST_OUTSIDE_MAP,
     NVM_ADDRESSES,
@@ -490,38 +490,9 @@ class BMG160:
 
     # ------------------------------------------------------------------ argument checks
 
-    @staticmethod
-    def _check_reg(reg: Any) -> int:
-        if isinstance(reg, bool):
-            raise TypeError("register must be an int, not bool")
-        try:
-            reg = operator.index(reg)
-        except TypeError:
-            raise TypeError(f"register must be an int, not {type(reg).__name__}") from None
-        if not 0 <= reg <= 0xFF:
-            raise ValueError(f"register 0x{reg:X} out of range 0x00..0xFF")
-        return reg
-
-    @staticmethod
-    def _check_count(n: Any) -> int:
-        if isinstance(n, bool):
-            raise TypeError("byte count must be an int, not bool")
-        try:
-            n = operator.index(n)
-        except TypeError:
-            raise TypeError(f"byte count must be an int, not {type(n).__name__}") from None
-        if n < 0:
-            raise ValueError("byte count must be >= 0")
-        return n
-
-    @staticmethod
-    def _check_data(data: Any) -> bytes:
-        if isinstance(data, (int, str)):
-            raise TypeError("data must be bytes or a sequence of ints 0..255")
-        try:
-            return bytes(data)
-        except ValueError:
-            raise ValueError("data bytes must be in 0..255") from None
+    _check_reg = staticmethod(check_register)
+    _check_count = staticmethod(check_count)
+    _check_data = staticmethod(check_data)
 
     def _strict(self, message: str) -> None:
         if self.strict:

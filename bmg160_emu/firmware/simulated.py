@@ -28,6 +28,7 @@ from bmg160_emu.firmware.build import (
     build_simulator,
     elf_symbols,
 )
+from bmg160_emu.primitive_args import check_count, check_data, check_register
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -159,14 +160,14 @@ class SimulatedFirmwareChip:
 
     def write(self, reg: int, data: bytes | Sequence[int]) -> None:
         """One I2C write transaction: register address, then ``data`` (auto-increment)."""
-        reg = _check_reg(reg)
-        payload = _check_data(data)
+        reg = check_register(reg)
+        payload = check_data(data)
         with self.lock:
             self._transaction(f"w {self.address:x} {bytes([reg]).hex()}{payload.hex()}", "write")
 
     def read(self, reg: int, n: int = 1) -> bytes:
         """One combined transaction: register address, repeated START, ``n`` bytes."""
-        reg = _check_reg(reg)
+        reg = check_register(reg)
         n = _check_count(n)
         with self.lock:
             if n == 0:
@@ -176,7 +177,7 @@ class SimulatedFirmwareChip:
 
     def i2c_write(self, data: bytes | Sequence[int]) -> None:
         """I2C write: ``data[0]`` sets the register pointer, the rest is written from it."""
-        payload = _check_data(data)
+        payload = check_data(data)
         if not payload:
             return
         with self.lock:
@@ -212,7 +213,7 @@ class SimulatedFirmwareChip:
 
     def peek(self, reg: int) -> int:
         """Register content without side effects, from the firmware's RAM."""
-        reg = _check_reg(reg)
+        reg = check_register(reg)
         with self.lock:
             return self._peek_all()[reg] if reg < _OUTSIDE_MAP else 0
 
@@ -279,28 +280,8 @@ def _address_from_header(header: Path) -> int:
     raise FirmwareToolError(f"{header} has no BMG_I2C_ADDRESS")
 
 
-def _check_reg(reg: object) -> int:
-    if isinstance(reg, bool) or not isinstance(reg, int):
-        raise TypeError(f"register must be an int, not {type(reg).__name__}")
-    if not 0 <= reg <= 0xFF:
-        raise ValueError(f"register 0x{reg:X} out of range 0x00..0xFF")
-    return reg
-
-
 def _check_count(n: object) -> int:
-    if isinstance(n, bool) or not isinstance(n, int):
-        raise TypeError(f"byte count must be an int, not {type(n).__name__}")
-    if n < 0:
-        raise ValueError("byte count must be >= 0")
+    n = check_count(n)
     if n > 4096:
         raise ValueError("byte count must be <= 4096 for the simulated bus")
     return n
-
-
-def _check_data(data: bytes | Sequence[int]) -> bytes:
-    if isinstance(data, (int, str)):
-        raise TypeError("data must be bytes or a sequence of ints 0..255")
-    try:
-        return bytes(data)
-    except ValueError:
-        raise ValueError("data bytes must be in 0..255") from None
