@@ -1,4 +1,4 @@
-"""Argument types and options shared by the bus-serving sub-commands (run, stub, demo)."""
+"""Argument types, options and checks shared by the sub-commands."""
 
 from __future__ import annotations
 
@@ -52,3 +52,18 @@ def add_command_parser(
 def add_file_option(parser: argparse.ArgumentParser, flag: str, metavar: str, help_text: str) -> None:
     """An optional ``flag FILE`` giving a path (None when absent)."""
     parser.add_argument(flag, type=Path, default=None, metavar=metavar, help=help_text)
+
+
+def check_writable(path: Path) -> None:
+    """Refuse an output path that cannot be written before any work is done (a long
+    recording would otherwise be lost at the end)."""
+    from bmg160_emu.cli import CommandError
+
+    existed = path.exists()
+    try:
+        with open(path, "ab"):
+            pass
+    except OSError as exc:
+        raise CommandError(f"cannot write {path}: {exc.strerror}") from None
+    if not existed:
+        path.unlink()

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+from bmg160_emu.commands._common import check_writable
 
 EPILOG = """\
 examples:
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.output.suffix.lower() not in (".csv", ".npz"):
         raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
-    _check_writable(args.output)
+    check_writable(args.output)
     if args.rate is not None and args.bandwidth is not None:
         raise CommandError("give --rate or --bandwidth, not both")
     if args.truth is not None and args.true_rate is not None:
@@ -111,18 +112,3 @@ def run(args: argparse.Namespace) -> int:
         f"+-{rec.metadata['range_dps']} deg/s, {rec.lsb_per_dps:g} LSB/(deg/s)) to {args.output}"
     )
     return 0
-
-
-def _check_writable(path: Path) -> None:
-    """Refuse an output path that cannot be written before any work is done (a long
-    recording would otherwise be lost at the end)."""
-    from bmg160_emu.cli import CommandError
-
-    existed = path.exists()
-    try:
-        with open(path, "ab"):
-            pass
-    except OSError as exc:
-        raise CommandError(f"cannot write {path}: {exc.strerror}") from None
-    if not existed:
-        path.unlink()

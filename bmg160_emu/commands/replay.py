@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
+from bmg160_emu.commands._common import check_writable
 
 EPILOG = """\
 examples:
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.output is not None and args.output.suffix.lower() not in (".csv", ".npz"):
         raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
     if args.output is not None:
-        _check_writable(args.output)
+        check_writable(args.output)
     if not args.max_gap_factor > 1:
         raise CommandError("--max-gap-factor must be greater than 1")
     lsb = None
@@ -102,18 +103,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"FAILED {exc}", file=sys.stderr)
         return 1
     return 0
-
-
-def _check_writable(path: Path) -> None:
-    """Refuse an output path that cannot be written before any work is done (a long
-    recording would otherwise be lost at the end)."""
-    from bmg160_emu.cli import CommandError
-
-    existed = path.exists()
-    try:
-        with open(path, "ab"):
-            pass
-    except OSError as exc:
-        raise CommandError(f"cannot write {path}: {exc.strerror}") from None
-    if not existed:
-        path.unlink()
