@@ -12,6 +12,9 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
+# Log entries that record an event of the session rather than bus traffic.
+ANNOTATION_KINDS = frozenset({"true_rate"})  # trace.TRUE_RATE_KIND; faults are "fault:<kind>"
+
 Sink = Callable[["Transaction"], None]
 
 
@@ -73,6 +76,11 @@ class Transaction:
         where = f"{self.bus}" + (f" 0x{self.address:02x}" if self.address is not None else "")
         reg = f" reg 0x{self.register:02x}" if self.register is not None else ""
         text = f"{self.time:12.6f}s  {where:<9} {self.kind}{reg}"
+        if self.kind in ANNOTATION_KINDS or self.kind.startswith("fault:"):
+            # not bus traffic: an event the session noted (a fault, a true-rate change) whose
+            # written bytes are a description line (and machine-readable lines after it)
+            lines = self.written.decode("utf-8", "replace").splitlines()
+            return f"{text}: {lines[0]}" if lines else text
         if self.written:
             text += f" <- {self.written.hex(' ')}"
         if self.read:

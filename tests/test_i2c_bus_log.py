@@ -94,3 +94,13 @@ def test_a_trace_writer_sink_gets_every_transaction_as_a_json_line(tmp_path):
     _, records = read_trace(path)
     again = [Transaction.from_dict(r) for r in records]
     assert again == list(bus.log)
+
+
+def test_printed_log_shows_session_events_by_their_description():
+    from bmg160_emu.transactions import Transaction
+
+    fault = Transaction(0.5, 1, 0x68, "fault:stuck_axis", written=b"stuck axis x\n{\"axis\": 0}")
+    assert str(fault).endswith("fault:stuck_axis: stuck axis x")
+    assert str(Transaction(0.5, 1, 0x68, "fault:brownout")).endswith("fault:brownout")
+    read = Transaction(0.5, 1, 0x68, "read_byte_data", register=2, read=b"\x01")
+    assert str(read).endswith("read_byte_data reg 0x02 -> 01")
