@@ -471,6 +471,7 @@ class ScriptRunner:
         """Put a ``true_rate`` entry in the log the accesses go to, so a trace replays it."""
         from bmg160_emu.trace import true_rate_entry
 
+        bus: int | str
         if isinstance(self.port, SpiRegisterPort):
             log, bus = self.port.log, self.port.bus_name
         else:

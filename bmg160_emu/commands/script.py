@@ -85,7 +85,8 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("--spi drives one chip (one chip select): give --address once")
     chips = chips_from_args(args)
     chip = next(iter(chips.values()))
-    bus, port, log_ = I2CBus(1, chips), None, None
+    i2c_bus = I2CBus(1, chips)
+    bus: I2CBus | None = i2c_bus
     if args.spi:
         from bmg160_emu.register_script import SpiRegisterPort
         from bmg160_emu.spi import FakeSpiDev
@@ -93,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         spi = FakeSpiDev(chip)
         bus, port, log_ = None, SpiRegisterPort(spi), spi.log
     else:
-        log_ = bus.log
+        port, log_ = None, i2c_bus.log
     writer = None
     if args.trace is not None:
         try:
