@@ -1,9 +1,10 @@
-"""Argument types, options and checks shared by the sub-commands."""
+"""Argument types, options, checks and the script-file runner shared by the sub-commands."""
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -67,3 +68,30 @@ def check_writable(path: Path) -> None:
         raise CommandError(f"cannot write {path}: {exc.strerror}") from None
     if not existed:
         path.unlink()
+
+
+def run_script_file(
+    path: Path, chips: Mapping[int, Any], log: Callable[[str], None], failed_prefix: str
+) -> int:
+    """Run a register script file on an I2C bus over ``chips`` (the first is the default chip).
+
+    A script that cannot be read or parsed is a :class:`CommandError`; a failed expectation is
+    printed to stderr after ``failed_prefix`` and gives exit status 1, else 0.
+    """
+    from bmg160_emu.cli import CommandError
+    from bmg160_emu.i2c_bus import I2CBus
+    from bmg160_emu.register_script import ScriptFailure, ScriptSyntaxError, run_script
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise CommandError(f"cannot read {path}: {exc.strerror}") from None
+    chip = next(iter(chips.values()))
+    try:
+        run_script(text, chip, log, str(path), bus=I2CBus(1, chips))
+    except ScriptSyntaxError as exc:
+        raise CommandError(str(exc)) from None
+    except ScriptFailure as exc:
+        print(f"{failed_prefix}{exc}", file=sys.stderr)
+        return 1
+    return 0

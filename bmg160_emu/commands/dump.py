@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+from bmg160_emu.commands._common import run_script_file
 
 
 def _address(text: str) -> int:
@@ -59,31 +60,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
     from bmg160_emu.register_dump import RegisterDump, format_dumps
-    from bmg160_emu.register_script import ScriptFailure, ScriptSyntaxError, run_script
 
     chips = chips_from_args(args)
-    chip = next(iter(chips.values()))
     if args.chip is not None and args.chip not in chips:
         emulated = ", ".join(f"0x{a:02x}" for a in chips)
         raise CommandError(f"--chip 0x{args.chip:02x} is not an emulated chip ({emulated}); "
                            "add it with --address")
     if args.after is not None:
-        from bmg160_emu.i2c_bus import I2CBus
-
-        try:
-            text = args.after.read_text(encoding="utf-8")
-        except OSError as exc:
-            raise CommandError(f"cannot read {args.after}: {exc.strerror}") from None
 
         def log(line: str) -> None:
             print(line, file=sys.stderr)
 
-        try:
-            run_script(text, chip, log, str(args.after), bus=I2CBus(1, chips))
-        except ScriptSyntaxError as exc:
-            raise CommandError(str(exc)) from None
-        except ScriptFailure as exc:
-            print(f"script failed: {exc}", file=sys.stderr)
+        if run_script_file(args.after, chips, log, "script failed: "):
             return 1
     dumps = []
     for address, each in chips.items():

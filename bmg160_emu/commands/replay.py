@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
-from bmg160_emu.commands._common import check_writable
+from bmg160_emu.commands._common import check_writable, run_script_file
 
 EPILOG = """\
 examples:
@@ -88,18 +87,4 @@ def run(args: argparse.Namespace) -> int:
         print(f"replayed {len(data.t_s)} samples of {args.data}; recorded {len(rec)} at "
               f"{rec.odr_hz:g} Hz to {args.output}")
         return 0
-    from bmg160_emu.i2c_bus import I2CBus
-    from bmg160_emu.register_script import ScriptFailure, ScriptSyntaxError, run_script
-
-    try:
-        text = args.script.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise CommandError(f"cannot read {args.script}: {exc.strerror}") from None
-    try:
-        run_script(text, chip, print, str(args.script), bus=I2CBus(1, chips))
-    except ScriptSyntaxError as exc:
-        raise CommandError(str(exc)) from None
-    except ScriptFailure as exc:
-        print(f"FAILED {exc}", file=sys.stderr)
-        return 1
-    return 0
+    return run_script_file(args.script, chips, print, "FAILED ")
