@@ -22,7 +22,7 @@ from bmg160_emu.register_dump import (
     register_label,
     register_name,
 )
-from bmg160_emu.transactions import Transaction, errno_name
+from bmg160_emu.transactions import Transaction, bytes_from_json, errno_name
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
@@ -146,14 +146,6 @@ def _get(record: dict, *names: str, default: Any = None) -> Any:
     return default
 
 
-def _as_bytes(value: Any) -> bytes:
-    if value is None:
-        return b""
-    if isinstance(value, str):
-        return bytes.fromhex(value.replace("0x", "").replace(",", " "))
-    return bytes(value)
-
-
 def describe_transaction(record: dict) -> str:
     """One line for a person from a transaction dictionary (``Transaction.to_dict()``)."""
     time_s = _get(record, "time", "time_s", default=float("nan"))
@@ -164,8 +156,8 @@ def describe_transaction(record: dict) -> str:
     kind = str(_get(record, "kind", default="?"))
     register = _get(record, "register")
     error = _get(record, "error")
-    written = _as_bytes(_get(record, "written", "data_out", "write"))
-    read = _as_bytes(_get(record, "read", "data_in", "result"))
+    written = bytes_from_json(_get(record, "written", "data_out", "write"))
+    read = bytes_from_json(_get(record, "read", "data_in", "result"))
     if kind.startswith(FAULT_KIND_PREFIX):  # an injected fault's onset, not bus traffic
         from bmg160_emu.adcs.faults import parse_fault_entry
 
@@ -618,7 +610,7 @@ class _FaultReplayer:
 def _fault_entry(record: dict) -> tuple[str, dict | None]:
     from bmg160_emu.adcs.faults import parse_fault_entry
 
-    return parse_fault_entry(_as_bytes(_get(record, "written", "data_out", "write")))
+    return parse_fault_entry(bytes_from_json(_get(record, "written", "data_out", "write")))
 
 
 def _chip_fault_from_text(kind: str, detail: str) -> dict | None:
@@ -689,7 +681,7 @@ def _set_true_rate(replayer: _Replayer, record: dict, line: int) -> None:
         raise TraceFormatError(f"line {line}: true_rate entry for a chip at {address!r} that "
                                "the header does not describe")
     try:
-        rate = parse_true_rate_entry(_as_bytes(_get(record, "written", "data_out", "write")))
+        rate = parse_true_rate_entry(bytes_from_json(_get(record, "written", "data_out", "write")))
     except TraceFormatError as exc:
         raise TraceFormatError(f"line {line}: {exc}") from None
     time_s = float(record.get("time", record.get("time_s", 0.0)))

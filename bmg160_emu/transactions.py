@@ -23,7 +23,8 @@ def errno_name(code: int) -> str:
     return _errno.errorcode.get(code, str(code))
 
 
-def _as_bytes(value: Any) -> bytes:
+def bytes_from_json(value: Any) -> bytes:
+    """Bytes as a trace stores them: a list of ints, or hex text ("02 03", "0x02,0x03"); None is b""."""
     if value is None:
         return b""
     if isinstance(value, str):
@@ -112,8 +113,8 @@ class Transaction:
                 address=record.get("address"),
                 kind=str(record["kind"]),
                 register=record.get("register"),
-                written=_as_bytes(record.get("written")),
-                read=_as_bytes(record.get("read")),
+                written=bytes_from_json(record.get("written")),
+                read=bytes_from_json(record.get("read")),
                 error=record.get("error"),
             )
         except KeyError as exc:
