@@ -13,17 +13,17 @@ __version__ = "0.1.0"
 
 # public name -> module that defines it
 _EXPORTS = {
-    "BMG160": "bmg160_emu.chip",
+    "BMG160": "bmg160_emu.device.chip",
     "VirtualClock": "bmg160_emu.clock",
     "RealTimeClock": "bmg160_emu.clock",
     "virtual_sleep": "bmg160_emu.clock",
-    "I2CBus": "bmg160_emu.i2c_bus",
-    "FakeSMBus": "bmg160_emu.smbus",
-    "patch_smbus": "bmg160_emu.patching",
-    "patch_spidev": "bmg160_emu.patching",
-    "FakeSpiDev": "bmg160_emu.spi",
-    "Transaction": "bmg160_emu.transactions",
-    "TransactionLog": "bmg160_emu.transactions",
+    "I2CBus": "bmg160_emu.bus.i2c",
+    "FakeSMBus": "bmg160_emu.bus.smbus",
+    "patch_smbus": "bmg160_emu.bus.patching",
+    "patch_spidev": "bmg160_emu.bus.patching",
+    "FakeSpiDev": "bmg160_emu.bus.spi",
+    "Transaction": "bmg160_emu.bus.transactions",
+    "TransactionLog": "bmg160_emu.bus.transactions",
     "NoiseGenerator": "bmg160_emu.noise",
     "load_profile": "bmg160_emu.noise",
 }

@@ -48,7 +48,7 @@ def _options(request: pytest.FixtureRequest) -> dict[str, Any]:
 @pytest.fixture
 def bmg160_chip(request: pytest.FixtureRequest) -> Any:
     """A fresh BMG160 (seed 7 unless the ``bmg160`` marker says otherwise)."""
-    from bmg160_emu.chip import BMG160
+    from bmg160_emu.device.chip import BMG160
 
     options = _options(request)
     options.pop("bus", None)
@@ -58,7 +58,7 @@ def bmg160_chip(request: pytest.FixtureRequest) -> Any:
 @pytest.fixture
 def bmg160_smbus(request: pytest.FixtureRequest, bmg160_chip: Any) -> Iterator[Any]:
     """``patch_smbus`` with the chip on the I2C bus (1 by default); yields the ``I2CBus``."""
-    from bmg160_emu.patching import patch_smbus
+    from bmg160_emu.bus.patching import patch_smbus
 
     number = _options(request).get("bus", DEFAULT_BUS)
     with patch_smbus({number: {bmg160_chip.address: bmg160_chip}}) as buses:
@@ -68,7 +68,7 @@ def bmg160_smbus(request: pytest.FixtureRequest, bmg160_chip: Any) -> Iterator[A
 @pytest.fixture
 def fake_smbus(bmg160_smbus: Any) -> Iterator[Any]:
     """A ``FakeSMBus`` open on the patched bus."""
-    from bmg160_emu.smbus import FakeSMBus
+    from bmg160_emu.bus.smbus import FakeSMBus
 
     with FakeSMBus(bmg160_smbus.number) as bus:
         yield bus
@@ -77,7 +77,7 @@ def fake_smbus(bmg160_smbus: Any) -> Iterator[Any]:
 @pytest.fixture
 def bmg160_spidev(bmg160_chip: Any) -> Iterator[Any]:
     """``patch_spidev`` with the chip at /dev/spidev0.0; yields the chip."""
-    from bmg160_emu.patching import patch_spidev
+    from bmg160_emu.bus.patching import patch_spidev
 
     with patch_spidev({(0, 0): bmg160_chip}):
         yield bmg160_chip
@@ -86,7 +86,7 @@ def bmg160_spidev(bmg160_chip: Any) -> Iterator[Any]:
 @pytest.fixture
 def fake_spidev(bmg160_chip: Any) -> Iterator[Any]:
     """A ``FakeSpiDev`` open on the chip."""
-    from bmg160_emu.spi import FakeSpiDev
+    from bmg160_emu.bus.spi import FakeSpiDev
 
     with FakeSpiDev(bmg160_chip) as spi:
         yield spi

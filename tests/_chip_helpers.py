@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import struct
 
-from bmg160_emu.chip import BMG160
+from bmg160_emu.device.chip import BMG160
 
 
 def rates(chip: BMG160) -> tuple[int, int, int]:

@@ -15,10 +15,10 @@ import smbus2
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bmg160_emu.chip import BMG160
-from bmg160_emu.patching import patch_smbus
-from bmg160_emu.registers import REGISTERS, RESET_VALUES
-from bmg160_emu.smbus import FakeSMBus
+from bmg160_emu.bus.patching import patch_smbus
+from bmg160_emu.bus.smbus import FakeSMBus
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.registers import REGISTERS, RESET_VALUES
 
 FIFO_STATUS, BGW_SOFTRESET = 0x0E, 0x14  # spec 3
 FIFO_CAPACITY = 100  # frames (spec 6.5)

@@ -4,8 +4,8 @@
 import pytest
 from _chip_helpers import period_s, quiet_chip, rates
 
-from bmg160_emu import spec_choices
-from bmg160_emu.chip import BMG160
+from bmg160_emu.device import spec_choices
+from bmg160_emu.device.chip import BMG160
 
 RATES_DPS = (0.0, 1.0, -1.0, 0.03, 12.345, -57.2, 123.4, -124.9, 249.0, 333.3, -499.9, 999.0,
              -1500.0, 1999.9, -2000.0, 2100.0, -5000.0)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from _chip_helpers import period_s, quiet_chip, rates
 
-from bmg160_emu.chip import BMG160
+from bmg160_emu.device.chip import BMG160
 
 
 def _step_response(code, n=400):

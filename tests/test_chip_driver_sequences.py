@@ -3,8 +3,8 @@
 import struct
 import time
 
-from bmg160_emu.chip import BMG160
 from bmg160_emu.clock import virtual_sleep
+from bmg160_emu.device.chip import BMG160
 
 
 def test_linux_style_init_sequence_then_burst_reads():

@@ -3,8 +3,8 @@
 import numpy as np
 from _chip_helpers import period_s, rates
 
-from bmg160_emu.chip import BMG160
 from bmg160_emu.clock import VirtualClock
+from bmg160_emu.device.chip import BMG160
 
 
 def _series(chip, n, step=1):

@@ -3,7 +3,7 @@
 import pytest
 from _chip_helpers import period_s, quiet_chip, rates
 
-from bmg160_emu.chip import BMG160
+from bmg160_emu.device.chip import BMG160
 
 
 def _sample_count(chip):

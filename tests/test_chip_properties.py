@@ -3,8 +3,8 @@
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bmg160_emu.chip import BMG160
-from bmg160_emu.registers import REGISTERS
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.registers import REGISTERS
 
 REG = st.integers(0, 0xFF)
 MAP_REG = st.integers(0, 0x3F)

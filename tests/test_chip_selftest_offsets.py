@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from _chip_helpers import period_s, quiet_chip, rates
 
-from bmg160_emu.chip import BMG160
+from bmg160_emu.device.chip import BMG160
 
 
 def test_self_test_reports_ready_and_pass_after_its_test_time():

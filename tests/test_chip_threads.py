@@ -3,7 +3,7 @@
 import sys
 import threading
 
-from bmg160_emu.chip import BMG160
+from bmg160_emu.device.chip import BMG160
 
 
 def test_reader_and_configuration_threads_never_see_a_torn_sample():

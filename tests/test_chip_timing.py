@@ -5,8 +5,8 @@ import time
 import pytest
 from _chip_helpers import quiet_chip
 
-from bmg160_emu.chip import BMG160
 from bmg160_emu.clock import RealTimeClock, VirtualClock
+from bmg160_emu.device.chip import BMG160
 
 
 @pytest.mark.parametrize("code, odr", [(0, 2000), (2, 1000), (3, 400), (4, 200), (5, 100)])

@@ -4,8 +4,8 @@ import time
 
 import pytest
 
-from bmg160_emu.chip import BMG160
 from bmg160_emu.clock import RealTimeClock, VirtualClock, virtual_sleep
+from bmg160_emu.device.chip import BMG160
 
 
 def test_virtual_clock_moves_only_when_advanced():

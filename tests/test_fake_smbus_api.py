@@ -9,8 +9,8 @@ import pytest
 import smbus2
 from _standin_chip import RegisterFileChip
 
-from bmg160_emu.patching import patch_smbus
-from bmg160_emu.smbus import FakeSMBus
+from bmg160_emu.bus.patching import patch_smbus
+from bmg160_emu.bus.smbus import FakeSMBus
 
 PUBLIC = sorted(
     name

@@ -167,7 +167,7 @@ def test_scale_factor_error_scales_the_measured_rate():
 
 def test_inject_puts_one_fault_into_a_lone_chip_from_script_style_arguments():
     from bmg160_emu.adcs.faults import FaultError, inject
-    from bmg160_emu.chip import BMG160
+    from bmg160_emu.device.chip import BMG160
 
     chip = BMG160(seed=1, noise=False, true_rate=(0.0, 5.0, 0.0))
     chip.write(0x0F, b"\x03")  # +-250 deg/s

@@ -2,7 +2,7 @@
 
 Every test here runs twice through FakeSMBus: once with ``BMG160`` and once with the
 ATmega328P firmware in simavr (``SimulatedFirmwareChip``). Expectations come from the register
-table (``bmg160_emu.registers``) and the spec, never from one backend's output, so the two
+table (``bmg160_emu.device.registers``) and the spec, never from one backend's output, so the two
 backends must agree on every behaviour listed in docs/firmware.md.
 """
 
@@ -14,9 +14,9 @@ import struct
 import pytest
 from _firmware_backends import require_firmware_build
 
-from bmg160_emu.chip import BMG160
-from bmg160_emu.registers import RESET_VALUES, WRITE_MASKS
-from bmg160_emu.smbus import FakeSMBus
+from bmg160_emu.bus.smbus import FakeSMBus
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.registers import RESET_VALUES, WRITE_MASKS
 
 pytestmark = pytest.mark.firmware
 

@@ -8,12 +8,12 @@ import pytest
 from _firmware_backends import firmware_skip_reason, require_firmware_build
 
 from bmg160_emu import cli
+from bmg160_emu.device.registers import RESET_VALUES, WRITE_MASKS
 from bmg160_emu.firmware import build as build_mod
 from bmg160_emu.firmware.params_header import BW_ODR_HZ, render_params_header
 from bmg160_emu.firmware.register_table import FIRMWARE_REGISTERS
 from bmg160_emu.noise.discretization import axis_coefficients
 from bmg160_emu.noise.profile import load_profile
-from bmg160_emu.registers import RESET_VALUES, WRITE_MASKS
 
 pytestmark = pytest.mark.firmware
 

@@ -9,8 +9,8 @@ import pytest
 import smbus2
 from _firmware_backends import require_firmware_build
 
+from bmg160_emu.bus.patching import patch_smbus
 from bmg160_emu.firmware.simulated import SimulatedFirmwareChip
-from bmg160_emu.patching import patch_smbus
 
 pytestmark = pytest.mark.firmware
 

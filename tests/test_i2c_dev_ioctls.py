@@ -1,4 +1,4 @@
-"""The i2c-dev emulation (bmg160_emu.i2c_dev) answers ioctls as drivers/i2c/i2c-dev.c does.
+"""The i2c-dev emulation (bmg160_emu.bus.i2c_dev) answers ioctls as drivers/i2c/i2c-dev.c does.
 
 Requests are built with the kernel's own structures (ctypes, as a C program lays them out)
 and issued through ``fcntl.ioctl`` as smbus2 calls it under ``patch_smbus``: the marshalling
@@ -16,8 +16,8 @@ import smbus2
 import smbus2.smbus2 as smbus2_impl
 from _standin_chip import RegisterFileChip
 
-from bmg160_emu.i2c_bus import I2CBus
-from bmg160_emu.linux.i2c_dev_structs import (
+from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.bus.kernel_abi import (
     I2C_FUNCS,
     I2C_M_RD,
     I2C_M_RECV_LEN,
@@ -43,7 +43,7 @@ from bmg160_emu.linux.i2c_dev_structs import (
     i2c_smbus_data,
     i2c_smbus_ioctl_data,
 )
-from bmg160_emu.patching import patch_smbus
+from bmg160_emu.bus.patching import patch_smbus
 
 
 @pytest.fixture
@@ -224,7 +224,7 @@ def test_immutable_buffer_argument_returns_the_result_as_bytes(node):
 
 
 def test_read_and_write_are_plain_i2c_capped_at_8192_bytes():
-    from bmg160_emu.i2c_dev import I2CDevFile
+    from bmg160_emu.bus.i2c_dev import I2CDevFile
 
     chip = RegisterFileChip()
     file = I2CDevFile(I2CBus(1, {0x68: chip}))
@@ -235,9 +235,9 @@ def test_read_and_write_are_plain_i2c_capped_at_8192_bytes():
 
 
 def test_adapter_without_plain_i2c_refuses_read_write_and_rdwr():
-    from bmg160_emu.i2c_bus import DEFAULT_FUNCS
-    from bmg160_emu.i2c_dev import I2CDevFile
-    from bmg160_emu.linux.i2c_dev_structs import I2C_FUNC_I2C
+    from bmg160_emu.bus.i2c import DEFAULT_FUNCS
+    from bmg160_emu.bus.i2c_dev import I2CDevFile
+    from bmg160_emu.bus.kernel_abi import I2C_FUNC_I2C
 
     bus = I2CBus(1, {0x68: RegisterFileChip()}, funcs=DEFAULT_FUNCS & ~I2C_FUNC_I2C)
     file = I2CDevFile(bus)

@@ -194,7 +194,7 @@ def test_sysfs_raw_values_follow_the_true_rate_at_each_scale(guest, prefix, full
 def test_noise_level_matches_the_model(guest):
     """The spread of the kernel's readings is the model's noise at the driver's settings
     (RANGE 500 deg/s, BW code 7: ODR 100 Hz), sampled 50 ms apart as the guest did."""
-    from bmg160_emu.chip import BMG160
+    from bmg160_emu.device.chip import BMG160
 
     chip = BMG160(seed=11, true_rate=TRUE_RATE_DPS)
     chip.write(0x0F, b"\x02")

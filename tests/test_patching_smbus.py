@@ -11,9 +11,9 @@ import smbus2
 import smbus2.smbus2 as smbus2_impl
 from _standin_chip import RegisterFileChip
 
-from bmg160_emu.i2c_bus import I2CBus
-from bmg160_emu.patching import patch_smbus
-from bmg160_emu.smbus import FakeSMBus
+from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.bus.patching import patch_smbus
+from bmg160_emu.bus.smbus import FakeSMBus
 
 # A "driver module" that imported the class by name before any patch existed.
 DRIVER_SOURCE = """

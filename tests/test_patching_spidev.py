@@ -8,7 +8,7 @@ import sys
 import pytest
 from _standin_chip import RegisterFileChip
 
-from bmg160_emu.patching import patch_spidev
+from bmg160_emu.bus.patching import patch_spidev
 
 
 def test_spidev_spidev_reaches_the_chip_and_the_module_goes_away_after():

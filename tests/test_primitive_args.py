@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from bmg160_emu import BMG160
-from bmg160_emu.primitive_args import check_count, check_data, check_register
+from bmg160_emu.device.contract import check_count, check_data, check_register
 
 
 @pytest.mark.parametrize("bad, error", [(True, TypeError), ("2", TypeError), (1.0, TypeError),

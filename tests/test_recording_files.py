@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.recording import (
+from bmg160_emu.playback import load_replay_data
+from bmg160_emu.record import (
     Recording,
     RecordingFormatError,
     read_recording,
     write_recording,
 )
-from bmg160_emu.replay_source import load_replay_data
 
 
 def _recording(with_truth: bool = True) -> Recording:

@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from bmg160_emu import registers
-from bmg160_emu.register_dump import (
+from bmg160_emu.device import registers
+from bmg160_emu.io.dump import (
     DumpFormatError,
     RegisterDump,
     decode_register,

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from bmg160_emu.register_dump import (
+from bmg160_emu.io.dump import (
     I2CDUMP_HEADER,
     REGISTER_COUNT,
     DumpFormatError,

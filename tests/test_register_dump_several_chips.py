@@ -7,7 +7,7 @@ import json
 import pytest
 
 from bmg160_emu.cli import main
-from bmg160_emu.register_dump import (
+from bmg160_emu.io.dump import (
     I2CDUMP_HEADER,
     DumpFormatError,
     RegisterDump,

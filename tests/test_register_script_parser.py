@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from bmg160_emu import registers
-from bmg160_emu.register_script import ScriptSyntaxError, parse_script
+from bmg160_emu.device import registers
+from bmg160_emu.script import ScriptSyntaxError, parse_script
 
 GOOD = """\
 # bring-up as the Linux driver does it

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from bmg160_emu import spec_choices
-from bmg160_emu.chip import BMG160
-from bmg160_emu.register_script import ScriptFailure, parse_script, run_script
+from bmg160_emu.device import spec_choices
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.script import ScriptFailure, parse_script, run_script
 
 BRING_UP = """\
 read CHIP_ID == 0x0F
@@ -92,8 +92,8 @@ def test_fault_statements_are_checked_before_running():
 
 
 def test_chip_statement_switches_to_the_other_address_on_the_bus():
+    from bmg160_emu.bus.i2c import I2CBus
     from bmg160_emu.clock import VirtualClock
-    from bmg160_emu.i2c_bus import I2CBus
 
     clock = VirtualClock()
     chips = {a: BMG160(seed=5, address=a, clock=clock, noise=False) for a in (0x68, 0x69)}
@@ -107,8 +107,8 @@ def test_chip_statement_switches_to_the_other_address_on_the_bus():
 def test_the_same_script_over_spi_reads_what_it_reads_over_i2c():
     """Whichever front end carries the accesses, a seeded chip gives the same session: the
     SPI port sends read frames (0x80 | reg, auto-increment) and (address, data) pairs."""
-    from bmg160_emu.register_script import ScriptRunner, SpiRegisterPort
-    from bmg160_emu.spi import FakeSpiDev
+    from bmg160_emu.bus.spi import FakeSpiDev
+    from bmg160_emu.script import ScriptRunner, SpiRegisterPort
 
     text = BRING_UP.replace("dump table\n", "") + (
         "write RANGE 0x03 0x04\n"          # two registers in one write: RANGE and BW

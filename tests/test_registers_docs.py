@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from bmg160_emu.registers import REGISTERS, markdown_table
+from bmg160_emu.device.registers import REGISTERS, markdown_table
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "device-model.md"
 

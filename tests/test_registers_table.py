@@ -2,8 +2,8 @@
 
 import pytest
 
-from bmg160_emu import registers
-from bmg160_emu.registers import BY_NAME, REGISTERS, address_of, decode_dump
+from bmg160_emu.device import registers
+from bmg160_emu.device.registers import BY_NAME, REGISTERS, address_of, decode_dump
 
 
 def test_table_has_64_registers_in_address_order():

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.chip import BMG160
-from bmg160_emu.recording import record, write_recording
-from bmg160_emu.replay_source import ReplaySource, load_replay_data
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.playback import ReplaySource, load_replay_data
+from bmg160_emu.record import record, write_recording
 
 BW_200HZ, BW_100HZ = 0x04, 0x05  # spec 5.3
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 from _standin_chip import RegisterFileChip
 
-from bmg160_emu.chip import BMG160
-from bmg160_emu.spi import UNDRIVEN_BYTE, FakeSpiDev, spi_frame
+from bmg160_emu.bus.spi import UNDRIVEN_BYTE, FakeSpiDev, spi_frame
+from bmg160_emu.device.chip import BMG160
 
 READ = 0x80  # R/W bit (spec 2.2)
 U = UNDRIVEN_BYTE

@@ -7,9 +7,9 @@ from __future__ import annotations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bmg160_emu.chip import BMG160
-from bmg160_emu.registers import REGISTERS, RESET_VALUES
-from bmg160_emu.spi import FakeSpiDev
+from bmg160_emu.bus.spi import FakeSpiDev
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.registers import REGISTERS, RESET_VALUES
 
 FIFO_STATUS = 0x0E
 CONFIG_REGISTERS = [r.address for r in REGISTERS if r.write_mask and r.address not in (0x33, 0x3C)]

@@ -10,9 +10,9 @@ import time
 
 import pytest
 
-from bmg160_emu.chip import BMG160
-from bmg160_emu.i2c_bus import I2CBus
-from bmg160_emu.smbus import FakeSMBus
+from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.bus.smbus import FakeSMBus
+from bmg160_emu.device.chip import BMG160
 
 RATE_X_LSB, RATE_X_MSB, RATE_HBW = 0x02, 0x03, 0x13  # spec 4.2, 4.12
 DATA_HIGH_BW, SHADOW_DIS = 0x80, 0x40

@@ -8,11 +8,11 @@ from types import SimpleNamespace
 import pytest
 
 from bmg160_emu.adcs.faults import FaultSchedule
-from bmg160_emu.chip import BMG160
+from bmg160_emu.bus.i2c import I2CBus
 from bmg160_emu.cli import main
 from bmg160_emu.clock import VirtualClock
-from bmg160_emu.i2c_bus import I2CBus
-from bmg160_emu.trace import (
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.io.trace import (
     TraceHeader,
     TraceWriter,
     describe_transaction,

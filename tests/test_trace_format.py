@@ -6,7 +6,8 @@ import json
 
 import pytest
 
-from bmg160_emu.trace import (
+from bmg160_emu.bus.transactions import Transaction, TransactionLog
+from bmg160_emu.io.trace import (
     TraceFormatError,
     TraceHeader,
     TraceWriter,
@@ -16,7 +17,6 @@ from bmg160_emu.trace import (
     read_trace,
     replay_trace,
 )
-from bmg160_emu.transactions import Transaction, TransactionLog
 
 
 def _session() -> list[Transaction]:

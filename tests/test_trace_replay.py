@@ -8,12 +8,12 @@ import json
 import pytest
 from smbus2 import i2c_msg
 
-from bmg160_emu.chip import BMG160
+from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.bus.smbus import FakeSMBus
+from bmg160_emu.bus.spi import FakeSpiDev
 from bmg160_emu.clock import VirtualClock
-from bmg160_emu.i2c_bus import I2CBus
-from bmg160_emu.smbus import FakeSMBus
-from bmg160_emu.spi import FakeSpiDev
-from bmg160_emu.trace import TraceHeader, TraceWriter, read_trace, replay_trace
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.io.trace import TraceHeader, TraceWriter, read_trace, replay_trace
 
 SEED = 11
 TRUE_RATE = (12.5, -3.0, 0.25)

@@ -25,7 +25,7 @@ CHIP_OPTIONS = ["--seed", "3", "--true-rate", "20", "-10", "5"]
 
 def _umockdev_missing() -> str | None:
     try:
-        from bmg160_emu.linux.umockdev_node import (
+        from bmg160_emu.bus.umockdev import (
             UMockdevUnavailable,
             load_umockdev,
             preload_available,
@@ -228,7 +228,7 @@ def test_smbus2_fifo_drains_completely(smbus2_client):
 
 
 def test_smbus2_missing_address_raises_the_bus_errno(smbus2_client):
-    from bmg160_emu.i2c_bus import I2CBus
+    from bmg160_emu.bus.i2c import I2CBus
 
     bus = I2CBus(1, {})
     with pytest.raises(OSError) as expected:
@@ -277,8 +277,8 @@ def every_kind(bus):
 def test_every_smbus_kind_answers_as_fake_smbus(tmp_path: Path):
     """The same calls through the umockdev node (smbus2, ioctls) and on the in-process
     FakeSMBus give the same values and the same errnos: one I2CBus behind both."""
-    from bmg160_emu.chip import BMG160
-    from bmg160_emu.smbus import FakeSMBus
+    from bmg160_emu.bus.smbus import FakeSMBus
+    from bmg160_emu.device.chip import BMG160
 
     namespace: dict = {}
     exec(EVERY_KIND, namespace)  # noqa: S102 - the test's own source, shared with the child
@@ -397,7 +397,7 @@ def c_client(tmp_path_factory):
 
 
 def test_c_ioctl_client_sees_the_adapter_and_chip_id(c_client):
-    from bmg160_emu.i2c_bus import DEFAULT_FUNCS
+    from bmg160_emu.bus.i2c import DEFAULT_FUNCS
 
     assert c_client["funcs"] == [[DEFAULT_FUNCS]]
     assert c_client["chip_id"] == [[0x0F]]
@@ -423,7 +423,7 @@ def test_c_ioctl_client_drains_the_fifo(c_client):
 
 
 def test_c_ioctl_client_missing_address(c_client):
-    from bmg160_emu.i2c_bus import I2CBus
+    from bmg160_emu.bus.i2c import I2CBus
 
     with pytest.raises(OSError) as expected:
         I2CBus(1, {}).read_byte_data(0x50, 0)

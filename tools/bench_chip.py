@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import time
 
-from bmg160_emu.chip import BMG160
+from bmg160_emu.device.chip import BMG160
 
 
 def _per_op(func, n: int, repeat: int) -> float:

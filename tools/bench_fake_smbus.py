@@ -22,9 +22,9 @@ import time
 
 import smbus2
 
-from bmg160_emu.chip import BMG160
-from bmg160_emu.patching import patch_smbus
-from bmg160_emu.smbus import FakeSMBus
+from bmg160_emu.bus.patching import patch_smbus
+from bmg160_emu.bus.smbus import FakeSMBus
+from bmg160_emu.device.chip import BMG160
 
 RATE_X_LSB = 0x02  # spec 4.2
 BW = 0x10  # spec 4.9

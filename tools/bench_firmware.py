@@ -13,7 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bmg160_emu.chip import BMG160
+from bmg160_emu.device.chip import BMG160
 from bmg160_emu.firmware.build import (
     ATMEGA328P_FLASH,
     ATMEGA328P_SRAM,

@@ -63,14 +63,14 @@ with SMBus(1) as bus:
 
 
 def new_chip():
-    from bmg160_emu.chip import BMG160
     from bmg160_emu.clock import RealTimeClock
+    from bmg160_emu.device.chip import BMG160
 
     return BMG160(seed=1, clock=RealTimeClock(), true_rate=(20.0, -10.0, 5.0))
 
 
 def reference_fake_smbus(count: int) -> float:
-    from bmg160_emu.smbus import FakeSMBus
+    from bmg160_emu.bus.smbus import FakeSMBus
 
     with FakeSMBus(1, devices={0x68: new_chip()}) as bus:
         bus.log.enabled = False  # as for the umockdev bus: measure the route, not the log
@@ -81,8 +81,8 @@ def reference_fake_smbus(count: int) -> float:
 
 
 def through_umockdev(command: list[str]) -> float:
-    from bmg160_emu.i2c_bus import I2CBus
-    from bmg160_emu.linux.umockdev_node import VirtualI2CDevices
+    from bmg160_emu.bus.i2c import I2CBus
+    from bmg160_emu.bus.umockdev import VirtualI2CDevices
 
     bus = I2CBus(1, {0x68: new_chip()})
     bus.log.enabled = False  # as the reference: measure the route, not the log

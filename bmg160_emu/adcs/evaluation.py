@@ -78,7 +78,7 @@ class FifoReader:
     """Reads one gyro's FIFO over an I2CBus, as flight software would."""
 
     def __init__(self, bus: Any, address: int, range_dps: int = 2000, bandwidth_code: int = 4):
-        from bmg160_emu.spec_choices import BANDWIDTHS, SENSITIVITY_BINARY
+        from bmg160_emu.device.spec_choices import BANDWIDTHS, SENSITIVITY_BINARY
 
         self.bus = bus
         self.address = address
@@ -96,7 +96,7 @@ class FifoReader:
 
     def read_frames(self) -> np.ndarray:
         """All complete frames waiting, as rates (k, 3) in deg/s (sensor frame)."""
-        from bmg160_emu.i2c_bus import I2CMessage
+        from bmg160_emu.bus.i2c import I2CMessage
 
         try:
             status = self.bus.read_byte_data(self.address, FIFO_STATUS)

@@ -452,7 +452,7 @@ class FaultSchedule:
                     (event.time_s, FAULT_FLAGS[event.kind]))
         bus_log = getattr(gyro.bus, "log", None)
         if log and self.log_to_bus and bus_log is not None and getattr(bus_log, "enabled", True):
-            from bmg160_emu.transactions import Transaction
+            from bmg160_emu.bus.transactions import Transaction
 
             base_c = _base_temperature(gyro) if event.kind == "temperature_ramp" else None
             text = fault_entry_text(event.detail, fault, activation, event.time_s, base_c)

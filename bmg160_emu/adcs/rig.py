@@ -1,6 +1,6 @@
 """Several gyros on emulated I2C buses, driven by one scenario, with the truth recorded.
 
-A :class:`GyroRig` builds one :class:`~bmg160_emu.chip.BMG160` per :class:`GyroSpec` (two on
+A :class:`GyroRig` builds one :class:`~bmg160_emu.device.chip.BMG160` per :class:`GyroSpec` (two on
 one bus at 0x68/0x69, or on several buses), all on one virtual clock, all fed the scenario's
 true body rate through their own mounting. Each chip gets its own noise realisation: the
 master seed is split with :class:`numpy.random.SeedSequence`, so gyro ``i`` of master seed
@@ -179,8 +179,8 @@ class GyroRig:
         q0: np.ndarray = IDENTITY,
         clock: Any = None,
     ) -> None:
+        from bmg160_emu.bus.i2c import I2CBus
         from bmg160_emu.clock import VirtualClock
-        from bmg160_emu.i2c_bus import I2CBus
 
         self.scenario = scenario
         self.seed = int(seed)
@@ -297,7 +297,7 @@ class GyroRig:
 
 def make_chip(spec: GyroSpec, seed: int, clock: Any) -> Any:
     """The chip model for one gyro spec (the one place that knows BMG160's options)."""
-    from bmg160_emu.chip import BMG160
+    from bmg160_emu.device.chip import BMG160
 
     options: dict[str, Any] = {
         "seed": seed,

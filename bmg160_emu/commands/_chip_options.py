@@ -10,7 +10,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the chip module is imported lazily to keep ``--help`` fast
-    from bmg160_emu.chip import BMG160
+    from bmg160_emu.device.chip import BMG160
 
 # Full scale in deg/s -> RANGE code (spec 4.8).
 RANGE_CODE_BY_DPS = {2000: 0, 1000: 1, 500: 2, 250: 3, 125: 4}
@@ -119,8 +119,8 @@ def add_chip_options(parser: argparse.ArgumentParser) -> None:
 
 def chips_from_args(args: argparse.Namespace) -> dict[int, BMG160]:
     """Build ``{address: BMG160}`` from parsed options; every chip shares one clock."""
-    from bmg160_emu.chip import BMG160
     from bmg160_emu.clock import RealTimeClock, VirtualClock
+    from bmg160_emu.device.chip import BMG160
 
     clock = RealTimeClock() if getattr(args, "realtime", False) else VirtualClock()
     addresses = list(dict.fromkeys(getattr(args, "addresses", None) or [0x68]))

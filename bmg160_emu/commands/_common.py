@@ -78,9 +78,9 @@ def run_script_file(
     A script that cannot be read or parsed is a :class:`CommandError`; a failed expectation is
     printed to stderr after ``failed_prefix`` and gives exit status 1, else 0.
     """
+    from bmg160_emu.bus.i2c import I2CBus
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.i2c_bus import I2CBus
-    from bmg160_emu.register_script import ScriptFailure, ScriptSyntaxError, run_script
+    from bmg160_emu.script import ScriptFailure, ScriptSyntaxError, run_script
 
     try:
         text = path.read_text(encoding="utf-8")

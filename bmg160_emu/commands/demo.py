@@ -95,7 +95,7 @@ class DemoDriver:
         self.bus.write_byte_data(self.address, register, value)
 
     def bring_up(self, range_code: int, bw_code: int) -> None:
-        from bmg160_emu.registers import register as describe
+        from bmg160_emu.device.registers import register as describe
 
         chip_id = self.reg(CHIP_ID)
         if chip_id != 0x0F:
@@ -177,8 +177,8 @@ def _sleep_advances(chip: Any) -> Iterator[None]:
 def run(args: argparse.Namespace) -> int:
     import smbus2
 
+    from bmg160_emu.bus.patching import patch_smbus
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.patching import patch_smbus
 
     chips = chips_from_args(args)
     range_code = RANGE_CODE_BY_DPS[args.range_dps] if args.range_dps is not None else 0

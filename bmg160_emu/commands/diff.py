@@ -33,7 +33,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def _load(path: Path):
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.register_dump import DumpFormatError, parse_dump
+    from bmg160_emu.io.dump import DumpFormatError, parse_dump
 
     try:
         text = path.read_text(encoding="utf-8")
@@ -48,7 +48,7 @@ def _load(path: Path):
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.register_dump import diff_dumps, format_diff
+    from bmg160_emu.io.dump import diff_dumps, format_diff
 
     a, b = _load(args.a), _load(args.b)
     sys.stdout.write(format_diff(a, b, args.a.name, args.b.name, show_all=args.all))

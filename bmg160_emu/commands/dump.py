@@ -59,7 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.register_dump import RegisterDump, format_dumps
+    from bmg160_emu.io.dump import RegisterDump, format_dumps
 
     chips = chips_from_args(args)
     if args.chip is not None and args.chip not in chips:

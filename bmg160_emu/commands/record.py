@@ -52,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.recording import BW_CODE_BY_ODR_HZ, record, write_recording
+    from bmg160_emu.record import BW_CODE_BY_ODR_HZ, record, write_recording
 
     if args.output.suffix.lower() not in (".csv", ".npz"):
         raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")

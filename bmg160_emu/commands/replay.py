@@ -51,10 +51,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu import spec_choices
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.recording import record, write_recording
-    from bmg160_emu.replay_source import ReplayDataError, ReplaySource, load_replay_data
+    from bmg160_emu.device import spec_choices
+    from bmg160_emu.playback import ReplayDataError, ReplaySource, load_replay_data
+    from bmg160_emu.record import record, write_recording
 
     if (args.output is None) == (args.script is None):
         raise CommandError("give -o OUT (record the chip's output) or --script FILE, one of them")

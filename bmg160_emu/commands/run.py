@@ -63,13 +63,13 @@ def _is_static(path: str) -> bool:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
-    from bmg160_emu.i2c_bus import I2CBus
-    from bmg160_emu.linux.umockdev_node import (
+    from bmg160_emu.bus.i2c import I2CBus
+    from bmg160_emu.bus.umockdev import (
         RequestClock,
         UMockdevUnavailable,
         VirtualI2CDevices,
     )
+    from bmg160_emu.cli import CommandError
 
     program = list(args.program)
     if program and program[0] == "--":
@@ -128,7 +128,7 @@ def _trace_writer(args: argparse.Namespace, bus: Any) -> Any:
     if args.trace is None:
         return None
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.trace import TraceWriter, header_from_chip_args
+    from bmg160_emu.io.trace import TraceWriter, header_from_chip_args
 
     try:
         writer = TraceWriter(args.trace, header_from_chip_args(args))

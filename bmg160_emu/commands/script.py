@@ -53,15 +53,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from bmg160_emu.bus.i2c import I2CBus
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.i2c_bus import I2CBus
-    from bmg160_emu.register_script import (
+    from bmg160_emu.io.trace import TraceWriter, header_from_chip_args
+    from bmg160_emu.script import (
         ScriptFailure,
         ScriptRunner,
         ScriptSyntaxError,
         parse_script,
     )
-    from bmg160_emu.trace import TraceWriter, header_from_chip_args
 
     try:
         text = args.file.read_text(encoding="utf-8")
@@ -88,8 +88,8 @@ def run(args: argparse.Namespace) -> int:
     i2c_bus = I2CBus(1, chips)
     bus: I2CBus | None = i2c_bus
     if args.spi:
-        from bmg160_emu.register_script import SpiRegisterPort
-        from bmg160_emu.spi import FakeSpiDev
+        from bmg160_emu.bus.spi import FakeSpiDev
+        from bmg160_emu.script import SpiRegisterPort
 
         spi = FakeSpiDev(chip)
         bus, port, log_ = None, SpiRegisterPort(spi), spi.log

@@ -38,7 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.trace import TraceFormatError, describe_transaction, read_trace, replay_trace
+    from bmg160_emu.io.trace import TraceFormatError, describe_transaction, read_trace, replay_trace
 
     try:
         header, records = read_trace(args.file)

@@ -21,6 +21,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from bmg160_emu.device.contract import check_count, check_data, check_register
 from bmg160_emu.firmware.build import (
     FirmwareBuild,
     FirmwareToolError,
@@ -28,7 +29,6 @@ from bmg160_emu.firmware.build import (
     build_simulator,
     elf_symbols,
 )
-from bmg160_emu.primitive_args import check_count, check_data, check_register
 
 if TYPE_CHECKING:
     from typing_extensions import Self

@@ -1,5 +1,2 @@
-"""Linux front ends: a umockdev ``/dev/i2c-N`` for unmodified programs, and the i2c-stub
-adapter that keeps a real kernel's i2c-stub memory in step with the model for kernel drivers.
-
-Submodules are imported on demand: the umockdev one needs PyGObject, which is optional.
-"""
+"""Deprecated package: the Linux front ends moved to ``bmg160_emu.bus`` (``umockdev``,
+``i2c_stub``, ``kernel_abi``); these names stay for one release (issue 10's layout)."""

@@ -3,7 +3,7 @@
 A dump is what a driver author compares: the ``i2cdump`` format is byte for byte what
 Debian's ``i2cdump -y -r 0x00-0x3f BUS ADDR b`` prints (so Debian's ``i2c-stub-from-dump``
 loads it into the kernel's i2c-stub), ``table`` decodes every field by name from the
-register table in :mod:`bmg160_emu.registers`, and ``json`` is for programs. Every format
+register table in :mod:`bmg160_emu.device.registers`, and ``json`` is for programs. Every format
 parses back into a :class:`RegisterDump`.
 """
 
@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from bmg160_emu import registers, spec_choices
+from bmg160_emu.device import registers, spec_choices
 
 REGISTER_COUNT = 64  # 0x00..0x3F, the user map (spec section 3)
 DUMP_FORMATS = ("i2cdump", "table", "json")

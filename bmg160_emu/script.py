@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bmg160_emu import durations
-from bmg160_emu.register_dump import (
+from bmg160_emu.io.dump import (
     DUMP_FORMATS,
     REGISTER_COUNT,
     RegisterDump,
@@ -350,7 +350,7 @@ class I2CRegisterPort:
             self.bus.write_i2c_block_data(self.address, register, data)
 
     def read(self, register: int, count: int) -> bytes:
-        from bmg160_emu.i2c_bus import I2C_SMBUS_BLOCK_MAX, I2CMessage
+        from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CMessage
 
         if count == 1:
             return bytes([self.bus.read_byte_data(self.address, register)])
@@ -412,7 +412,7 @@ class ScriptRunner:
         self.bus = bus
         if port is None:
             if bus is None:
-                from bmg160_emu.i2c_bus import I2CBus
+                from bmg160_emu.bus.i2c import I2CBus
 
                 bus = self.bus = I2CBus(1, {chip.address: chip})
             port = I2CRegisterPort(bus, chip.address)
@@ -430,7 +430,7 @@ class ScriptRunner:
         try:
             self._execute(s)
         except OSError as exc:  # a bus error the script did not expect (e.g. an injected NACK)
-            from bmg160_emu.transactions import errno_name
+            from bmg160_emu.bus.transactions import errno_name
 
             name = errno_name(exc.errno) if exc.errno else str(exc)
             raise ScriptFailure(
@@ -469,7 +469,7 @@ class ScriptRunner:
 
     def _log_true_rate(self, rate_dps) -> None:
         """Put a ``true_rate`` entry in the log the accesses go to, so a trace replays it."""
-        from bmg160_emu.trace import true_rate_entry
+        from bmg160_emu.io.trace import true_rate_entry
 
         bus: int | str
         if isinstance(self.port, SpiRegisterPort):
@@ -557,13 +557,13 @@ def _seconds_text(seconds: float) -> str:
 
 
 def describe_write(register: int, data: bytes) -> str:
-    from bmg160_emu.trace import describe_write as _describe
+    from bmg160_emu.io.trace import describe_write as _describe
 
     return _describe(register, data)
 
 
 def describe_read(register: int, data: bytes) -> str:
-    from bmg160_emu.trace import describe_read as _describe
+    from bmg160_emu.io.trace import describe_read as _describe
 
     return _describe(register, data)
 

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bmg160_emu.recording import chip_odr_hz
+from bmg160_emu.record import chip_odr_hz
 
 UNITS = ("dps", "counts")
 TIME_COLUMNS = ("t_s", "t", "time", "time_s", "timestamp")

@@ -5,7 +5,7 @@ Spec 6.3 (statuses, latching, pins) and 6.4 (engine models, unconfirmed in detai
 
 from __future__ import annotations
 
-from bmg160_emu import spec_choices
+from bmg160_emu.device import spec_choices
 
 LATCHED = 1 << 62  # "held until reset_int", as a time in ns no clock reaches
 

@@ -16,13 +16,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from bmg160_emu.register_dump import (
+from bmg160_emu.bus.transactions import Transaction, bytes_from_json, errno_name
+from bmg160_emu.io.dump import (
     REGISTER_COUNT,
     decode_register,
     register_label,
     register_name,
 )
-from bmg160_emu.transactions import Transaction, bytes_from_json, errno_name
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
@@ -252,8 +252,8 @@ class TraceHeader:
 
     def build_chips(self) -> dict[int, Any]:
         """Fresh chips as the header describes them, sharing one VirtualClock at t = 0."""
-        from bmg160_emu.chip import BMG160
         from bmg160_emu.clock import VirtualClock
+        from bmg160_emu.device.chip import BMG160
 
         clock = VirtualClock()
         chips: dict[int, Any] = {}
@@ -410,8 +410,8 @@ class _Replayer:
     """Runs recorded transactions through the same front ends on fresh chips."""
 
     def __init__(self, chips: dict[int, Any]):
-        from bmg160_emu.i2c_bus import I2CBus
-        from bmg160_emu.spi import FakeSpiDev
+        from bmg160_emu.bus.i2c import I2CBus
+        from bmg160_emu.bus.spi import FakeSpiDev
 
         self.chips = chips
         self.clock_chip = next(iter(chips.values()))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from bmg160_emu import spec_choices
+from bmg160_emu.device import spec_choices
 
 BYPASS, FIFO, STREAM = 0, 1, 2
 AXIS_SLICES = {0: slice(0, 6), 1: slice(0, 2), 2: slice(2, 4), 3: slice(4, 6)}  # 4.26

@@ -18,7 +18,7 @@ and the order of checks, copies and transfers here is the kernel's:
 - ``I2C_RDWR``: 1..42 messages, each at most 8192 bytes, every buffer copied in first.
 - ``read()``/``write()``: plain I2C at the open file's address, 8192 bytes at most.
 
-The transaction itself is a call into :class:`~bmg160_emu.i2c_bus.I2CBus`. The emulated
+The transaction itself is a call into :class:`~bmg160_emu.bus.i2c.I2CBus`. The emulated
 adapter has no 10-bit addressing (I2C_FUNC_10BIT_ADDR clear): a transfer to a 10-bit address
 fails with ENXIO, and ``I2C_M_RECV_LEN`` reads, which an adapter must resize mid-transfer,
 with EOPNOTSUPP after i2c-dev's own checks.
@@ -30,8 +30,8 @@ import errno
 import struct
 from typing import Protocol
 
-from bmg160_emu.i2c_bus import I2CBus, I2CMessage, os_error
-from bmg160_emu.linux.i2c_dev_structs import (
+from bmg160_emu.bus.i2c import I2CBus, I2CMessage, os_error
+from bmg160_emu.bus.kernel_abi import (
     I2C_DEV_MAX_TRANSFER,
     I2C_FUNC_I2C,
     I2C_FUNCS,

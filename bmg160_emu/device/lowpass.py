@@ -12,7 +12,7 @@ from functools import cache
 import numpy as np
 from scipy import signal
 
-from bmg160_emu import spec_choices
+from bmg160_emu.device import spec_choices
 
 
 @cache

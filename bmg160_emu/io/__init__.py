@@ -1,0 +1,1 @@
+"""File formats as reader/writer pairs: traces, register dumps, rate files."""
