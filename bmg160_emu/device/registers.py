@@ -367,6 +367,12 @@ def register(address_or_name: int | str) -> Register:
     return REGISTERS[address_or_name]
 
 
+def field_of(register_name: str, field_name: str) -> Field:
+    """A field by spec names, e.g. ``field_of("RANGE", "range").mask``: code outside this
+    module takes register addresses and field masks from here, never as typed numbers."""
+    return register(register_name).field(field_name)
+
+
 def decode_dump(dump: bytes) -> list[str]:
     """One line per register of a 64-byte dump, as ``0xAA NAME = 0xVV: fields``."""
     if len(dump) != REGISTER_COUNT:
