@@ -161,6 +161,10 @@ def test_probe_writes_reached_the_model_and_were_normalised(guest):
     assert rows[1].split()[-2] == "02"  # RANGE 500 deg/s as the driver wrote it
     assert row10[0] == "87"  # BW 0x07 written, read back with the read-only bit 7 set
     assert row10[4] == "00"  # the soft-reset command 0xB6 was taken and cleared
+    # INT_EN_1 and INT_RST_LATCH as the driver wrote them (0x0D; 0x8F read back as 0x0F, its
+    # bit 7 self-clears), also when runtime suspend (LPM1 = 0x80) lands in the same refresh
+    assert row10[6] == "0d"
+    assert rows[3].split()[2] == "0f"
     events = stub_report(guest)["events"]
     assert any(e["register"] == 0x14 and e["value"] == 0xB6 for e in events)
 

@@ -208,3 +208,34 @@ def test_stub_stats_to_an_unwritable_path_is_refused_before_the_adapter_runs(
     stats = tmp_path / "no" / "such" / "stats.json"
     assert main(["stub", "--bus", "0", "--stats", str(stats)]) == 2
     assert f"cannot write {stats}" in capsys.readouterr().err
+
+
+def test_probe_writes_survive_a_runtime_suspend_in_the_same_period(rig):
+    # Seen on the real kernel in 5 of 7 boots: the driver's probe writes INT_EN_1 and
+    # INT_RST_LATCH, then runtime PM suspends the chip (LPM1 = 0x80) before the adapter's
+    # next refresh. Applied in address order, the suspended model ignored 0x16 and 0x21 and
+    # the adapter wrote its stale values back over the driver's.
+    chip, stub, adapter = rig
+    stub.client_write(0x16, 0x0D)
+    stub.client_write(0x21, 0x8F)
+    stub.client_write(0x11, 0x80)
+    adapter.refresh()
+    assert chip.power_mode == "suspend"
+    assert chip.peek(0x16) == 0x0D
+    assert chip.peek(0x21) & 0x0F == 0x0F  # latch mode kept; bit 7 (reset_int) self-clears
+    assert stub.client_block(0x16, 1) == b"\x0d"  # the driver's value, not written back over
+    assert stub.client_block(0x11, 1) == b"\x80"
+
+
+def test_writes_after_a_wake_up_in_the_same_period_reach_the_model(rig):
+    chip, stub, adapter = rig
+    stub.client_write(0x11, 0x80)
+    adapter.refresh()
+    assert chip.power_mode == "suspend"
+    # the driver resumes (LPM1 = 0x00) and then changes the range, within one period
+    stub.client_write(0x11, 0x00)
+    stub.client_write(0x0F, 0x01)
+    adapter.refresh()
+    assert chip.power_mode == "normal"
+    assert chip.peek(0x0F) & 0x07 == 1
+    assert stub.client_block(0x0F, 1) == b"\x01"

@@ -33,12 +33,17 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu.bus import kernel_abi as abi
+from bmg160_emu.device.chip import NORMAL, POWER_SAVE, power_mode
+from bmg160_emu.device.registers import address_of, field_of
 
 STUB_ADAPTER_NAME = "SMBus stub driver"  # the name i2c-stub gives its adapter
 REGISTER_COUNT = 0x40  # 0x00..0x3F, spec section 3
 DATA_FIRST, DATA_LAST = 0x02, 0x0E  # RATE_X_LSB .. FIFO_STATUS: refreshed every period
 CONFIG_FIRST, CONFIG_LAST = 0x0F, 0x3E  # RANGE .. FIFO_CONFIG_1: what a client may write
-BGW_SOFTRESET, SOFTRESET_COMMAND = 0x14, 0xB6  # spec 4.13
+BGW_SOFTRESET, SOFTRESET_COMMAND = address_of("BGW_SOFTRESET"), 0xB6  # spec 4.13
+RANGE, RANGE_MASK = address_of("RANGE"), field_of("RANGE", "range").mask
+POWER_MODE_REGISTERS = (address_of("LPM1"), address_of("LPM2"))
+SAMPLING_MODES = (NORMAL, POWER_SAVE)  # the modes that take writes and sample (spec 6.7)
 
 
 # Refreshing faster gains nothing a driver can see through sysfs and costs a core under
@@ -233,16 +238,27 @@ class I2CStubAdapter:
         }
 
     def apply_client_writes(self, writes: dict[int, int]) -> None:
-        """Apply the client's writes to the model: a soft reset first (the client wrote the
-        rest after it, or it would have been lost), then the others in address order."""
+        """Apply the client's writes to the model in an order that loses none of them.
+
+        i2c-stub does not say in which order the client wrote, only what changed in one
+        period. A soft reset goes first (the client wrote the rest after it, or it would have
+        been lost). Power-mode writes (LPM1, LPM2) go last when they enter a mode that does
+        not sample (suspend ignores most writes, spec 6.7: the kernel's runtime suspend can
+        land in the same period as its probe writes) and first when they leave one (the
+        client woke the chip before configuring it); the others follow in address order."""
         chip = self.chip
         with chip.lock:
             if writes.get(BGW_SOFTRESET) == SOFTRESET_COMMAND:
                 chip.write(BGW_SOFTRESET, bytes([SOFTRESET_COMMAND]))
                 self.stats.resets += 1
-            for register in sorted(writes):
-                if register == BGW_SOFTRESET:
-                    continue
+            power = [r for r in sorted(writes) if r in POWER_MODE_REGISTERS]
+            others = [r for r in sorted(writes) if r not in POWER_MODE_REGISTERS
+                      and r != BGW_SOFTRESET]
+            lpm = [chip.peek(r) for r in POWER_MODE_REGISTERS]
+            for register in power:
+                lpm[POWER_MODE_REGISTERS.index(register)] = writes[register]
+            wakes = power_mode(*lpm) in SAMPLING_MODES
+            for register in (power + others if wakes else others + power):
                 chip.write(register, bytes([writes[register]]))
                 self.stats.client_writes += 1
             for register in sorted(writes):
@@ -251,7 +267,7 @@ class I2CStubAdapter:
                     "register": register,
                     "value": writes[register],
                     "odr_hz": chip.odr_hz,
-                    "range": chip.peek(0x0F) & 0x07,
+                    "range": chip.peek(RANGE) & RANGE_MASK,
                     "power_mode": chip.power_mode,
                 })
 
