@@ -640,3 +640,57 @@ def test_run_log_to_an_unwritable_path_is_refused_before_the_program_runs(tmp_pa
     assert result.returncode == 2
     assert f"cannot write {log}" in result.stderr and "Traceback" not in result.stderr
     assert not marker.exists()
+
+
+def _children_of(pid: int) -> list[int]:
+    try:
+        text = Path(f"/proc/{pid}/task/{pid}/children").read_text()
+    except OSError:
+        return []
+    return [int(p) for p in text.split()]
+
+
+def _alive(pid: int) -> bool:
+    """Running (not gone, not a zombie waiting for a reaper)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_run_killed_with_sigkill_takes_its_program_and_folder_with_it(tmp_path: Path):
+    import os
+    import signal
+    import time
+
+    from bmg160_emu.bus.umockdev import OWNER_FILE, remove_stale_testbeds
+
+    env = dict(os.environ, TMPDIR=str(tmp_path))
+    session = subprocess.Popen(
+        [sys.executable, "-m", "bmg160_emu", "run", "--", "sleep", "60"],
+        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not _children_of(session.pid) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        (program,) = _children_of(session.pid)
+        folders = list(tmp_path.glob("umockdev.*"))
+        assert len(folders) == 1 and (folders[0] / OWNER_FILE).exists()
+        session.send_signal(signal.SIGKILL)
+        session.wait(timeout=10)
+        deadline = time.monotonic() + 5
+        while _alive(program) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        # the program died with its emulator (PR_SET_PDEATHSIG), it did not linger
+        assert not _alive(program)
+    finally:
+        if session.poll() is None:
+            session.kill()
+    assert folders[0].exists()  # SIGKILL left the folder behind ...
+    assert remove_stale_testbeds(str(tmp_path)) == [str(folders[0])]  # ... the next run takes it
+    assert not folders[0].exists()
+    other = tmp_path / "umockdev.other"  # not ours (no owner file): left alone
+    other.mkdir()
+    assert remove_stale_testbeds(str(tmp_path)) == []
+    assert other.exists()

@@ -16,10 +16,15 @@ run with ``LD_PRELOAD=libumockdev-preload.so.0`` and the testbed's ``UMOCKDEV_DI
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import errno
 import os
+import shutil
+import signal
 import subprocess
+import tempfile
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 from bmg160_emu.bus.i2c import I2CBus, os_error
@@ -213,6 +218,39 @@ def _handler_class(UMockdev: Any) -> type:
     return I2CDevHandler
 
 
+OWNER_FILE = "bmg160-emu.pid"  # in a testbed folder: the pid of the session that made it
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def die_with_parent(parent_pid: int) -> Callable[[], None]:
+    """A ``preexec_fn`` that makes the child receive SIGKILL when its parent dies
+    (prctl(PR_SET_PDEATHSIG), Linux), and exit at once if the parent is already gone."""
+
+    def preexec() -> None:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        if os.getppid() != parent_pid:  # died between fork and prctl
+            os._exit(1)
+
+    return preexec
+
+
+def remove_stale_testbeds(tmp_dir: str | None = None) -> list[str]:
+    """Remove umockdev testbed folders left by sessions of ours that were killed (their
+    owner pid no longer runs); folders of other programs are left alone."""
+    removed = []
+    for folder in Path(tmp_dir or tempfile.gettempdir()).glob("umockdev.*"):
+        try:
+            pid = int((folder / OWNER_FILE).read_text().strip())
+        except (OSError, ValueError):
+            continue
+        if pid == os.getpid() or Path(f"/proc/{pid}").exists():
+            continue
+        shutil.rmtree(folder, ignore_errors=True)
+        removed.append(str(folder))
+    return removed
+
+
 class VirtualI2CDevices:
     """A umockdev testbed holding one ``/dev/i2c-N`` per :class:`I2CBus`.
 
@@ -244,7 +282,11 @@ class VirtualI2CDevices:
 
     def open(self) -> None:
         UMockdev = self._umockdev
+        remove_stale_testbeds()
         self.testbed = UMockdev.Testbed.new()
+        # Marks the folder as ours: a session killed with SIGKILL cannot remove it, so the
+        # next one does (remove_stale_testbeds).
+        Path(self.testbed.get_root_dir(), OWNER_FILE).write_text(f"{os.getpid()}\n")
         handler_class = _handler_class(UMockdev)
         clocks = hold_time_per_request(self.buses)
         for bus in self.buses:
@@ -285,7 +327,10 @@ class VirtualI2CDevices:
         return env
 
     def popen(self, command: Sequence[str], **kwargs: Any) -> subprocess.Popen:
+        """Start a program under the testbed; it is killed if this process dies first (its
+        ioctls would have nobody to answer them)."""
         kwargs.setdefault("env", self.environment())
+        kwargs.setdefault("preexec_fn", die_with_parent(os.getpid()))
         return subprocess.Popen(list(command), **kwargs)
 
     def run(self, command: Sequence[str], **kwargs: Any) -> subprocess.CompletedProcess:
