@@ -196,8 +196,8 @@ def test_stub_stats_to_an_unwritable_path_is_refused_before_the_adapter_runs(
 ):
     """`bmg160-emu stub --stats` writes at exit, possibly hours later: a bad path is a
     one-line error at start, before the bus is opened (the bus checks are stubbed here)."""
-    from bmg160_emu.cli import main
     from bmg160_emu.bus import i2c_stub as i2c_stub_adapter
+    from bmg160_emu.cli import main
 
     monkeypatch.setattr(i2c_stub_adapter, "check_stub_bus", lambda bus, address: tmp_path)
 
@@ -239,3 +239,36 @@ def test_writes_after_a_wake_up_in_the_same_period_reach_the_model(rig):
     assert chip.power_mode == "normal"
     assert chip.peek(0x0F) & 0x07 == 1
     assert stub.client_block(0x0F, 1) == b"\x01"
+
+
+def test_a_restarted_adapter_adopts_the_bound_drivers_configuration(rig):
+    # Restarting `bmg160-emu stub` while the driver stays bound used to preload reset values
+    # over the driver's configuration: it kept its +-500 scale while the model went back to
+    # +-2000, and a true 30 deg/s read as 7.6 deg/s.
+    _, stub, adapter = rig
+    stub.client_write(0x0F, 0x02)  # the driver: +-500 deg/s
+    stub.client_write(0x10, 0x07)  # ODR 100 Hz
+    stub.client_write(0x16, 0x0D)
+    adapter.refresh()
+    restarted = BMG160(seed=6, true_rate=(30.0, 0.0, 0.0))
+    second = I2CStubAdapter(restarted, bus=0, address=0x68, smbus=stub)
+    adopted = second.adopt()
+    second.preload()
+    assert set(adopted) == {0x0F, 0x10, 0x16}
+    assert restarted.peek(0x0F) & 0x07 == 2 and restarted.odr_hz == 100
+    assert restarted.peek(0x16) == 0x0D
+    restarted.advance(0.1)
+    second.refresh()
+    raw = int.from_bytes(stub.client_block(0x02, 2), "little", signed=True)
+    assert abs(raw * 500 / 32768 - 30.0) < 3.0  # the driver's scale reads the true rate
+
+
+def test_bound_driver_reads_the_sysfs_link(tmp_path):
+    from bmg160_emu.bus.i2c_stub import bound_driver
+
+    device = tmp_path / "bus" / "i2c" / "devices" / "0-0068"
+    device.mkdir(parents=True)
+    assert bound_driver(0, 0x68, sysfs=tmp_path) is None
+    (tmp_path / "bmg160_i2c").mkdir()
+    (device / "driver").symlink_to(tmp_path / "bmg160_i2c")
+    assert bound_driver(0, 0x68, sysfs=tmp_path) == "bmg160_i2c"

@@ -108,6 +108,15 @@ def check_stub_bus(bus: int, address: int, dev: Path = Path("/dev"),
     return node
 
 
+def bound_driver(bus: int, address: int, sysfs: Path = Path("/sys")) -> str | None:
+    """The name of the kernel driver bound to ``address`` on bus ``bus``, or None."""
+    try:
+        return os.path.basename(os.readlink(
+            sysfs / "bus" / "i2c" / "devices" / f"{bus}-{address:04x}" / "driver"))
+    except OSError:
+        return None
+
+
 @dataclass
 class RefreshStats:
     """Timing of the refresh loop: when each refresh started, and CPU time spent."""
@@ -219,6 +228,21 @@ class I2CStubAdapter:
         image = self.chip.dump()
         self._write_words(image, 0x00, REGISTER_COUNT - 1)
         self._write_lows(image, 0x00, REGISTER_COUNT - 1)
+
+    def adopt(self) -> dict[int, int]:
+        """Take the configuration found in the stub's memory into the model (a driver is
+        bound and configured the chip before this adapter started: preloading reset values
+        would silently undo its range, bandwidth and interrupt set-up). The registers that
+        differ from the model's are applied as client writes; returns them."""
+        config = self._read_config()
+        writes = {
+            CONFIG_FIRST + i: value
+            for i, value in enumerate(config)
+            if self.chip.peek(CONFIG_FIRST + i) != value
+        }
+        if writes:
+            self.apply_client_writes(writes)
+        return writes
 
     def _read_config(self) -> bytes:
         first = self.smbus.read_i2c_block_data(self.address, CONFIG_FIRST, 32)

@@ -56,7 +56,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.bus.i2c_stub import I2CStubAdapter, StubSetupError, check_stub_bus
+    from bmg160_emu.bus.i2c_stub import (
+        I2CStubAdapter,
+        StubSetupError,
+        bound_driver,
+        check_stub_bus,
+    )
     from bmg160_emu.cli import CommandError
 
     addresses = list(dict.fromkeys(args.addresses or [0x68]))
@@ -89,6 +94,12 @@ def run(args: argparse.Namespace) -> int:
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
     try:
+        driver = bound_driver(args.bus, address)
+        if driver is not None:
+            adopted = adapter.adopt()
+            print(f"bmg160-emu stub: the {driver} driver is bound to 0x{address:02x}: took its "
+                  f"configuration from i2c-stub's memory ({len(adopted)} registers differ from "
+                  "reset) instead of preloading reset values", file=sys.stderr)
         adapter.preload()
         if args.ready_file is not None:
             args.ready_file.write_text("ready\n")
