@@ -51,3 +51,16 @@ def test_unknown_profile_is_a_command_error():
 
     with pytest.raises(CommandError):
         chips_from_args(_parse("--profile", "no-such-profile"))
+
+
+@pytest.mark.parametrize(("command", "offered"),
+                         [("run", False), ("stub", False), ("record", False), ("dump", True)])
+def test_realtime_is_offered_only_where_it_means_something(command, offered):
+    # run answers on its own request clock, stub always lives in real time and record in
+    # virtual time: --realtime did nothing in the first two and was refused by the third
+    from bmg160_emu.cli import build_parser
+
+    subparsers = next(a for a in build_parser()._actions
+                      if isinstance(a, argparse._SubParsersAction))
+    options = {o for action in subparsers.choices[command]._actions for o in action.option_strings}
+    assert ("--realtime" in options) == offered

@@ -51,8 +51,9 @@ def _bandwidth_code(text: str) -> int:
     return value
 
 
-def add_chip_options(parser: argparse.ArgumentParser) -> None:
-    """Add the options that describe the emulated chip(s) to ``parser``."""
+def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) -> None:
+    """Add the options that describe the emulated chip(s) to ``parser``; ``realtime=False``
+    where the command fixes the clock itself (an option that did nothing is not offered)."""
     group = parser.add_argument_group("emulated chip")
     group.add_argument("--seed", type=int, default=None, help="master noise seed (default: random)")
     group.add_argument("--profile", default="paper", help="noise profile name (default: paper)")
@@ -107,11 +108,12 @@ def add_chip_options(parser: argparse.ArgumentParser) -> None:
         metavar="DEGC",
         help="die temperature in deg C (default 23)",
     )
-    group.add_argument(
-        "--realtime",
-        action="store_true",
-        help="run on a real-time clock instead of virtual time",
-    )
+    if realtime:  # not where the command fixes the clock itself (run, stub, record)
+        group.add_argument(
+            "--realtime",
+            action="store_true",
+            help="run on a real-time clock instead of virtual time",
+        )
     group.add_argument(
         "--strict", action="store_true", help="log questionable driver behaviour"
     )

@@ -45,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="true motion from a scenario file (TOML, docs/scenarios.md)",
     )
     parser.add_argument("-o", "--output", type=Path, required=True, help="OUT.csv or OUT.npz")
-    add_chip_options(parser)
+    add_chip_options(parser, realtime=False)
     parser.set_defaults(func=run)
 
 
@@ -61,8 +61,6 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("give --rate or --bandwidth, not both")
     if args.truth is not None and args.true_rate is not None:
         raise CommandError("give --truth or --true-rate, not both")
-    if getattr(args, "realtime", False):
-        raise CommandError("record runs in virtual time; --realtime is not supported here")
     scenario = None
     if args.truth is not None:
         from bmg160_emu.adcs.scenarios import ScenarioError, load_scenario

@@ -47,7 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         parser, "--trace", "OUT.jsonl",
         "record every transaction as a JSON Lines trace (decode: bmg160-emu trace FILE)",
     )
-    add_chip_options(parser)
+    add_chip_options(parser, realtime=False)
     parser.add_argument("program", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
     parser.set_defaults(func=run)
 

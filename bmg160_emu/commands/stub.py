@@ -51,7 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_file_option(
         parser, "--ready-file", "FILE", "create FILE once the register map is preloaded (for scripts)"
     )
-    add_chip_options(parser)
+    add_chip_options(parser, realtime=False)
     parser.set_defaults(func=run)
 
 
