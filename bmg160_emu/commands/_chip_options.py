@@ -145,7 +145,12 @@ def chips_from_args(args: argparse.Namespace) -> dict[int, BMG160]:
 
             raise CommandError(str(exc)) from None
         if getattr(args, "true_rate", None) is not None:
-            chip.set_true_rate(tuple(args.true_rate))
+            try:
+                chip.set_true_rate(tuple(args.true_rate))
+            except ValueError as exc:
+                from bmg160_emu.cli import CommandError
+
+                raise CommandError(f"--true-rate: {exc}") from None
         if getattr(args, "range_dps", None) is not None:
             chip.write(0x0F, bytes([RANGE_CODE_BY_DPS[args.range_dps]]))
         if getattr(args, "bandwidth", None) is not None:

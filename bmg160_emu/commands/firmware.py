@@ -97,6 +97,9 @@ def _build(args: argparse.Namespace):
         )
     except (ValueError, FirmwareToolError) as exc:
         raise CommandError(str(exc).replace("\n", " | ")) from None
+    except OSError as exc:  # the build folder cannot be made or written
+        where = exc.filename or args.out
+        raise CommandError(f"cannot build in {where}: {exc.strerror}") from None
 
 
 def run_build(args: argparse.Namespace) -> int:
@@ -116,11 +119,20 @@ def run_build(args: argparse.Namespace) -> int:
 def run_capture(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
     from bmg160_emu.firmware.build import FirmwareToolError, capture_uart
+    from bmg160_emu.io.atomic import OutputError, atomic_path, check_writable
 
-    build = _build(args)
+    output = Path(args.output)
     try:
-        path = capture_uart(build, args.seconds, Path(args.output), odr_hz=args.odr)
+        check_writable(output)
+    except OutputError as exc:
+        raise CommandError(str(exc)) from None
+    build = _build(args)
+    try:  # the stream appears under its name only when complete (docs/commands/firmware.md)
+        with atomic_path(output) as partial:
+            capture_uart(build, args.seconds, partial, odr_hz=args.odr)
     except (ValueError, FirmwareToolError) as exc:
         raise CommandError(str(exc).replace("\n", " | ")) from None
-    print(f"wrote {path} ({args.seconds:g} simulated s at {args.odr} Hz)")
+    except OSError as exc:
+        raise CommandError(f"cannot write {output}: {exc.strerror or exc}") from None
+    print(f"wrote {output} ({args.seconds:g} simulated s at {args.odr} Hz)")
     return 0

@@ -1,0 +1,131 @@
+"""Output files that are complete or absent: written beside the target, renamed into place.
+
+Why: a command stopped half-way (SIGINT, SIGTERM, a full disk, an exception) must not leave a
+file that looks like a result: an ``.npy`` whose header claims the full shape, a CSV cut short
+under a header that still gives the full sample count, a zip holding half its arrays. Every
+command that writes a file writes it through :func:`atomic_path` or :func:`atomic_open`: the
+data goes to a temporary file in the target's folder (same file system, so ``os.replace`` is
+atomic), is flushed to disk, and only then replaces the target. On any exception the
+temporary file is removed and the target is left as it was.
+
+A target that exists and is not a regular file (``/dev/stdout``, a FIFO, ``/dev/full``) cannot
+be replaced: it is written in place at the end, from a temporary file, and a write error
+(ENOSPC on ``/dev/full``) is raised, never swallowed. A symbolic link is followed: the file it
+names is replaced and the link kept.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import stat
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, Any
+
+__all__ = ["OutputError", "atomic_open", "atomic_path", "check_free_space", "check_writable"]
+
+
+class OutputError(OSError):
+    """An output file cannot be written: the message names the file and the reason."""
+
+
+def _resolved(path: str | os.PathLike[str]) -> Path:
+    return Path(os.path.realpath(os.fspath(path)))
+
+
+def _is_special(target: Path) -> bool:
+    """An existing target that is not a regular file (device, FIFO, socket)."""
+    try:
+        return not stat.S_ISREG(target.stat().st_mode)
+    except FileNotFoundError:
+        return False
+
+
+def check_writable(path: str | os.PathLike[str]) -> None:
+    """Refuse, before any work, a path whose folder is missing or not writable, or that is a
+    folder: :class:`OutputError` naming the path."""
+    target = _resolved(path)
+    if target.is_dir():
+        raise OutputError(f"cannot write {os.fspath(path)}: it is a folder")
+    if _is_special(target):
+        if not os.access(target, os.W_OK):
+            raise OutputError(f"cannot write {os.fspath(path)}: permission denied")
+        return
+    folder = target.parent
+    if not folder.is_dir():
+        raise OutputError(f"cannot write {os.fspath(path)}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"cannot write {os.fspath(path)}: permission denied on {folder}")
+
+
+def check_free_space(path: str | os.PathLike[str], size_bytes: int) -> None:
+    """Refuse, before any work, an output of a known size that the target's file system has
+    no room for (the temporary file and the target share it): :class:`OutputError` naming
+    the path, the size needed and the space free."""
+    target = _resolved(path)
+    if _is_special(target):
+        return
+    free = shutil.disk_usage(target.parent).free
+    if size_bytes > free:
+        raise OutputError(
+            f"cannot write {os.fspath(path)}: it needs {_size(size_bytes)} and "
+            f"{target.parent} has {_size(free)} free"
+        )
+
+
+def _size(n: int) -> str:
+    for unit in ("bytes", "kB", "MB", "GB", "TB"):
+        if n < 1000 or unit == "TB":
+            return f"{n:,} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1000  # type: ignore[assignment]
+    raise AssertionError  # pragma: no cover
+
+
+def _mode_for_new_file() -> int:
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iterator[Path]:
+    """A temporary path to write the whole output to; it replaces ``path`` when the block
+    ends without an exception, and is removed otherwise. ``suffix`` (default: the target's)
+    is kept because some writers choose the format from it (``np.save`` adds ``.npy``)."""
+    target = _resolved(path)
+    special = _is_special(target)
+    suffix = target.suffix if suffix is None else suffix
+    folder = None if special else target.parent
+    fd, temp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}",
+                                     dir=folder)
+    os.close(fd)
+    temp = Path(temp_name)
+    try:
+        yield temp
+        if special:
+            with temp.open("rb") as source, target.open("wb") as sink:
+                shutil.copyfileobj(source, sink)
+        else:
+            with temp.open("rb+") as done:
+                os.fsync(done.fileno())
+            if target.exists():
+                os.chmod(temp, stat.S_IMODE(target.stat().st_mode))
+            else:
+                os.chmod(temp, _mode_for_new_file())
+            os.replace(temp, target)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            temp.unlink()
+
+
+@contextlib.contextmanager
+def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs: Any) -> Iterator[IO[Any]]:
+    """``open(path, mode)`` for writing, through :func:`atomic_path`: the target appears, whole,
+    only when the block completes."""
+    if not mode.startswith("w"):
+        raise ValueError(f"atomic_open writes new files: mode must start with 'w', not {mode!r}")
+    with atomic_path(path) as temp, temp.open(mode, **kwargs) as handle:
+        yield handle

@@ -1,0 +1,89 @@
+"""Output files are complete or absent (bmg160_emu.io.atomic): written beside the target and
+renamed into place; an exception, ^C or a full disk leaves the target as it was."""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+
+import pytest
+
+from bmg160_emu.io.atomic import (
+    OutputError,
+    atomic_open,
+    atomic_path,
+    check_free_space,
+    check_writable,
+)
+
+
+def leftovers(folder):
+    return sorted(p.name for p in folder.iterdir() if ".part" in p.name)
+
+
+def test_the_target_appears_whole_when_the_block_completes(tmp_path):
+    target = tmp_path / "out.csv"
+    with atomic_open(target, "w", encoding="utf-8") as f:
+        f.write("a,b\n")
+        assert not target.exists()  # nothing under the target's name until complete
+    assert target.read_text() == "a,b\n"
+    assert leftovers(tmp_path) == []
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~umask  # as open() would make it
+
+
+@pytest.mark.parametrize("error", [RuntimeError("boom"), KeyboardInterrupt()])
+def test_an_interrupted_write_leaves_the_old_target_and_no_temporary_file(tmp_path, error):
+    target = tmp_path / "out.npy"
+    target.write_bytes(b"old")
+    with pytest.raises(type(error)), atomic_path(target) as temp:
+        temp.write_bytes(b"half of the new")
+        raise error
+    assert target.read_bytes() == b"old"
+    assert leftovers(tmp_path) == []
+
+
+def test_the_temporary_path_keeps_the_suffix_writers_choose_formats_by(tmp_path):
+    import numpy as np
+
+    target = tmp_path / "x.npy"
+    with atomic_path(target) as temp:
+        assert temp.suffix == ".npy" and temp.parent == tmp_path
+        np.save(temp, np.arange(3))  # np.save would append .npy to another suffix
+    assert np.load(target).tolist() == [0, 1, 2]
+
+
+def test_a_symbolic_link_is_kept_and_the_file_it_names_replaced(tmp_path):
+    real = tmp_path / "data" / "real.csv"
+    real.parent.mkdir()
+    real.write_text("old")
+    link = tmp_path / "link.csv"
+    link.symlink_to(real)
+    with atomic_open(link) as f:
+        f.write("new")
+    assert link.is_symlink() and real.read_text() == "new"
+
+
+def test_a_full_disk_is_an_error_not_a_success(tmp_path):
+    full = tmp_path / "full.csv"
+    full.symlink_to("/dev/full")
+    with pytest.raises(OSError) as exc, atomic_open(full) as f:
+        f.write("x" * 100_000)
+    assert exc.value.errno == errno.ENOSPC
+    assert full.is_symlink()  # the link to the device is not replaced by a regular file
+
+
+def test_check_writable_names_the_path_and_the_reason(tmp_path):
+    with pytest.raises(OutputError, match="folder .* does not exist"):
+        check_writable(tmp_path / "missing" / "x.csv")
+    with pytest.raises(OutputError, match="it is a folder"):
+        check_writable(tmp_path)
+    check_writable(tmp_path / "fine.csv")
+
+
+def test_check_free_space_names_what_is_needed_and_what_is_free(tmp_path):
+    check_free_space(tmp_path / "small.npy", 1000)
+    with pytest.raises(OutputError, match=r"needs 1000000000\.0 TB and .* free"):
+        check_free_space(tmp_path / "huge.npy", 10**21)
