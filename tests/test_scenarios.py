@@ -238,3 +238,47 @@ def test_a_slew_with_end_s_is_refused_since_its_profile_sets_its_end():
              "max_accel_dps2": 1.0, "end_s": 5.0}
     with pytest.raises(ScenarioError, match="motion 1: a slew ends by itself"):
         scenario_from_dict({"duration_s": 60.0, "motion": [entry]})
+
+
+@pytest.mark.parametrize(
+    ("body", "message"),
+    [
+        ("duration_s = 10\nmotion = [1]", "motion must be an array of tables"),
+        ('duration_s = 10\nreadout = "abc"', "readout must be a table"),
+        ("duration_s = 10\ngyro = 0.5", "gyro must be an array of tables"),
+        ("duration_s = 10\nfault = [0.5]", "fault must be an array of tables"),
+        ("duration_s = inf", "duration_s must be a positive number"),
+        ("duration_s = true", "duration_s must be a positive number"),
+        # a tumble integrated ahead to 2**63 s hung the loader
+        ('duration_s = 9.2e18\n[[motion]]\nkind = "tumble"\ninitial_rate_dps = [1, 2, 3]',
+         "up to 315576000"),
+        (('duration_s = 10\n[[motion]]\nkind = "tumble"\ninitial_rate_dps = [1, 2, 3]\n'
+         "inertia_kg_m2 = [inf, 1, 1]"), "(finite, symmetric)"),
+        (('duration_s = 10\n[[motion]]\nkind = "jitter"\namplitude_dps = [1, 1, 1]\n'
+         "frequency_hz = inf"), "frequency_hz must be a positive finite number"),
+    ],
+)
+def test_malformed_scenarios_are_refused_naming_the_file_and_the_key(tmp_path, body, message):
+    path = tmp_path / "bad.toml"
+    path.write_text(body + "\n")
+    with pytest.raises(ScenarioError) as exc:
+        load_scenario(path)
+    assert str(exc.value).startswith(f"{path}: ") and message in str(exc.value)
+
+
+def test_a_ten_year_tumble_loads_without_integrating_ten_years_ahead(tmp_path):
+    path = tmp_path / "long.toml"
+    path.write_text('duration_s = 315576000\n[[motion]]\nkind = "tumble"\n'
+                    "initial_rate_dps = [1, 2, 3]\n")
+    scenario = load_scenario(path)
+    assert scenario.rate_dps(1.0).shape == (3,)
+
+
+def test_montecarlo_on_a_scenario_shorter_than_its_readout_is_a_one_line_error(tmp_path, capsys):
+    from bmg160_emu.cli import main
+
+    path = tmp_path / "short.toml"
+    path.write_text('duration_s = 0.5\n[[motion]]\nkind = "constant"\nrate_dps = [1, 2, 3]\n')
+    assert main(["montecarlo", str(path), "--runs", "2", "--scheduler", "sync"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(path) in err and "shorter than the readout needs" in err

@@ -20,6 +20,7 @@ Readout options, from the scenario's ``[readout]`` table:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -71,6 +72,19 @@ def readout_options(scenario: Scenario) -> dict[str, Any]:
     for key in ("poll_s", "calibrate_s", "grid_s"):
         if not isinstance(options[key], (int, float)) or not options[key] > 0:
             raise ScenarioError(f"readout: {key} must be a positive number of seconds")
+    for key in ("settle_s", "poll_s", "calibrate_s", "grid_s"):
+        if isinstance(options[key], bool) or not math.isfinite(options[key]):
+            raise ScenarioError(f"readout: {key} must be a finite number of seconds")
+    # the run settles, calibrates (bias = "calibrate") and then needs one grid step to
+    # compare the attitude with truth: a shorter scenario has nothing to evaluate
+    needed = options["settle_s"] + options["grid_s"] + (
+        options["calibrate_s"] if options["bias"] == "calibrate" else 0.0)
+    if scenario.duration_s < needed:
+        raise ScenarioError(
+            f"duration_s = {scenario.duration_s:g} s is shorter than the readout needs: settle_s "
+            f"{options['settle_s']:g} s" + (f" + calibrate_s {options['calibrate_s']:g} s"
+                                             if options["bias"] == "calibrate" else "")
+            + f" + one grid_s step {options['grid_s']:g} s = {needed:g} s")
     return options
 
 

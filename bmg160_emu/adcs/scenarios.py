@@ -321,9 +321,17 @@ class Scenario:
         return cls(duration_s=duration_s, motions=[ConstantRotation(rate=rate)], name="constant")
 
 
+# Longest scenario accepted: ten years, beyond any mission test, and far inside the chips'
+# integer-nanosecond clock (2**63 ns = 292 years); an unbounded one could hang the loader
+# (a tumble integrates ahead) or overflow the sample schedule.
+MAX_DURATION_S = 10 * 365.25 * 86400.0
+
+
 def _check_duration(duration_s: Any) -> float:
-    if not isinstance(duration_s, (int, float)) or not duration_s > 0:
-        raise ScenarioError(f"duration_s must be a positive number of seconds, not {duration_s!r}")
+    if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) \
+            or not 0 < duration_s <= MAX_DURATION_S:
+        raise ScenarioError(f"duration_s must be a positive number of seconds up to "
+                            f"{MAX_DURATION_S:.0f} (ten years), not {duration_s!r}")
     return float(duration_s)
 
 
@@ -355,8 +363,9 @@ def _positive(entry: dict[str, Any], key: str, where: str, default: float | None
     value = entry.get(key, default)
     if value is None:
         raise ScenarioError(f"{where}: missing {key}")
-    if not isinstance(value, (int, float)) or not value > 0:
-        raise ScenarioError(f"{where}: {key} must be a positive number, not {value!r}")
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
+            or not math.isfinite(value):
+        raise ScenarioError(f"{where}: {key} must be a positive finite number, not {value!r}")
     return float(value)
 
 
@@ -367,8 +376,9 @@ def _inertia(value: Any, where: str) -> np.ndarray:
         array = np.zeros(0)
     if array.shape == (3,):
         array = np.diag(array)
-    if array.shape != (3, 3) or not np.allclose(array, array.T):
-        raise ScenarioError(f"{where}: inertia_kg_m2 must be 3 principal moments or a 3x3 matrix")
+    if array.shape != (3, 3) or not np.all(np.isfinite(array)) or not np.allclose(array, array.T):
+        raise ScenarioError(f"{where}: inertia_kg_m2 must be 3 principal moments or a 3x3 matrix "
+                            "(finite, symmetric)")
     if np.any(np.linalg.eigvalsh(array) <= 0):
         raise ScenarioError(f"{where}: inertia_kg_m2 must be positive definite")
     return array
@@ -492,7 +502,7 @@ def motion_from_dict(
             initial_rate_dps=_vector(entry.get("initial_rate_dps"), f"{where}: initial_rate_dps"),
             inertia_kg_m2=_inertia(entry.get("inertia_kg_m2", [1.0, 1.0, 1.0]), where),
             damping_time_s=damping,
-            horizon_s=duration_s + 10.0,
+            horizon_s=min(duration_s, 600.0) + 10.0,  # then extended as far as asked
             **window,
         )
     # table
@@ -521,13 +531,16 @@ def scenario_from_dict(data: dict[str, Any], base: Path | None = None) -> Scenar
     entries = data.get("motion", [{"kind": "rest"}])
     if not isinstance(entries, list):
         raise ScenarioError("motion must be an array of tables ([[motion]])")
+    for key in ("motion", "gyro", "fault"):
+        listed = data.get(key, [])
+        if not isinstance(listed, list) or not all(isinstance(e, dict) for e in listed):
+            raise ScenarioError(f"{key} must be an array of tables ([[{key}]])")
+    if not isinstance(data.get("readout", {}), dict):
+        raise ScenarioError("readout must be a table ([readout])")
     motions = [
         motion_from_dict(entry, duration, where=f"motion {i + 1}", base=base)
         for i, entry in enumerate(entries)
     ]
-    for key in ("gyro", "fault"):
-        if not isinstance(data.get(key, []), list):
-            raise ScenarioError(f"{key} must be an array of tables ([[{key}]])")
     return Scenario(
         duration_s=duration,
         motions=motions,

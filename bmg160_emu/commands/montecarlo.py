@@ -88,7 +88,12 @@ def run(args: argparse.Namespace) -> int:
             progress=args.progress,
             percentiles=percentiles,
         )
-    except (ScenarioError, FaultError, RuntimeError) as exc:
+    except ScenarioError as exc:
+        message = str(exc)
+        if not message.startswith(str(args.scenario)):
+            message = f"{args.scenario}: {message}"  # found after loading: name the file
+        raise CommandError(message) from None
+    except (FaultError, RuntimeError) as exc:
         raise CommandError(str(exc)) from None
     print(result.summary(rows=max(2, args.rows)))
     if args.output:
