@@ -190,3 +190,50 @@ def test_command_runs_the_seeds_its_help_promises(tmp_path, monkeypatch, args, s
     scenario.write_text(SCENARIO_TOML)
     assert main(["montecarlo", str(scenario), "--scheduler", "sync", *args]) == 0
     assert asked == [seeds]
+
+
+class _StopAtThirdSeed:
+    """A run function that is interrupted (^C) when it reaches the third seed."""
+
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def __call__(self, seed: int) -> RunResult:
+        self.calls += 1
+        if self.calls == 3:
+            raise KeyboardInterrupt
+        return RunResult(seed, np.arange(3.0), np.full(3, float(seed)))
+
+
+def test_an_interrupted_monte_carlo_keeps_the_runs_already_finished(tmp_path):
+    result = run_montecarlo(_short(), [10, 11, 12, 13, 14], scheduler="sync",
+                            run=_StopAtThirdSeed())
+    assert result.seeds == [10, 11] and result.planned_runs == 5 and result.interrupted
+    assert "2 of 5 runs (interrupted)" in result.summary()
+    result.write(tmp_path / "partial.json")
+    import json
+
+    data = json.loads((tmp_path / "partial.json").read_text())
+    assert data["interrupted"] is True and data["runs_planned"] == 5 and data["seeds"] == [10, 11]
+
+
+def test_monte_carlo_output_to_a_missing_folder_is_refused_before_the_runs(tmp_path, capsys):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(SCENARIO_TOML)
+    status = main(["montecarlo", str(scenario), "--runs", "2", "--scheduler", "sync",
+                   "--output", str(tmp_path / "nope" / "curves.json")])
+    err = capsys.readouterr()
+    assert status == 2 and "does not exist" in err.err and "scenario" not in err.out
+
+
+def test_monte_carlo_output_onto_a_full_disk_is_a_one_line_error_after_the_table(
+        tmp_path, capsys):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(SCENARIO_TOML)
+    full = tmp_path / "full.json"
+    full.symlink_to("/dev/full")
+    status = main(["montecarlo", str(scenario), "--runs", "2", "--scheduler", "sync",
+                   "--output", str(full)])
+    captured = capsys.readouterr()
+    assert status == 2 and "p50_deg" in captured.out  # the results were printed ...
+    assert captured.err.count("\n") == 1 and "No space left on device" in captured.err

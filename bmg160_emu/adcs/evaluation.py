@@ -143,6 +143,9 @@ class PropagationRun:
 
     scenario: Scenario
 
+    def __post_init__(self) -> None:
+        readout_options(self.scenario)  # a bad [readout] is refused before any run starts
+
     def __call__(self, seed: int) -> RunResult:
         from bmg160_emu.adcs.rig import GyroRig
 

@@ -46,6 +46,11 @@ class MonteCarloResult:
     angle_error_deg: np.ndarray  # (runs, times)
     percentiles: dict[float, np.ndarray]
     extras: dict[str, np.ndarray] = field(default_factory=dict)
+    planned_runs: int | None = None  # set when interrupted: the runs that were asked for
+
+    @property
+    def interrupted(self) -> bool:
+        return self.planned_runs is not None and self.planned_runs > len(self.seeds)
 
     @property
     def runs(self) -> int:
@@ -58,7 +63,10 @@ class MonteCarloResult:
         """A table of the percentiles at ``rows`` evenly spaced times, for a terminal."""
         header = "  time_s" + "".join(f"{f'p{p:g}_deg':>12}" for p in self.percentiles)
         picks = np.unique(np.linspace(0, self.times_s.size - 1, rows).round().astype(int))
-        lines = [(f"scenario {self.scenario}: {self.runs} runs, angle error of the propagated "
+        runs = f"{self.runs} runs"
+        if self.interrupted:
+            runs = f"{self.runs} of {self.planned_runs} runs (interrupted)"
+        lines = [(f"scenario {self.scenario}: {runs}, angle error of the propagated "
                  "attitude against truth"), header]
         for i in picks:
             cells = "".join(f" {v[i]:11.5f}" for v in self.percentiles.values())
@@ -69,21 +77,27 @@ class MonteCarloResult:
         return {
             "scenario": self.scenario,
             "seeds": self.seeds,
+            "runs_planned": self.planned_runs or len(self.seeds),
+            "interrupted": self.interrupted,
             "times_s": self.times_s.tolist(),
             "percentiles_deg": {f"p{p:g}": v.tolist() for p, v in self.percentiles.items()},
             "extras": {k: v.tolist() for k, v in self.extras.items()},
         }
 
     def write(self, path: str | Path) -> None:
-        """JSON with the percentile curves, or CSV (time and one column per percentile)."""
+        """JSON with the percentile curves, or CSV (time and one column per percentile); the
+        file appears whole or not at all (bmg160_emu.io.atomic)."""
+        from bmg160_emu.io.atomic import atomic_path
+
         path = Path(path)
-        if path.suffix == ".csv":
-            names = [f"p{p:g}_deg" for p in self.percentiles]
-            table = np.column_stack([self.times_s, *self.percentiles.values()])
-            np.savetxt(path, table, delimiter=",", header=",".join(["time_s", *names]),
-                       comments="", fmt="%.9g")
-        else:
-            path.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+        with atomic_path(path) as partial:
+            if path.suffix == ".csv":
+                names = [f"p{p:g}_deg" for p in self.percentiles]
+                table = np.column_stack([self.times_s, *self.percentiles.values()])
+                np.savetxt(partial, table, delimiter=",", header=",".join(["time_s", *names]),
+                           comments="", fmt="%.9g")
+            else:
+                partial.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
 
 
 def reduce_runs(
@@ -139,12 +153,23 @@ def _progress(total: int, enabled: bool | None):
     return tqdm(total=total, unit="run", desc="monte carlo", disable=disable)
 
 
+class Interrupted(KeyboardInterrupt):
+    """^C or SIGTERM during the runs; ``results`` holds the runs finished before it."""
+
+    def __init__(self, results: list[RunResult]) -> None:
+        super().__init__()
+        self.results = results
+
+
 def _run_sync(run: RunFunction, seeds: Sequence[int], progress: bool | None) -> list[RunResult]:
-    results = []
+    results: list[RunResult] = []
     with _progress(len(seeds), progress) as bar:
-        for seed in seeds:
-            results.append(run(seed))
-            bar.update(1)
+        try:
+            for seed in seeds:
+                results.append(run(seed))
+                bar.update(1)
+        except KeyboardInterrupt:
+            raise Interrupted(results) from None
     return results
 
 
@@ -176,10 +201,13 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
         futures = client.map(run, list(seeds), pure=False)
         by_seed: dict[int, RunResult] = {}
         with _progress(len(seeds), progress) as bar:
-            for future in as_completed(futures):
-                result = future.result()
-                by_seed[result.seed] = result
-                bar.update(1)
+            try:
+                for future in as_completed(futures):
+                    result = future.result()
+                    by_seed[result.seed] = result
+                    bar.update(1)
+            except KeyboardInterrupt:
+                raise Interrupted([by_seed[s] for s in seeds if s in by_seed]) from None
         return [by_seed[s] for s in seeds]
     finally:
         client.close()
@@ -214,10 +242,18 @@ def run_montecarlo(
         from bmg160_emu.adcs.evaluation import PropagationRun
 
         run = PropagationRun(scenario)
-    if scheduler == "sync":
-        results = _run_sync(run, seeds, progress)
-    elif scheduler == "local":
-        results = _run_dask(run, seeds, progress, None, workers)
-    else:
-        results = _run_dask(run, seeds, progress, scheduler, workers)
+    try:
+        if scheduler == "sync":
+            results = _run_sync(run, seeds, progress)
+        elif scheduler == "local":
+            results = _run_dask(run, seeds, progress, None, workers)
+        else:
+            results = _run_dask(run, seeds, progress, scheduler, workers)
+    except Interrupted as stop:
+        if not stop.results:
+            raise
+        # the finished runs are kept: summarised (in seed order) and marked as interrupted
+        partial = reduce_runs(scenario.name, stop.results, percentiles)
+        partial.planned_runs = len(seeds)
+        return partial
     return reduce_runs(scenario.name, results, percentiles)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 EPILOG = """\
 examples:
@@ -78,6 +79,13 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("--percentiles must be numbers within 0..100")
     if args.output and not args.output.endswith((".json", ".csv")):
         raise CommandError("--output must end in .json or .csv")
+    if args.output:
+        from bmg160_emu.io.atomic import OutputError, check_writable
+
+        try:  # before the runs: an unwritable path would otherwise lose all of them
+            check_writable(args.output)
+        except OutputError as exc:
+            raise CommandError(str(exc)) from None
     try:
         scenario = load_scenario(args.scenario)
         result = run_montecarlo(
@@ -97,6 +105,15 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(exc)) from None
     print(result.summary(rows=max(2, args.rows)))
     if args.output:
-        result.write(args.output)
+        try:
+            result.write(args.output)
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.output}: {exc.strerror or exc} (the "
+                               "table above holds the results)") from None
         print(f"curves written to {args.output}")
+    if result.interrupted:
+        print(f"bmg160-emu montecarlo: interrupted after {result.runs} of {result.planned_runs} "
+              "runs; the finished runs are summarised above"
+              + (f" and in {args.output}" if args.output else ""), file=sys.stderr)
+        return 130
     return 0
