@@ -12,7 +12,9 @@ import argparse
 import importlib
 import os
 import pkgutil
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 from bmg160_emu import __version__, commands
@@ -20,6 +22,17 @@ from bmg160_emu import __version__, commands
 
 class CommandError(Exception):
     """A user-facing error: printed as one line, exit status 2, never a traceback."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised in the main thread as ^C is, so that every command stops the same way:
+    partial outputs are removed (bmg160_emu.io.atomic), finished work is kept and said."""
+
+    signal_name = "SIGTERM"  # read by code that reports how it was stopped (no cli import)
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -43,18 +56,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminate)  # commands may install their own
     try:
         return int(args.func(args) or 0)
     except CommandError as exc:
         print(f"bmg160-emu {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        return 130
+    except KeyboardInterrupt as exc:
+        terminated = isinstance(exc, Terminated)
+        print(f"bmg160-emu {args.command}: interrupted by "
+              f"{'SIGTERM' if terminated else 'SIGINT'}", file=sys.stderr)
+        return 143 if terminated else 130
     except BrokenPipeError:
         # The reader of our output went away (`bmg160-emu dump | head`): stop quietly, as
         # Unix tools do, and keep Python from complaining again when it flushes stdout at exit.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

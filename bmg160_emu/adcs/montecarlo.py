@@ -47,6 +47,7 @@ class MonteCarloResult:
     percentiles: dict[float, np.ndarray]
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     planned_runs: int | None = None  # set when interrupted: the runs that were asked for
+    stopped_by: str | None = None  # "SIGINT" or "SIGTERM" when interrupted
 
     @property
     def interrupted(self) -> bool:
@@ -156,9 +157,10 @@ def _progress(total: int, enabled: bool | None):
 class Interrupted(KeyboardInterrupt):
     """^C or SIGTERM during the runs; ``results`` holds the runs finished before it."""
 
-    def __init__(self, results: list[RunResult]) -> None:
+    def __init__(self, results: list[RunResult], cause: BaseException) -> None:
         super().__init__()
         self.results = results
+        self.signal_name = getattr(cause, "signal_name", "SIGINT")
 
 
 def _run_sync(run: RunFunction, seeds: Sequence[int], progress: bool | None) -> list[RunResult]:
@@ -168,8 +170,8 @@ def _run_sync(run: RunFunction, seeds: Sequence[int], progress: bool | None) -> 
             for seed in seeds:
                 results.append(run(seed))
                 bar.update(1)
-        except KeyboardInterrupt:
-            raise Interrupted(results) from None
+        except KeyboardInterrupt as exc:
+            raise Interrupted(results, exc) from None
     return results
 
 
@@ -206,8 +208,8 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
                     result = future.result()
                     by_seed[result.seed] = result
                     bar.update(1)
-            except KeyboardInterrupt:
-                raise Interrupted([by_seed[s] for s in seeds if s in by_seed]) from None
+            except KeyboardInterrupt as exc:
+                raise Interrupted([by_seed[s] for s in seeds if s in by_seed], exc) from None
         return [by_seed[s] for s in seeds]
     finally:
         client.close()
@@ -255,5 +257,6 @@ def run_montecarlo(
         # the finished runs are kept: summarised (in seed order) and marked as interrupted
         partial = reduce_runs(scenario.name, stop.results, percentiles)
         partial.planned_runs = len(seeds)
+        partial.stopped_by = stop.signal_name
         return partial
     return reduce_runs(scenario.name, results, percentiles)

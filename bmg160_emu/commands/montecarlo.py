@@ -112,8 +112,8 @@ def run(args: argparse.Namespace) -> int:
                                "table above holds the results)") from None
         print(f"curves written to {args.output}")
     if result.interrupted:
-        print(f"bmg160-emu montecarlo: interrupted after {result.runs} of {result.planned_runs} "
-              "runs; the finished runs are summarised above"
+        print(f"bmg160-emu montecarlo: interrupted by {result.stopped_by} after {result.runs} of "
+              f"{result.planned_runs} runs; the finished runs are summarised above"
               + (f" and in {args.output}" if args.output else ""), file=sys.stderr)
-        return 130
+        return 143 if result.stopped_by == "SIGTERM" else 130
     return 0
