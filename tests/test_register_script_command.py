@@ -104,3 +104,19 @@ def test_spi_with_two_chips_is_a_clear_error(tmp_path, capsys):
     path = _script(tmp_path)
     assert main(["script", str(path), "--spi", "--address", "0x68", "--address", "0x69"]) == 2
     assert "--spi drives one chip" in capsys.readouterr().err
+
+
+def test_chip_and_sample_faults_work_over_spi(tmp_path, capsys):
+    # was AttributeError: 'NoneType' object has no attribute 'transaction_hooks'
+    text = ("rate 50 0 0\nfault stuck_axis axis=x\nadvance 20ms\n"
+            "read RATE_X_LSB\nadvance 20ms\nread RATE_X_LSB\n")
+    assert main(["script", str(_script(tmp_path, text)), "--spi", "--seed", "1"]) == 0
+    out = capsys.readouterr().out
+    reads = [line.split("->")[1].split()[0] for line in out.splitlines() if "RATE_X_LSB ->" in line]
+    assert len(reads) == 2 and reads[0] == reads[1]  # the stuck axis holds its value
+
+
+def test_bus_faults_over_spi_are_refused_with_the_line(tmp_path, capsys):
+    path = _script(tmp_path, "fault nack max_count=2\nread CHIP_ID\n")
+    assert main(["script", str(path), "--spi"]) == 1
+    assert f"{path}:1: bus faults need the script to run on a bus" in capsys.readouterr().err

@@ -262,11 +262,15 @@ class FaultSchedule:
                     f"{fault.kind}: gyro {fault.gyro} does not exist (the rig has "
                     f"{len(self._gyros)})"
                 )
+        for fault in self.faults:
+            if fault.layer == "bus" and any(g.bus is None for g in self._targets(fault)):
+                raise FaultError(f"{fault.kind}: a bus fault needs an I2C bus; these chips are "
+                                 "reached without one (SPI)")
         seen: set[int] = set()
         for gyro in self._gyros:
             self._sample_flags[gyro.index] = {}
             gyro.chip.sample_hooks.append(self._sample_hook_for(gyro))
-            if id(gyro.bus) not in seen:
+            if gyro.bus is not None and id(gyro.bus) not in seen:
                 seen.add(id(gyro.bus))
                 gyro.bus.transaction_hooks.append(self._transaction_hook)
             # time-triggered sample faults act on exact sample times, so they are known now
