@@ -172,3 +172,25 @@ def test_legacy_smbus_follows_python_smbus_rules():
         bus.pec = 1
         assert bus.pec is True
         bus.close()
+
+
+@pytest.mark.parametrize("address", [b"h", "h", bytearray(b"h"), 1.5, None])
+def test_an_address_of_the_wrong_type_fails_as_it_does_over_the_kernel(address):
+    # smbus2 hands the address to fcntl.ioctl: a buffer (bytes, bytearray, str) is passed as
+    # a pointer, which i2c-dev refuses with EINVAL; anything else is fcntl's TypeError
+    from bmg160_emu.device.chip import BMG160
+
+    def outcome(bus):
+        try:
+            bus.read_byte_data(address, 0)
+        except OSError as exc:
+            return ("OSError", exc.errno)
+        except TypeError as exc:
+            return ("TypeError", str(exc))
+        return ("no error", None)
+
+    with patch_smbus({1: {0x68: BMG160(seed=1)}}):
+        real = outcome(smbus2.SMBus(1))
+    fake = outcome(FakeSMBus(1, devices={0x68: BMG160(seed=1)}))
+    assert fake == real
+    assert real[0] == ("OSError" if isinstance(address, (bytes, bytearray, str)) else "TypeError")

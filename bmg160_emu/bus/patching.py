@@ -157,7 +157,13 @@ class I2cDevKernel:
             return fcntl.ioctl(fd, request, arg, mutate_flag)
         if isinstance(arg, int):
             return handle.ioctl(request, _IoctlArgument(_c_int(operator.index(arg)), None))
-        view = memoryview(arg).cast("B")
+        if isinstance(arg, str):
+            arg = arg.encode()  # fcntl's "s*" argument: a str is passed as its UTF-8 bytes
+        try:
+            view = memoryview(arg).cast("B")
+        except TypeError:
+            operator.index(arg)  # fcntl's "i" argument: "'float' object cannot be interpreted
+            raise  # as an integer", the TypeError CPython raises
         if view.readonly or not mutate_flag:  # fcntl works on a copy and returns it
             if len(view) > IOCTL_BUFSZ:
                 raise ValueError("ioctl string arg too long")

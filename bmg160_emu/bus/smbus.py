@@ -163,6 +163,10 @@ class FakeSMBus:
         if self.address != address or self._force_last != force:
             if self.fd is None:
                 raise _closed()
+            if isinstance(address, (bytes, bytearray, memoryview, str)):
+                # smbus2 hands it to fcntl.ioctl as a buffer: the kernel takes the buffer's
+                # pointer for the address, above 0x7F, and answers EINVAL
+                raise OSError(errno.EINVAL, os.strerror(errno.EINVAL))
             address = operator.index(address)
             if not -(2**31) <= address < 2**31:  # fcntl.ioctl passes the address as a C int
                 raise OverflowError("signed integer is greater than maximum")
