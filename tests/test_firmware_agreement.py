@@ -431,3 +431,17 @@ def test_nvm_load_brings_back_the_nvm_offsets(bus, chip):
     bus.write_byte_data(ADDRESS, 0x33, 0x08)
     chip.advance(0.001)
     assert [bus.read_byte_data(ADDRESS, r) for r in range(0x36, 0x3B)] == [0] * 5
+
+
+def test_peek_and_dump_of_bist_equal_what_a_read_returns(bus, chip):
+    # the firmware computes BIST on each read, so its RAM copy (0x10) was stale: after a
+    # self-test a read gives 0x12 and in suspend 0x02, and the side-effect-free views must too
+    bus.write_byte_data(ADDRESS, BW, BW_200HZ)
+    chip.advance(0.05)
+    assert chip.peek(BIST) == chip.dump()[BIST] == bus.read_byte_data(ADDRESS, BIST) == 0x10
+    bus.write_byte_data(ADDRESS, BIST, 0x01)
+    chip.advance(0.010)
+    assert chip.peek(BIST) == chip.dump()[BIST] == bus.read_byte_data(ADDRESS, BIST) == 0x12
+    bus.write_byte_data(ADDRESS, LPM1, 0x80)  # suspend: no sampling, rate_ok drops
+    chip.advance(0.010)
+    assert chip.peek(BIST) == chip.dump()[BIST] == bus.read_byte_data(ADDRESS, BIST) == 0x02

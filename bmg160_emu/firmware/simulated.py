@@ -37,6 +37,7 @@ F_CPU_HZ = 16_000_000  # the board's crystal (firmware/src/config.h)
 BOOT_TIME_S = 0.040  # reset to first sample: boot plus the 30 ms start-up time (spec 6.6)
 FIFO_CAPACITY = 100
 _OUTSIDE_MAP = 0x40
+_BIST_TIME_MS = 5  # firmware/src/regmap.c BIST_TIME_MS: the self-test takes 5 ms
 
 
 class SimulatedFirmwareChip:
@@ -239,7 +240,21 @@ class SimulatedFirmwareChip:
             status |= 0x10 if count >= level else 0
         regs[0x0A] = status  # data_int is a 300 us pulse: not reconstructed here
         regs[0x3F] = self._fifo_next_byte(regs, count)
+        regs[0x3C] = self._bist_byte()
         return regs
+
+    def _ram_u16(self, symbol: str) -> int:
+        return int.from_bytes(self._ram(symbol), "little")
+
+    def _bist_byte(self) -> int:
+        """BIST as a read returns it: the firmware computes it on each read from the sampler
+        state and the self-test timer (firmware/src/regmap.c), so its RAM copy is stale."""
+        value = 0x10 if self._ram("running")[0] and not self._ram_u16("startup_ticks") else 0
+        if self._ram("bist_triggered")[0]:
+            elapsed_ms = (self._ram_u16("ms") - self._ram_u16("bist_start_ms")) & 0xFFFF
+            if elapsed_ms >= _BIST_TIME_MS:
+                value |= 0x02  # bist_rdy; the firmware never reports bist_fail
+        return value
 
     def _fifo_next_byte(self, regs: list[int], count: int) -> int:
         select = regs[0x3E] & 3
