@@ -21,11 +21,11 @@ HEAVY = ("scipy", "matplotlib", "allantools", "tqdm", "pandas", "dask", "unittes
 
 
 def _imported_after(code: str) -> set[str]:
-    """Top-level package names present in sys.modules after running ``code`` afresh."""
+    """Names of the modules in sys.modules after running ``code`` in a fresh interpreter."""
     script = textwrap.dedent(code) + textwrap.dedent(
         """
         import json, sys
-        print(json.dumps(sorted({name.partition(".")[0] for name in sys.modules})))
+        print(json.dumps(sorted(sys.modules)))
         """
     )
     result = subprocess.run(
@@ -36,7 +36,7 @@ def _imported_after(code: str) -> set[str]:
 
 
 def _heavy(modules: set[str]) -> list[str]:
-    return sorted(set(HEAVY) & modules)
+    return sorted(set(HEAVY) & {name.partition(".")[0] for name in modules})
 
 
 def test_the_low_pass_filter_needs_no_scipy() -> None:
@@ -57,6 +57,19 @@ def test_the_bus_layer_needs_nothing_heavy() -> None:
         import bmg160_emu.bus.i2c, bmg160_emu.bus.smbus, bmg160_emu.bus.transactions
         """
     )
+    assert _heavy(modules) == []
+
+
+def test_a_noise_profile_loads_without_the_generator() -> None:
+    """noise/__init__ is lazy: the firmware header and identification read profiles without
+    loading the generator (and whatever the generator imports)."""
+    modules = _imported_after(
+        """
+        from bmg160_emu.noise.profile import load_profile
+        load_profile("paper")
+        """
+    )
+    assert "bmg160_emu.noise.engine" not in modules
     assert _heavy(modules) == []
 
 
