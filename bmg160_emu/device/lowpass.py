@@ -7,12 +7,14 @@ at steady state: a constant rate reads exactly from the first sample (spec 5.3, 
 Design and filtering use numpy only, so that building a chip does not import scipy (about
 0.6 s of start-up). The design is the one ``scipy.signal.butter`` computes (analog
 Butterworth poles, cut-off prewarped, bilinear transform at fs = 2), so the coefficients
-agree with it to rounding (a test compares them). The filter is the direct-form-II-transposed
+agree with it (bit for bit for the table's eight BW codes; a test compares them). The filter is the direct-form-II-transposed
 state space of ``scipy.signal.lfilter`` run in sub-blocks of ``SUB_BLOCK`` samples with
 matrix products instead of a per-sample loop; its output and states agree with lfilter's to
 rounding (about 1e-15 of the signal; a test asserts 1e-12), not bit for bit. Streams changed
 within rounding when this replaced lfilter: a count can differ from an earlier release only
-where ``rate * sensitivity`` lay within about 1e-12 LSB of a rounding boundary.
+where ``rate * sensitivity`` lay within about 1e-11 LSB (4e-16 of full scale) of a
+rounding boundary; 64,000 reads over all BW codes with a moving true rate and noise gave the
+same bytes as before.
 """
 
 from __future__ import annotations
