@@ -1,7 +1,9 @@
 """Per-operation cost of the device model, against references measured in the same run.
 
 Measures chip.advance(one output period) + chip.read(0x02, 6) (one new sample per read, noise
-on) and prints it beside a plain dict lookup loop and a dict-backed 6-byte "read".
+on) and prints it beside a plain dict lookup loop and a dict-backed 6-byte "read"; then the
+same loop without noise and with a moving true rate, and the low-pass filter alone per
+sample, as shares of it.
 
     python tools/bench_chip.py [--n 100000] [--bw 4] [--repeat 5]
 """
@@ -10,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 import time
+
+import numpy as np
 
 from bmg160_emu.device.chip import BMG160
 
@@ -68,6 +72,38 @@ def main() -> int:
                                                              args.repeat),
     }
     new_samples = chip._k - before
+
+    # Where advance+read goes (speed section of issue 10): the same loop on chips without
+    # noise and with a moving true rate (the low-pass then runs on every block), and the
+    # low-pass alone per sample on blocks of 1024 as the chip runs it.
+    quiet = BMG160(seed=1, noise=False)
+    ramp = np.linspace(0.0, 100.0, 3 * 4096).reshape(4096, 3)  # per-sample rates (vectorised)
+    moving = BMG160(seed=1, true_rate=ramp)
+    for other in (quiet, moving):
+        other.write(0x10, bytes([args.bw]))
+
+    def advance_read_of(c: BMG160):
+        def loop(n: int) -> None:
+            adv, rd = c.advance, c.read
+            for _ in range(n):
+                adv(period)
+                rd(2, 6)
+        return loop
+
+    block = np.random.default_rng(0).standard_normal((1024, 3))
+    filt = moving._filter
+
+    def lowpass_blocks(n: int) -> None:
+        for _ in range(n // len(block)):
+            filt.run(block)
+
+    for c in (quiet, moving):
+        advance_read_of(c)(1000)
+    shares = {
+        "advance+read, noise off": _per_op(advance_read_of(quiet), args.n, args.repeat),
+        "advance+read, moving true rate": _per_op(advance_read_of(moving), args.n, args.repeat),
+        "low-pass per sample (blocks of 1024)": _per_op(lowpass_blocks, 64 * 1024, args.repeat),
+    }
     ref = results["dict lookup"]
     for name, cost in results.items():
         print(f"{name:45s} {cost * 1e6:8.3f} us/op  {cost / ref:7.1f} x dict lookup")
@@ -75,6 +111,8 @@ def main() -> int:
     print(f"{'advance+read vs dict-backed 6-byte read':45s} "
           f"{adv / results['dict-backed 6-byte read']:7.2f} x")
     print(f"new samples produced: {new_samples} for {args.repeat} x {args.n} advance+read")
+    for name, cost in shares.items():
+        print(f"{name:45s} {cost * 1e6:8.3f} us/op  {cost / adv:7.1%} of advance+read")
     return 0
 
 

@@ -433,7 +433,8 @@ class I2CBus:
         data = chip.read(register, length)
         log = self.log
         if log.enabled:
-            log.record(chip.time, self.number, address, "read_i2c_block_data", register, b"", data)
+            log.add((chip.time, self.number, address, "read_i2c_block_data", register, b"", data,
+                     None))
         return data
 
     def write_i2c_block_data(self, address: int, register: int, data: bytes) -> None:

@@ -270,20 +270,28 @@ class FakeSMBus:
         self, i2c_addr: int, register: int, length: int, force: bool | None = None
     ) -> list[int]:
         """Read a block of byte data from a given register (burst, auto-increment)."""
+        bus = self._i2c
+        if (
+            i2c_addr == self.address
+            and force is None
+            and self._force_last == self.force
+            and bus is not None
+            and register.__class__ is int
+            and length.__class__ is int
+            and 0 <= register <= 0xFF
+            and 0 <= length <= I2C_SMBUS_BLOCK_MAX
+        ):  # the hot path of a polling driver: the same address again, plain ints in range
+            return list(bus.read_i2c_block_data(self._client, register, length))
+        return self._read_i2c_block_data(i2c_addr, register, length, force)
+
+    def _read_i2c_block_data(
+        self, i2c_addr: int, register: int, length: int, force: bool | None
+    ) -> list[int]:
         if length > I2C_SMBUS_BLOCK_MAX:
             raise ValueError(f"Desired block length over {I2C_SMBUS_BLOCK_MAX} bytes")
         if self.address != i2c_addr or self._force_last != (self.force if force is None else force):
             self._set_address(i2c_addr, force=force)
-        bus = self._i2c
-        if bus is None:
-            raise _closed()
-        if (
-            length.__class__ is int
-            and register.__class__ is int
-            and 0 <= register <= 0xFF
-            and length >= 0
-        ):  # the hot path: plain ints in range
-            return list(bus.read_i2c_block_data(self._client, register, length))
+        bus = self._bus()
         count = operator.index(length) & 0xFF
         data = bus.read_i2c_block_data(self._client, operator.index(register) & 0xFF, count)
         if count == length:

@@ -147,8 +147,13 @@ class TransactionLog:
         read: bytes = b"",
         error: str | None = None,
     ) -> None:
-        """Append one transaction given by its fields (the front ends' fast path)."""
-        entry = (time, bus, address, kind, register, written, read, error)
+        """Append one transaction given by its fields."""
+        self.add((time, bus, address, kind, register, written, read, error))
+
+    def add(self, entry: tuple) -> None:
+        """Append one transaction given as the tuple of its fields in ``Transaction`` order
+        (the front ends' fast path: one argument to bind, no Transaction built unless a sink
+        wants one)."""
         self._entries.append(entry)
         self.total += 1
         if self.sinks:
