@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bmg160_emu.device import registers, spec_choices
+from bmg160_emu.io.errors import FormatError
 
 REGISTER_COUNT = 64  # 0x00..0x3F, the user map (spec section 3)
 DUMP_FORMATS = ("i2cdump", "table", "json")
@@ -28,7 +29,7 @@ I2CDUMP_HEADER = "     0  1  2  3  4  5  6  7  8  9  a  b  c  d  e  f    0123456
 DUMP_TITLE = "# bmg160-emu register dump"
 
 
-class DumpFormatError(ValueError):
+class DumpFormatError(FormatError):
     """A dump that cannot be read; the message names the line."""
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from bmg160_emu.io.rates import (
+    ARRAY_ERRORS,
     RateFileError,
     npz_array,
     open_npz,
@@ -140,7 +141,7 @@ def _read_npz(path: Path) -> Recording:
                 npz_array(data, "t_s", path), npz_array(data, "counts", path), lsb,
                 None if np.isnan(truth).all() else truth, meta,
             )
-    except (KeyError, ValueError, OSError) as exc:
+    except ARRAY_ERRORS as exc:
         if isinstance(exc, RateFileError):
             raise
         raise RateFileError(f"not a {RECORDING_FORMAT_TAG} NPZ file ({exc})", path=path) from None

@@ -23,6 +23,7 @@ from bmg160_emu.io.dump import (
     register_label,
     register_name,
 )
+from bmg160_emu.io.errors import FileFormat, FormatError, register_format
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
@@ -32,7 +33,7 @@ FAULT_KIND_PREFIX = "fault:"  # entries bmg160_emu.adcs.faults adds at a fault's
 TRUE_RATE_KIND = "true_rate"  # the session changed a chip's true rate (a script's `rate`)
 
 
-class TraceFormatError(ValueError):
+class TraceFormatError(FormatError):
     """A trace file that cannot be read; the message names the line."""
 
 
@@ -352,6 +353,10 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
     if header is None:
         raise TraceFormatError(f"{path}: empty trace")
     return header, records
+
+
+register_format(FileFormat("trace", ".jsonl", read_trace, TraceWriter,
+                           "JSON Lines: a header object, then one transaction per line"))
 
 
 def iter_descriptions(records: Iterable[dict]) -> Iterator[str]:
