@@ -45,6 +45,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from bmg160_emu.io.trace import parse_fault_entry  # noqa: F401  (the entry format lives with the trace)
+
 BUS_KINDS = ("nack", "timeout")
 SAMPLE_KINDS = ("stuck_axis", "bias_step", "spike", "saturation", "lost_samples",
                 "temperature_ramp")
@@ -503,23 +505,6 @@ def fault_entry_text(detail: str, fault: Fault | None = None,
     if base_temperature_c is not None:
         entry["base_temperature_c"] = float(base_temperature_c)
     return detail + "\n" + json.dumps(entry, sort_keys=True)
-
-
-def parse_fault_entry(written: bytes | str) -> tuple[str, dict[str, Any] | None]:
-    """(description, parameters or None) of a ``fault:<kind>`` entry's written bytes.
-
-    Entries written before the parameters were added carry only the description (None)."""
-    text = written.decode("utf-8", "replace") if isinstance(written, (bytes, bytearray)) else written
-    detail, _, rest = text.partition("\n")
-    if not rest.strip():
-        return detail, None
-    try:
-        entry = json.loads(rest)
-    except json.JSONDecodeError:
-        return detail, None
-    if not isinstance(entry, dict) or not isinstance(entry.get("fault"), dict):
-        return detail, None
-    return detail, entry
 
 
 def replay_schedule(entries: Sequence[dict[str, Any]], target: GyroTarget) -> FaultSchedule:

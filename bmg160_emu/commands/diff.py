@@ -48,7 +48,7 @@ def _load(path: Path):
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.io.dump import diff_dumps, format_diff
+    from bmg160_emu.decode import diff_dumps, format_diff
 
     a, b = _load(args.a), _load(args.b)
     sys.stdout.write(format_diff(a, b, args.a.name, args.b.name, show_all=args.all))

@@ -128,7 +128,8 @@ def _trace_writer(args: argparse.Namespace, bus: Any) -> Any:
     if args.trace is None:
         return None
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.io.trace import TraceWriter, header_from_chip_args
+    from bmg160_emu.commands.trace import header_from_chip_args
+    from bmg160_emu.io.trace import TraceWriter
 
     try:
         writer = TraceWriter(args.trace, header_from_chip_args(args))

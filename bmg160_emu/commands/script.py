@@ -55,7 +55,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.io.trace import TraceWriter, header_from_chip_args
+    from bmg160_emu.commands.trace import header_from_chip_args
+    from bmg160_emu.io.trace import TraceWriter
     from bmg160_emu.script import (
         ScriptFailure,
         ScriptRunner,

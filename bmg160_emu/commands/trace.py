@@ -6,6 +6,9 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import Any
+
+from bmg160_emu.io.trace import TraceHeader
 
 EPILOG = """\
 examples:
@@ -38,7 +41,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.cli import CommandError
-    from bmg160_emu.io.trace import TraceFormatError, describe_transaction, read_trace, replay_trace
+    from bmg160_emu.decode import describe_transaction
+    from bmg160_emu.io.trace import TraceFormatError, read_trace
+    from bmg160_emu.replay import replay_trace
 
     try:
         header, records = read_trace(args.file)
@@ -78,3 +83,29 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"divergence at {args.file}:{result.divergence}", file=sys.stderr)
     return 1
+
+
+def header_from_chip_args(args: Any) -> TraceHeader:
+    """The trace header for chips built by ``chips_from_args`` from the same options."""
+    from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS
+
+    header = TraceHeader(getattr(args, "seed", None))
+    for address in list(dict.fromkeys(getattr(args, "addresses", None) or [0x68])):
+        writes = []
+        if getattr(args, "range_dps", None) is not None:
+            writes.append((0x0F, bytes([RANGE_CODE_BY_DPS[args.range_dps]])))
+        if getattr(args, "bandwidth", None) is not None:
+            writes.append((0x10, bytes([args.bandwidth])))
+        header.add_chip(
+            {
+                "address": address,
+                "profile": getattr(args, "profile", "paper"),
+                "noise": not getattr(args, "no_noise", False),
+                "noise_mode": getattr(args, "noise_mode", "physical"),
+                "sensitivity": getattr(args, "sensitivity", "binary"),
+                "temperature_c": getattr(args, "temperature", 23.0),
+            },
+            getattr(args, "true_rate", None),
+            writes,
+        )
+    return header
