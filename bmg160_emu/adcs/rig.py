@@ -24,8 +24,8 @@ import numpy as np
 from bmg160_emu.adcs.attitude import IDENTITY, integrate_attitude
 from bmg160_emu.adcs.faults import Fault, FaultEvent, FaultSchedule, describe_flags
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
-
-VALID_ADDRESSES = (0x68, 0x69)  # spec 2.1: SDO low / high
+from bmg160_emu.device.config import ChipConfig
+from bmg160_emu.device.spec_choices import VALID_ADDRESSES
 
 
 def rotation_matrix_from_euler_zyx(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
@@ -295,23 +295,20 @@ class GyroRig:
         return integrate_attitude(self.scenario.rate_dps, np.array([t]), self.q0, t0=0.0)[0]
 
 
-def make_chip(spec: GyroSpec, seed: int, clock: Any) -> Any:
-    """The chip model for one gyro spec (the one place that knows BMG160's options)."""
-    from bmg160_emu.device.chip import BMG160
+def chip_config(spec: GyroSpec) -> ChipConfig:
+    """The chip options of one gyro spec (error terms only when they are not zero)."""
+    return ChipConfig(
+        address=spec.address,
+        profile=spec.profile,
+        noise=spec.noise,
+        noise_mode=spec.noise_mode,
+        temperature_c=spec.temperature_c,
+        mounting=None if np.allclose(spec.mounting, np.eye(3)) else spec.mounting,
+        scale_factor=spec.scale_factor_error if np.any(spec.scale_factor_error) else None,
+        misalignment=spec.misalignment_rad if np.any(spec.misalignment_rad) else None,
+    )
 
-    options: dict[str, Any] = {
-        "seed": seed,
-        "profile": spec.profile,
-        "noise": spec.noise,
-        "noise_mode": spec.noise_mode,
-        "clock": clock,
-        "address": spec.address,
-        "temperature_c": spec.temperature_c,
-    }
-    if not np.allclose(spec.mounting, np.eye(3)):
-        options["mounting"] = spec.mounting
-    if np.any(spec.scale_factor_error):
-        options["scale_factor"] = spec.scale_factor_error
-    if np.any(spec.misalignment_rad):
-        options["misalignment"] = spec.misalignment_rad
-    return BMG160(**options)
+
+def make_chip(spec: GyroSpec, seed: int, clock: Any) -> Any:
+    """The chip model for one gyro spec, built through its :class:`ChipConfig`."""
+    return chip_config(spec).build(seed, clock)

@@ -87,25 +87,9 @@ def run(args: argparse.Namespace) -> int:
 
 def header_from_chip_args(args: Any) -> TraceHeader:
     """The trace header for chips built by ``chips_from_args`` from the same options."""
-    from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS
+    from bmg160_emu.commands._chip_options import configs_from_args
 
     header = TraceHeader(getattr(args, "seed", None))
-    for address in list(dict.fromkeys(getattr(args, "addresses", None) or [0x68])):
-        writes = []
-        if getattr(args, "range_dps", None) is not None:
-            writes.append((0x0F, bytes([RANGE_CODE_BY_DPS[args.range_dps]])))
-        if getattr(args, "bandwidth", None) is not None:
-            writes.append((0x10, bytes([args.bandwidth])))
-        header.add_chip(
-            {
-                "address": address,
-                "profile": getattr(args, "profile", "paper"),
-                "noise": not getattr(args, "no_noise", False),
-                "noise_mode": getattr(args, "noise_mode", "physical"),
-                "sensitivity": getattr(args, "sensitivity", "binary"),
-                "temperature_c": getattr(args, "temperature", 23.0),
-            },
-            getattr(args, "true_rate", None),
-            writes,
-        )
+    for config in configs_from_args(args):
+        header.add_config(config)
     return header

@@ -6,6 +6,13 @@ with their reasons; change a behaviour here, not in the model.
 
 from __future__ import annotations
 
+# 2.1: the I2C address is 0x68 with SDO low, 0x69 with SDO high; the chip answers nowhere else.
+VALID_ADDRESSES = (0x68, 0x69)
+DEFAULT_ADDRESS = 0x68
+# 4.8: full scale of RANGE codes 0..4 in deg/s (codes 5..7 are reserved: RESERVED_RANGE_AS_CODE).
+RANGE_FULL_SCALE_DPS = (2000, 1000, 500, 250, 125)
+RANGE_CODE_BY_DPS = {dps: code for code, dps in enumerate(RANGE_FULL_SCALE_DPS)}
+
 # 5.1: per-range sensitivity in LSB per deg/s, indexed by RANGE code 0..4.
 SENSITIVITY_BINARY = (16.384, 32.768, 65.536, 131.072, 262.144)  # 32768 / full scale
 SENSITIVITY_NOMINAL = (16.4, 32.8, 65.6, 131.2, 262.4)  # data-sheet typical figures

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from bmg160_emu.bus.transactions import Transaction
+from bmg160_emu.device.config import SETTING_KEYS, ChipConfig
 from bmg160_emu.io.errors import FileFormat, FormatError, register_format
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
@@ -78,10 +79,8 @@ def parse_fault_entry(written: bytes | str) -> tuple[str, dict[str, Any] | None]
 # --------------------------------------------------------------------------- JSON Lines
 
 
-# Chip constructor settings a trace header may carry (JSON-able; see BMG160.__init__).
-CHIP_SETTING_KEYS = (
-    "address", "profile", "noise", "noise_mode", "sensitivity", "temperature_c", "hold_data_int",
-)
+# Chip constructor settings a trace header may carry: every ChipConfig option.
+CHIP_SETTING_KEYS = SETTING_KEYS
 
 
 @dataclass
@@ -112,9 +111,7 @@ class TraceHeader:
     ) -> None:
         """Describe one chip: ``settings`` are BMG160 keyword arguments (JSON-able ones)."""
         settings = dict(settings or {})
-        unknown = set(settings) - set(CHIP_SETTING_KEYS)
-        if unknown:
-            raise ValueError(f"chip settings a trace cannot carry: {sorted(unknown)}")
+        ChipConfig.from_settings(settings)  # refuses an option a trace cannot carry
         entry: dict[str, Any] = {"settings": settings}
         if true_rate_dps is not None:
             entry["true_rate_dps"] = [float(v) for v in true_rate_dps]
@@ -123,20 +120,22 @@ class TraceHeader:
             entry["setup_writes"] = writes
         self.chips.append(entry)
 
+    def add_config(self, config: ChipConfig) -> None:
+        """Describe one chip by its config: every option it sets is carried to replay."""
+        self.chips.append(config.to_dict())
+
+    def configs(self) -> list[ChipConfig]:
+        """The chips the header describes (one default chip when it describes none)."""
+        return [ChipConfig.from_dict(entry) for entry in self.chips or [{"settings": {}}]]
+
     def build_chips(self) -> dict[int, Any]:
         """Fresh chips as the header describes them, sharing one VirtualClock at t = 0."""
         from bmg160_emu.clock import VirtualClock
-        from bmg160_emu.device.chip import BMG160
 
         clock = VirtualClock()
         chips: dict[int, Any] = {}
-        for entry in self.chips or [{"settings": {}}]:
-            settings = dict(entry.get("settings", {}))
-            chip = BMG160(self.seed, clock=clock, **settings)
-            if entry.get("true_rate_dps") is not None:
-                chip.set_true_rate(tuple(entry["true_rate_dps"]))
-            for reg, data in entry.get("setup_writes", []):
-                chip.write(reg, bytes(data))
+        for config in self.configs():
+            chip = config.build(self.seed, clock)
             chips[chip.address] = chip
         return chips
 
