@@ -205,7 +205,7 @@ class _FaultReplayer:
         """List the entries that cannot be acted again, install the sample faults."""
         from types import SimpleNamespace
 
-        from bmg160_emu.adcs.faults import SAMPLE_KINDS, FaultError, replay_schedule
+        from bmg160_emu.faults import SAMPLE_KINDS, FaultError, replay_schedule
 
         per_chip: dict[int, dict[str, Any]] = {}  # id(chip) -> chip, entries, base temperature
         for record in records:
@@ -237,7 +237,7 @@ class _FaultReplayer:
 
     @staticmethod
     def _replayable(record: dict) -> bool:
-        from bmg160_emu.adcs.faults import CHIP_KINDS, SAMPLE_KINDS
+        from bmg160_emu.faults import CHIP_KINDS, SAMPLE_KINDS
 
         kind = str(record["kind"])[len(FAULT_KIND_PREFIX):]
         detail, entry = _fault_entry(record)
@@ -249,7 +249,7 @@ class _FaultReplayer:
 
     def act(self, record: dict, line: int) -> None:
         """The replay has reached a fault entry: act a chip fault now, count a sample fault."""
-        from bmg160_emu.adcs.faults import CHIP_KINDS, inject
+        from bmg160_emu.faults import CHIP_KINDS, inject
 
         if not self._replayable(record):
             return  # listed by prepare()

@@ -31,7 +31,7 @@ from bmg160_emu.adcs.attitude import (
     integrate_attitude,
     quat_from_rotation_vector,
 )
-from bmg160_emu.adcs.montecarlo import RunResult
+from bmg160_emu.adcs.results import RunResult
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
 
 RANGE = 0x0F  # spec 4.8

@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.adcs.attitude import IDENTITY, integrate_attitude
-from bmg160_emu.adcs.faults import Fault, FaultEvent, FaultSchedule, describe_flags
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
 from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.device.spec_choices import VALID_ADDRESSES
+from bmg160_emu.faults import Fault, FaultEvent, FaultSchedule, describe_flags
 
 
 def rotation_matrix_from_euler_zyx(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:

@@ -57,10 +57,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.adcs.faults import FaultError
     from bmg160_emu.adcs.montecarlo import parse_seeds, run_montecarlo
     from bmg160_emu.adcs.scenarios import ScenarioError, load_scenario
     from bmg160_emu.cli import CommandError
+    from bmg160_emu.faults import FaultError
 
     if args.runs is not None and args.runs < 1:
         raise CommandError("--runs must be at least 1")

@@ -23,7 +23,7 @@ from bmg160_emu.io.errors import FileFormat, FormatError, register_format
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
-FAULT_KIND_PREFIX = "fault:"  # entries bmg160_emu.adcs.faults adds at a fault's onset
+FAULT_KIND_PREFIX = "fault:"  # entries bmg160_emu.faults adds at a fault's onset
 TRUE_RATE_KIND = "true_rate"  # the session changed a chip's true rate (a script's `rate`)
 
 
