@@ -101,11 +101,10 @@ def test_the_check_finds_an_upward_import_and_an_unplaced_module(tmp_path):
     (root / "commands" / "run.py").write_text("from bmg160_emu import device, io\n")
     (root / "newthing.py").write_text("")
     problems = upward_imports(root)
+    bad = f"{PACKAGE}/device/bad.py"
     assert problems == [
-        f"{PACKAGE}/device/bad.py:2: bmg160_emu.device.bad (layer 2) imports "
-        "bmg160_emu.commands.run (layer 7)",
-        f"{PACKAGE}/device/bad.py:3: bmg160_emu.device.bad (layer 2) imports "
-        "bmg160_emu.io.trace (layer 4)",
+        f"{bad}:2: bmg160_emu.device.bad (layer 2) imports bmg160_emu.commands.run (layer 7)",
+        f"{bad}:3: bmg160_emu.device.bad (layer 2) imports bmg160_emu.io.trace (layer 4)",
         "bmg160_emu.newthing: in no layer (add it to LAYERS)",
     ]
 
