@@ -14,6 +14,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from bmg160_emu.device import spec_choices
+from bmg160_emu.device.registers import address_of, field_of
 from bmg160_emu.io.recording import (  # noqa: F401  (the file format's names, re-exported)
     CSV_COLUMNS,
     RECORDING_FORMAT_TAG,
@@ -24,7 +26,9 @@ from bmg160_emu.io.recording import (  # noqa: F401  (the file format's names, r
     write_recording,
 )
 
-RATE_X_LSB = 0x02  # 6-byte burst 0x02..0x07 gives x, y, z LSB first (spec 4.2)
+RATE_X_LSB = address_of("RATE_X_LSB")  # a 6-byte burst from here gives x, y, z LSB first (4.2)
+RANGE, BW = address_of("RANGE"), address_of("BW")
+RANGE_FIELD, BW_FIELD = field_of("RANGE", "range"), field_of("BW", "bw")
 
 
 # --------------------------------------------------------------------------- recording
@@ -36,8 +40,8 @@ def chip_odr_hz(chip) -> float:
         value = getattr(chip, name, None)
         if value is not None:
             return float(value() if callable(value) else value)
-    odr_by_code = (2000.0, 2000.0, 1000.0, 400.0, 200.0, 100.0, 200.0, 100.0)  # spec 5.3
-    return odr_by_code[chip.peek(0x10) & 0x07]
+    bandwidths = spec_choices.BANDWIDTHS  # spec 5.3; codes 8..15 act as code & 7 (4.9)
+    return float(bandwidths[BW_FIELD.extract(chip.peek(BW)) % len(bandwidths)][0])
 
 
 def chip_lsb_per_dps(chip) -> float:
@@ -51,8 +55,9 @@ def chip_lsb_per_dps(chip) -> float:
 
 def chip_range_dps(chip) -> int:
     """Full scale of the chip's current RANGE code; reserved codes 5..7 act as 2000 (spec 4.8)."""
-    full_scale = {0: 2000, 1: 1000, 2: 500, 3: 250, 4: 125}
-    return full_scale.get(chip.peek(0x0F) & 0x07, 2000)
+    full_scale = spec_choices.RANGE_FULL_SCALE_DPS
+    code = RANGE_FIELD.extract(chip.peek(RANGE))
+    return full_scale[code if code < len(full_scale) else spec_choices.RESERVED_RANGE_AS_CODE]
 
 
 def record(

@@ -24,7 +24,10 @@ import numpy as np
 from bmg160_emu.adcs.attitude import IDENTITY, integrate_attitude
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
 from bmg160_emu.device.config import ChipConfig
+from bmg160_emu.device.registers import address_of
 from bmg160_emu.device.spec_choices import VALID_ADDRESSES
+
+CHIP_ID = address_of("CHIP_ID")
 from bmg160_emu.faults import Fault, FaultEvent, FaultSchedule, describe_flags
 
 
@@ -262,7 +265,7 @@ class GyroRig:
         The chip is first brought up to the rig's clock (it makes samples lazily, when next
         accessed), so the truth covers every output period up to now.
         """
-        self.gyros[gyro].chip.peek(0x00)  # CHIP_ID: no side effect, catches the chip up
+        self.gyros[gyro].chip.peek(CHIP_ID)  # no side effect, catches the chip up
         cached = self._truth_cache.get(gyro)
         done = 0 if cached is None else cached.times_s.size
         new_times = np.array(self._times[gyro][done:], dtype=float)

@@ -33,12 +33,15 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu.bus import kernel_abi as abi
+from bmg160_emu.device.registers import REGISTER_COUNT, address_of, field_of
 
 STUB_ADAPTER_NAME = "SMBus stub driver"  # the name i2c-stub gives its adapter
-REGISTER_COUNT = 0x40  # 0x00..0x3F, spec section 3
-DATA_FIRST, DATA_LAST = 0x02, 0x0E  # RATE_X_LSB .. FIFO_STATUS: refreshed every period
-CONFIG_FIRST, CONFIG_LAST = 0x0F, 0x3E  # RANGE .. FIFO_CONFIG_1: what a client may write
-BGW_SOFTRESET, SOFTRESET_COMMAND = 0x14, 0xB6  # spec 4.13
+DATA_FIRST, DATA_LAST = address_of("RATE_X_LSB"), address_of("FIFO_STATUS")  # refreshed every period
+RANGE = address_of("RANGE")
+CONFIG_FIRST, CONFIG_LAST = RANGE, address_of("FIFO_CONFIG_1")  # what a client may write
+BGW_SOFTRESET = address_of("BGW_SOFTRESET")
+SOFTRESET_COMMAND = 0xB6  # the reset command written to BGW_SOFTRESET (spec 4.13)
+RANGE_FIELD = field_of("RANGE", "range")
 
 
 # Refreshing faster gains nothing a driver can see through sysfs and costs a core under
@@ -251,7 +254,7 @@ class I2CStubAdapter:
                     "register": register,
                     "value": writes[register],
                     "odr_hz": chip.odr_hz,
-                    "range": chip.peek(0x0F) & 0x07,
+                    "range": RANGE_FIELD.extract(chip.peek(RANGE)),
                     "power_mode": chip.power_mode,
                 })
 

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from bmg160_emu.device.registers import address_of
 from bmg160_emu.faults.model import (
     BUS_KINDS,
     CHIP_KINDS,
@@ -27,6 +28,8 @@ from bmg160_emu.faults.model import (
     fault_from_dict,
 )
 from bmg160_emu.io.trace import parse_fault_entry  # noqa: F401  (the entry format lives with the trace)
+
+BW = address_of("BW")  # a write here changes the output data rate (spec 4.9)
 
 
 @dataclass
@@ -381,7 +384,7 @@ def _poke(chip: Any, register: int, value: int) -> None:
         chip.clock.now()  # samples due before the upset keep the old configuration
         chip.peek(register)
         chip._regs[register] = value
-        if register == 0x10 and hasattr(chip, "_change_bandwidth"):  # BW (spec 4.9)
+        if register == BW and hasattr(chip, "_change_bandwidth"):  # spec 4.9
             chip._change_bandwidth()
         elif hasattr(chip, "_invalidate"):
             chip._invalidate()
