@@ -159,7 +159,7 @@ def chips_from_args(args: argparse.Namespace) -> dict[int, BMG160]:
         try:
             chip = config.build(getattr(args, "seed", None), clock)
         except (ValueError, KeyError, OSError) as exc:
-            from bmg160_emu.cli import CommandError
+            from bmg160_emu.commands._common import CommandError
 
             raise CommandError(str(exc)) from None
         chips[config.address] = chip

@@ -181,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
     import smbus2
 
     from bmg160_emu.bus.patching import patch_smbus
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
 
     chips = chips_from_args(args)
     range_code = RANGE_CODE_BY_DPS[args.range_dps] if args.range_dps is not None else 0

@@ -7,6 +7,7 @@ import secrets
 import sys
 from pathlib import Path
 
+from bmg160_emu.commands._common import add_command_parser
 from bmg160_emu.durations import parse_duration
 
 EPILOG = """\
@@ -25,13 +26,13 @@ CHUNK_SAMPLES = 1 << 18  # samples per generate() call while streaming (6 MB per
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "generate",
-        help="generate gyroscope noise (N, B, T, K per axis) to .npy or .csv",
-        description="Generate the noise of the three BMG160 axes from a noise profile, "
+        "generate gyroscope noise (N, B, T, K per axis) to .npy or .csv",
+        "Generate the noise of the three BMG160 axes from a noise profile, "
         "seeded and streamed to a file.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument(
         "--profile", default="paper", help="built-in profile (paper, datasheet) or a TOML file"
@@ -62,7 +63,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.noise import NoiseGenerator
 
     suffix = args.output.suffix.lower()

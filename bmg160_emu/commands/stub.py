@@ -57,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c_stub import I2CStubAdapter, StubSetupError, check_stub_bus
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
 
     addresses = list(dict.fromkeys(args.addresses or [0x68]))
     if len(addresses) != 1:
