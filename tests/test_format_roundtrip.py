@@ -19,7 +19,7 @@ import pytest
 from bmg160_emu.bus.transactions import Transaction
 from bmg160_emu.io import FormatError, format_for
 from bmg160_emu.io.dump import RegisterDump, format_dump, parse_dump
-from bmg160_emu.io.rates import load_rate_record, write_rates
+from bmg160_emu.io.rates import RateStreamWriter, load_rate_record, write_rates
 from bmg160_emu.io.recording import Recording, read_recording, write_recording
 from bmg160_emu.io.trace import TraceHeader, TraceWriter, read_trace
 
@@ -54,6 +54,20 @@ def _read_rates(path: Path):
 
 def _same_rates(sample, record) -> bool:
     return np.array_equal(record.rate_dps, sample[1]) and record.rate_hz == pytest.approx(200.0)
+
+
+def _write_stream(path: Path, sample) -> None:
+    _, rate = sample
+    with open(path, "wb") as handle:  # in two blocks, as generate streams a long record
+        writer = RateStreamWriter(handle, path.suffix, len(rate), 200.0, ["stream"])
+        writer.write(0, rate[:120])
+        writer.write(120, rate[120:])
+
+
+def _same_streamed(sample, record) -> bool:
+    # CSV keeps 10 significant digits (%.10g): equal to 1e-10 relative, the time exact
+    return (np.allclose(record.rate_dps, sample[1], rtol=1e-9, atol=0)
+            and record.rate_hz == pytest.approx(200.0))
 
 
 def _recording_sample() -> Recording:
@@ -110,6 +124,8 @@ def _dump_case(fmt: str) -> FormatCase:
 CASES = [
     *(FormatCase(f"rates{s}", s, _rates_sample, _write_rates, _read_rates, _same_rates,
                  deterministic=s != ".npz", kind="rates") for s in (".csv", ".npz", ".npy")),
+    *(FormatCase(f"rate-stream{s}", s, _rates_sample, _write_stream, _read_rates, _same_streamed)
+      for s in (".csv", ".npy")),
     *(FormatCase(f"recording{s}", s, _recording_sample, lambda p, r: write_recording(r, p),
                  read_recording, _same_recording, deterministic=s != ".npz")
       for s in (".csv", ".npz")),

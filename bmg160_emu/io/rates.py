@@ -505,6 +505,36 @@ def write_rates(path: str | Path, t_s: np.ndarray | None, rate_dps: np.ndarray,
         write_csv(path, comments, (["t_s"] if t_s is not None else []) + list(names), blocks)
 
 
+class RateStreamWriter:
+    """Write a rate record block by block (a day of samples never in memory at once).
+
+    ``.npy``: an (n, 3) float64 array, n given up front; ``.csv``: ``# comment`` lines, the
+    header ``t_s,x_dps,y_dps,z_dps``, then sample k at t = (k + 1) / rate_hz, time with
+    ``%.12g`` (exact to 1 us over days) and rates with ``%.10g`` (1e-10 of a deg/s).
+    """
+
+    def __init__(self, handle, suffix: str, total: int, rate_hz: float,
+                 comments: Sequence[str] = ()) -> None:
+        self.handle, self.suffix, self.period_s = handle, suffix.lower(), 1.0 / rate_hz
+        if self.suffix == ".npy":
+            header = {"descr": "<f8", "fortran_order": False, "shape": (total, 3)}
+            np.lib.format.write_array_header_1_0(handle, header)
+        elif self.suffix == ".csv":
+            text = "".join(f"# {c}\n" for c in comments) + "t_s,x_dps,y_dps,z_dps\n"
+            handle.write(text.encode())
+        else:
+            raise RateFileError(f"a rate stream must end in .npy or .csv, not {suffix!r}")
+
+    def write(self, start: int, block: np.ndarray) -> None:
+        """Samples ``start .. start + len(block) - 1`` as a (m, 3) deg/s block."""
+        if self.suffix == ".npy":
+            self.handle.write(block.astype("<f8", copy=False).tobytes())
+            return
+        t = (np.arange(start, start + block.shape[0]) + 1) * self.period_s
+        np.savetxt(self.handle, np.column_stack([t, block]), fmt=["%.12g"] + ["%.10g"] * 3,
+                   delimiter=",")
+
+
 def _register() -> None:
     for suffix, description in ((".csv", "header row, optional time column"),
                                 (".npz", "rate_dps (n, k) and t_s, or x, y, z and t"),
