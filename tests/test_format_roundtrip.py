@@ -198,3 +198,17 @@ def test_every_format_error_is_a_value_error():
 
     for error in (DumpFormatError, RateFileError, TraceFormatError):
         assert issubclass(error, FormatError) and issubclass(error, ValueError)
+
+
+def test_csv_blank_lines_comments_and_lines_of_spaces_are_skipped_and_lines_still_named(tmp_path):
+    from bmg160_emu.io.rates import RateFileError
+
+    path = tmp_path / "r.csv"
+    path.write_text("t,x\n0,1\n \t \n0.005,2 # a note\n# a comment\n\n0.01,3\n0.015,x\n")
+    with pytest.raises(RateFileError, match=r"r\.csv:8: not a number: 'x'"):
+        load_rate_record(path)
+    path.write_text("t,x\n0,1\n \t \n0.005,2 # a note\n# a comment\n\n0.01,3\n0.005,4\n")
+    with pytest.raises(RateFileError, match=r"r\.csv:8: time 0\.005 s is not after 0\.01 s"):
+        load_rate_record(path)
+    path.write_text("t,x\n0,1\n \t \n0.005,2 # a note\n# a comment\n\n0.01,3\n")
+    assert load_rate_record(path).rate_dps.ravel().tolist() == [1.0, 2.0, 3.0]

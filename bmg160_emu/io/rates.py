@@ -156,30 +156,21 @@ def _parse_chunk(table: RateTable, lines: list[str], first_line: int, row: int, 
                  usecols: list[int], has_time: bool) -> int:
     """Parse ``lines`` (file lines from ``first_line``) into the table from ``row``; new row count."""
     text = "".join(lines)
-    last = lines[-1].strip()
     numbers: int | np.ndarray = first_line
-    if "#" in text or "\n\n" in text or not lines[0].strip() or not last:
-        kept = [(k, line) for k, line in enumerate(lines, first_line)
-                if line.strip() and not line.lstrip().startswith("#")]
-        if not kept:
-            return row
-        numbers = np.array([k for k, _ in kept])
-        lines = [line for _, line in kept]
+    if "#" in text or "\n\n" in text or not lines[0].strip() or not lines[-1].strip():
+        lines, numbers = _data_lines(lines, first_line)
         text = "".join(lines)
+    if not lines:
+        return row
+    block = _load_block(table.path, lines, text, numbers, width, usecols)
+    if block is None or block.shape[0] != len(lines):
+        # a line of spaces only: filter the chunk line by line, then parse it again
+        lines, numbers = _data_lines(lines, numbers)
+        if not lines:
+            return row
+        block = _load_block(table.path, lines, "".join(lines), numbers, width, usecols)
+        assert block is not None
     m = len(lines)
-    if text.count(",") != m * (width - 1):
-        _find_bad_line(table.path, lines, numbers, width, usecols)
-    source: list[str] = lines
-    if ",," in text or ",\n" in text or "\n," in text or text[:1] == "," or text.rstrip("\n")[-1:] == ",":
-        source = _EMPTY_CELL.sub("nan", text.removesuffix("\n")).split("\n")
-    del text
-    try:
-        block = np.loadtxt(source, delimiter=",", usecols=usecols, ndmin=2, dtype=float,
-                           comments=None)
-    except ValueError as exc:
-        _find_bad_line(table.path, lines, numbers, width, usecols)
-        raise RateFileError(f"unreadable CSV data ({exc})", path=table.path,
-                            place=first_line) from None
     if has_time:
         assert table.t_s is not None
         table.t_s[row:row + m] = block[:, 0]
@@ -189,6 +180,43 @@ def _parse_chunk(table: RateTable, lines: list[str], first_line: int, row: int, 
     table._row_starts.append(row)
     table._row_lines.append(numbers)
     return row + m
+
+
+def _data_lines(lines: list[str], numbers: int | np.ndarray) -> tuple[list[str], np.ndarray]:
+    """The lines that hold data (comments after ``#`` removed, blank lines dropped), and
+    their line numbers."""
+    if isinstance(numbers, int):
+        numbers = np.arange(numbers, numbers + len(lines))
+    kept, kept_numbers = [], []
+    for number, line in zip(numbers.tolist(), lines):
+        if "#" in line:
+            line = line.split("#", 1)[0].rstrip() + "\n"
+        if line.strip():
+            kept.append(line)
+            kept_numbers.append(number)
+    return kept, np.array(kept_numbers, dtype=np.int64)
+
+
+def _load_block(path: Path, lines: list[str], text: str, numbers: int | np.ndarray, width: int,
+                usecols: list[int]) -> np.ndarray | None:
+    """The chosen columns of ``lines`` as floats (empty cells NaN), errors naming the line;
+    None when the lines hold a line of spaces only (the caller filters them first)."""
+    if text.count(",") != len(lines) * (width - 1):
+        if any(not line.strip() for line in lines):
+            return None
+        _find_bad_line(path, lines, numbers, width, usecols)
+    source: list[str] = lines
+    if ",," in text or ",\n" in text or "\n," in text or text[:1] == "," or text.rstrip("\n")[-1:] == ",":
+        source = _EMPTY_CELL.sub("nan", text.removesuffix("\n")).split("\n")
+    try:
+        return np.loadtxt(source, delimiter=",", usecols=usecols, ndmin=2, dtype=float,
+                          comments=None)
+    except ValueError as exc:
+        if any(not line.strip() for line in lines):
+            return None
+        _find_bad_line(path, lines, numbers, width, usecols)
+        first = numbers if isinstance(numbers, int) else int(numbers[0])
+        raise RateFileError(f"unreadable CSV data ({exc})", path=path, place=first) from None
 
 
 def _find_bad_line(path: Path, lines: list[str], numbers: int | np.ndarray, width: int,
