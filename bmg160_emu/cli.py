@@ -1,8 +1,9 @@
 """The ``bmg160-emu`` command line: a thin dispatcher over the library.
 
 Each sub-command lives in its own module under :mod:`bmg160_emu.commands` and exposes
-``register(subparsers)``, which adds its parser and sets ``func`` (a callable taking the
-parsed arguments and returning an exit status). Commands are discovered, so adding one never
+``register(subparsers)``, which adds its parser with ``commands._common.add_command_parser``
+and sets ``func`` (a callable taking the parsed arguments and returning an exit status); a
+:class:`~bmg160_emu.commands._common.CommandError` is printed as one line, exit status 2. Commands are discovered, so adding one never
 touches this file.
 """
 
@@ -18,10 +19,9 @@ import threading
 from collections.abc import Sequence
 
 from bmg160_emu import __version__, commands
+from bmg160_emu.commands._common import CommandError  # the commands raise it; old name here
 
-
-class CommandError(Exception):
-    """A user-facing error: printed as one line, exit status 2, never a traceback."""
+__all__ = ["CommandError", "build_parser", "main"]
 
 
 class Terminated(KeyboardInterrupt):

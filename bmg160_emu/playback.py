@@ -20,14 +20,23 @@ RATE registers, the FIFO and the interrupt engines. The method (``docs/replay.md
 
 from __future__ import annotations
 
-import csv
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from bmg160_emu.io.rates import (
+    RateFileError,
+    check_time_column,
+    npz_array,
+    npz_columns,
+    numeric,
+    open_npz,
+    read_csv_table,
+)
 from bmg160_emu.record import chip_odr_hz
 
 UNITS = ("dps", "counts")
@@ -38,8 +47,7 @@ INT16 = (-32768, 32767)
 TIME_RESOLUTION_S = 0.5e-9  # half the chip clock's 1 ns step (bmg160_emu.clock)
 
 
-class ReplayDataError(ValueError):
-    """A recording that cannot be played; the message names the file and line (or row)."""
+ReplayDataError = RateFileError  # the one rate-file error; the old name stays
 
 
 @dataclass
@@ -100,45 +108,31 @@ def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, list[i
     return time_candidates[0], axes
 
 
-def _check_values(t: np.ndarray, xyz: np.ndarray, unit: str, lines: list[str], max_gap_factor: float) -> None:
+def _check_values(t: np.ndarray, xyz: np.ndarray, unit: str, where: Callable[[int], str],
+                  max_gap_factor: float) -> None:
     """Time must increase without gaps; values must fit the unit."""
     if len(t) < 2:
-        raise ReplayDataError(f"{lines[0] if lines else '<data>'}: a recording needs at least two samples")
-    steps = np.diff(t)
-    bad = np.flatnonzero(~(steps > 0))
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise ReplayDataError(
-            f"{lines[i]}: time {float(t[i])!r} s is not after the previous sample's "
-            f"{float(t[i - 1])!r} s "
-            "(time must increase)"
-        )
-    median = float(np.median(steps))
-    gaps = np.flatnonzero(steps > max_gap_factor * median)
-    if gaps.size:
-        i = int(gaps[0]) + 1
-        raise ReplayDataError(
-            f"{lines[i]}: gap of {steps[i - 1]:.6g} s before this sample (the median step is "
-            f"{median:.6g} s); fill the gap or raise the allowed gap (max_gap_factor)"
-        )
+        raise ReplayDataError(f"{where(0)}: a recording needs at least two samples")
+    check_time_column(t, where, max_gap_factor,
+                      "fill the gap or raise the allowed gap (max_gap_factor)")
     if unit == "counts":
         frac = np.flatnonzero(np.any(xyz != np.round(xyz), axis=1))
         if frac.size:
             i = int(frac[0])
             raise ReplayDataError(
-                f"{lines[i]}: raw counts must be whole numbers, found {xyz[i].tolist()}: "
+                f"{where(i)}: raw counts must be whole numbers, found {xyz[i].tolist()}: "
                 "deg/s data? use unit dps"
             )
         out = np.flatnonzero(np.any((xyz < INT16[0]) | (xyz > INT16[1]), axis=1))
         if out.size:
             i = int(out[0])
-            raise ReplayDataError(f"{lines[i]}: {xyz[i].tolist()} is outside the 16-bit range of raw counts")
+            raise ReplayDataError(f"{where(i)}: {xyz[i].tolist()} is outside the 16-bit range of raw counts")
     else:
         out = np.flatnonzero(np.any(np.abs(xyz) > MAX_RATE_DPS, axis=1))
         if out.size:
             i = int(out[0])
             raise ReplayDataError(
-                f"{lines[i]}: {xyz[i].tolist()} deg/s is beyond the widest range (+-2000 deg/s): "
+                f"{where(i)}: {xyz[i].tolist()} deg/s is beyond the widest range (+-2000 deg/s): "
                 "raw counts? use unit counts"
             )
 
@@ -178,80 +172,46 @@ def load_replay_data(
 
 
 def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
-    with open(path, encoding="utf-8", newline="") as handle:
-        text_lines = handle.read().splitlines()
-    header: list[str] | None = None
-    rows: list[list[float]] = []
-    where: list[str] = []
-    t_index, axes = 0, [1, 2, 3]
-    width = 4
-    for lineno, line in enumerate(text_lines, 1):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if stripped.startswith("#"):
-            settings = stripped[1:].strip()
-            if settings.startswith("{") and lsb_per_dps is None:
-                try:
-                    lsb_per_dps = json.loads(settings).get("lsb_per_dps")
-                except json.JSONDecodeError:
-                    pass
-            continue
-        cells = next(csv.reader([line]))
-        if header is None and not rows:
-            try:
-                [float(c) for c in cells]
-            except ValueError:
-                header = cells
-                width = len(cells)
-                t_index, axes = _pick_columns(cells, unit, f"{path}:{lineno}")
-                continue
-            width = len(cells)
+    def choose(header: list[str] | None, width: int, where: str) -> tuple[int, list[int]]:
+        if header is None:
             if width != 4:
                 raise ReplayDataError(
-                    f"{path}:{lineno}: {width} columns without a header; expected 4 (t, x, y, z) "
+                    f"{where}: {width} columns without a header; expected 4 (t, x, y, z) "
                     "or a header row naming the columns"
                 )
-        if len(cells) != width:
-            raise ReplayDataError(f"{path}:{lineno}: {len(cells)} columns, expected {width}")
-        try:
-            values = [float(cells[i]) for i in [t_index, *axes]]
-        except ValueError:
-            bad = next(c for c in (cells[i] for i in [t_index, *axes]) if not _is_float(c))
-            raise ReplayDataError(f"{path}:{lineno}: not a number: {bad!r}") from None
-        if not all(math.isfinite(v) for v in values):
-            raise ReplayDataError(f"{path}:{lineno}: empty or non-finite value in {line.strip()!r}")
-        rows.append(values)
-        where.append(f"{path}:{lineno}")
-    if not rows:
-        raise ReplayDataError(f"{path}: no samples")
-    table = np.array(rows)
-    t, xyz = table[:, 0], table[:, 1:4]
-    _check_values(t, xyz, unit, where, max_gap_factor)
+            return 0, [1, 2, 3]
+        return _pick_columns(header, unit, where)
+
+    table = read_csv_table(path, choose)
+    if lsb_per_dps is None:
+        for _, text in table.comments:
+            if text.startswith("{"):
+                try:
+                    lsb_per_dps = json.loads(text).get("lsb_per_dps")
+                except json.JSONDecodeError:
+                    continue
+                break
+    t, xyz = table.t_s, table.values
+    assert t is not None
+    finite = np.isfinite(t) & np.isfinite(xyz).all(axis=1)
+    if not finite.all():
+        row = int(np.argmin(finite))
+        raise ReplayDataError(
+            f"{table.where(row)}: empty or non-finite value in {table.line_text(row)!r}"
+        )
+    _check_values(t, xyz, unit, table.where, max_gap_factor)
     return ReplayData(t, _to_dps(xyz, unit, lsb_per_dps, str(path)), str(path))
 
 
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
 def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise ReplayDataError(f"{path}: not a readable NPZ file ({exc})") from None
-    with archive as data:
+    with open_npz(path) as data:
         keys = set(data.files)
         t_key = next((k for k in TIME_COLUMNS if k in keys), None)
         if t_key is None:
             raise ReplayDataError(f"{path}: no time array (one of {', '.join(TIME_COLUMNS)})")
         if "metadata" in keys and lsb_per_dps is None:
             try:
-                lsb_per_dps = json.loads(str(data["metadata"])).get("lsb_per_dps")
+                lsb_per_dps = json.loads(str(npz_array(data, "metadata", path))).get("lsb_per_dps")
             except json.JSONDecodeError:
                 pass
         wanted = {"dps": ("rate_dps", "gyro_dps"), "counts": ("counts", "raw")}[unit]
@@ -259,7 +219,7 @@ def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
         key = next((k for k in wanted if k in keys), None)
         if key is None:
             if all(a in keys for a in "xyz"):
-                xyz = np.column_stack([data[a] for a in "xyz"])
+                xyz = npz_columns(data, list("xyz"), path)
             elif any(k in keys for k in other):
                 found = next(k for k in other if k in keys)
                 raise ReplayDataError(
@@ -270,17 +230,19 @@ def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
                     f"{path}: no rate array ({', '.join(wanted)}, or x, y, z) among {sorted(keys)}"
                 )
         else:
-            xyz = np.asarray(data[key], dtype=float)
-        t = np.asarray(data[t_key], dtype=float).reshape(-1)
-    xyz = np.asarray(xyz, dtype=float)
+            xyz = numeric(npz_array(data, key, path), path, f"key {key}")
+        t = numeric(npz_array(data, t_key, path), path, f"key {t_key}").reshape(-1)
     if xyz.ndim != 2 or xyz.shape[1] != 3:
         raise ReplayDataError(f"{path}: the rate array must have 3 columns (x, y, z), not shape {xyz.shape}")
     if len(xyz) != len(t):
         raise ReplayDataError(f"{path}: {len(t)} time stamps but {len(xyz)} rate rows")
-    where = [f"{path}: row {i}" for i in range(len(t))]
-    finite = np.flatnonzero(~np.isfinite(np.column_stack([t, xyz])).all(axis=1))
-    if finite.size:
-        raise ReplayDataError(f"{where[int(finite[0])]}: non-finite value")
+
+    def where(row: int) -> str:
+        return f"{path}: row {row}"
+
+    finite = np.isfinite(t) & np.isfinite(xyz).all(axis=1)
+    if not finite.all():
+        raise ReplayDataError(f"{where(int(np.argmin(finite)))}: non-finite value")
     _check_values(t, xyz, unit, where, max_gap_factor)
     return ReplayData(t, _to_dps(xyz, unit, lsb_per_dps, str(path)), str(path))
 

@@ -274,11 +274,11 @@ def parse_script(
 
 
 def fault_injection_available() -> bool:
-    """Fault statements need the fault-injection module (bmg160_emu.adcs.faults)."""
+    """Fault statements need the fault-injection module (bmg160_emu.faults)."""
     import importlib.util
 
     try:
-        return importlib.util.find_spec("bmg160_emu.adcs.faults") is not None
+        return importlib.util.find_spec("bmg160_emu.faults") is not None
     except ModuleNotFoundError:
         return False
 
@@ -305,11 +305,11 @@ def _fault_value(key: str, token: Token, text: str) -> Any:
 
 
 def _parse_fault(kind: Token, cur: _Cursor) -> tuple[tuple[str, Any], ...]:
-    """``fault KIND key=value ...``: a bmg160_emu.adcs.faults.Fault, checked now.
+    """``fault KIND key=value ...``: a bmg160_emu.faults.Fault, checked now.
 
     Without a trigger key the fault starts at the statement's time (``at_s`` is filled in
     when it runs)."""
-    from bmg160_emu.adcs.faults import FAULT_KINDS, Fault, FaultError
+    from bmg160_emu.faults import FAULT_KINDS, Fault, FaultError
 
     if kind.text not in FAULT_KINDS:
         raise _LineError(kind.column, f"unknown fault kind {kind.text!r} (one of {', '.join(FAULT_KINDS)})")
@@ -491,7 +491,7 @@ class ScriptRunner:
     def _inject(self, s: Statement) -> None:
         from types import SimpleNamespace
 
-        from bmg160_emu.adcs.faults import Fault, FaultSchedule
+        from bmg160_emu.faults import Fault, FaultSchedule
 
         params = dict(s.fault)
         if not any(k in params for k in _FAULT_TRIGGERS):
@@ -557,13 +557,13 @@ def _seconds_text(seconds: float) -> str:
 
 
 def describe_write(register: int, data: bytes) -> str:
-    from bmg160_emu.io.trace import describe_write as _describe
+    from bmg160_emu.decode import describe_write as _describe
 
     return _describe(register, data)
 
 
 def describe_read(register: int, data: bytes) -> str:
-    from bmg160_emu.io.trace import describe_read as _describe
+    from bmg160_emu.decode import describe_read as _describe
 
     return _describe(register, data)
 

@@ -6,14 +6,13 @@ import json
 
 import pytest
 
+from bmg160_emu.decode import diff_dumps, format_diff
 from bmg160_emu.device import registers
 from bmg160_emu.io.dump import (
     DumpFormatError,
     RegisterDump,
     decode_register,
     detect_format,
-    diff_dumps,
-    format_diff,
     format_dump,
     format_i2cdump,
     format_json,

@@ -6,10 +6,10 @@ runs over noise seeds (:mod:`.montecarlo`). See ``docs/adcs.md``.
 """
 
 from bmg160_emu.adcs.attitude import integrate_attitude
-from bmg160_emu.adcs.faults import Fault, FaultSchedule
 from bmg160_emu.adcs.montecarlo import run_montecarlo
 from bmg160_emu.adcs.rig import GyroRig, GyroSpec, Truth
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError, load_scenario
+from bmg160_emu.faults import Fault, FaultSchedule
 
 __all__ = [
     "Fault",

@@ -32,16 +32,17 @@ from bmg160_emu.adcs.attitude import (
     integrate_attitude,
     quat_from_rotation_vector,
 )
-from bmg160_emu.adcs.montecarlo import RunResult
+from bmg160_emu.adcs.results import RunResult
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
+from bmg160_emu.device.registers import address_of, field_of
+from bmg160_emu.device.spec_choices import RANGE_CODE_BY_DPS
 
-RANGE = 0x0F  # spec 4.8
-BW = 0x10  # spec 4.9
-FIFO_STATUS = 0x0E  # spec 4.7: bit 7 overrun, bits 6:0 frame count
-FIFO_CONFIG_1 = 0x3E  # spec 4.26: bits 7:6 mode (2 = stream), bits 1:0 data select (0 = XYZ)
-FIFO_DATA = 0x3F  # spec 4.27
-STREAM_XYZ = 0x80
-RANGE_CODE_BY_DPS = {2000: 0, 1000: 1, 500: 2, 250: 3, 125: 4}  # spec 4.8
+RANGE, BW, FIFO_STATUS, FIFO_CONFIG_1, FIFO_DATA = (
+    address_of(name) for name in ("RANGE", "BW", "FIFO_STATUS", "FIFO_CONFIG_1", "FIFO_DATA"))
+FIFO_OVERRUN = field_of("FIFO_STATUS", "fifo_overrun")  # spec 4.7
+FIFO_FRAME_COUNTER = field_of("FIFO_STATUS", "fifo_frame_counter")
+# FIFO_CONFIG_1: mode 2 = stream, data select 0 = X, Y and Z (spec 4.26)
+STREAM_XYZ = field_of("FIFO_CONFIG_1", "fifo_mode").insert(0, 2)
 FRAME_BYTES = 6  # X, Y, Z little-endian 16-bit words (spec 6.5)
 
 READOUT_DEFAULTS: dict[str, Any] = {
@@ -114,8 +115,8 @@ class FifoReader:
 
         try:
             status = self.bus.read_byte_data(self.address, FIFO_STATUS)
-            count = status & 0x7F
-            if status & 0x80:
+            count = FIFO_FRAME_COUNTER.extract(status)
+            if FIFO_OVERRUN.extract(status):
                 self.overruns += 1
             if count == 0:
                 return np.zeros((0, 3))

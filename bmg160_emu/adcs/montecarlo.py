@@ -19,21 +19,12 @@ from typing import Any
 
 import numpy as np
 
+from bmg160_emu.adcs.results import RunResult
 from bmg160_emu.adcs.scenarios import Scenario, load_scenario
 
 DEFAULT_PERCENTILES = (50.0, 90.0, 95.0, 99.0)
 
-RunFunction = Callable[[int], "RunResult"]
-
-
-@dataclass
-class RunResult:
-    """What one run returns: the angle error of the attitude estimate on a time grid."""
-
-    seed: int
-    times_s: np.ndarray
-    angle_error_deg: np.ndarray
-    extras: dict[str, float] = field(default_factory=dict)
+RunFunction = Callable[[int], RunResult]
 
 
 @dataclass

@@ -22,10 +22,13 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.adcs.attitude import IDENTITY, integrate_attitude
-from bmg160_emu.adcs.faults import Fault, FaultEvent, FaultSchedule, describe_flags
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
+from bmg160_emu.device.config import ChipConfig
+from bmg160_emu.device.registers import address_of
+from bmg160_emu.device.spec_choices import VALID_ADDRESSES
 
-VALID_ADDRESSES = (0x68, 0x69)  # spec 2.1: SDO low / high
+CHIP_ID = address_of("CHIP_ID")
+from bmg160_emu.faults import Fault, FaultEvent, FaultSchedule, describe_flags
 
 
 def rotation_matrix_from_euler_zyx(yaw_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
@@ -262,7 +265,7 @@ class GyroRig:
         The chip is first brought up to the rig's clock (it makes samples lazily, when next
         accessed), so the truth covers every output period up to now.
         """
-        self.gyros[gyro].chip.peek(0x00)  # CHIP_ID: no side effect, catches the chip up
+        self.gyros[gyro].chip.peek(CHIP_ID)  # no side effect, catches the chip up
         cached = self._truth_cache.get(gyro)
         done = 0 if cached is None else cached.times_s.size
         new_times = np.array(self._times[gyro][done:], dtype=float)
@@ -295,23 +298,20 @@ class GyroRig:
         return integrate_attitude(self.scenario.rate_dps, np.array([t]), self.q0, t0=0.0)[0]
 
 
-def make_chip(spec: GyroSpec, seed: int, clock: Any) -> Any:
-    """The chip model for one gyro spec (the one place that knows BMG160's options)."""
-    from bmg160_emu.device.chip import BMG160
+def chip_config(spec: GyroSpec) -> ChipConfig:
+    """The chip options of one gyro spec (error terms only when they are not zero)."""
+    return ChipConfig(
+        address=spec.address,
+        profile=spec.profile,
+        noise=spec.noise,
+        noise_mode=spec.noise_mode,
+        temperature_c=spec.temperature_c,
+        mounting=None if np.allclose(spec.mounting, np.eye(3)) else spec.mounting,
+        scale_factor=spec.scale_factor_error if np.any(spec.scale_factor_error) else None,
+        misalignment=spec.misalignment_rad if np.any(spec.misalignment_rad) else None,
+    )
 
-    options: dict[str, Any] = {
-        "seed": seed,
-        "profile": spec.profile,
-        "noise": spec.noise,
-        "noise_mode": spec.noise_mode,
-        "clock": clock,
-        "address": spec.address,
-        "temperature_c": spec.temperature_c,
-    }
-    if not np.allclose(spec.mounting, np.eye(3)):
-        options["mounting"] = spec.mounting
-    if np.any(spec.scale_factor_error):
-        options["scale_factor"] = spec.scale_factor_error
-    if np.any(spec.misalignment_rad):
-        options["misalignment"] = spec.misalignment_rad
-    return BMG160(**options)
+
+def make_chip(spec: GyroSpec, seed: int, clock: Any) -> Any:
+    """The chip model for one gyro spec, built through its :class:`ChipConfig`."""
+    return chip_config(spec).build(seed, clock)

@@ -34,14 +34,15 @@ from typing import Any
 
 from bmg160_emu.bus import kernel_abi as abi
 from bmg160_emu.device.chip import NORMAL, POWER_SAVE, power_mode
-from bmg160_emu.device.registers import address_of, field_of
+from bmg160_emu.device.registers import REGISTER_COUNT, address_of, field_of
 
 STUB_ADAPTER_NAME = "SMBus stub driver"  # the name i2c-stub gives its adapter
-REGISTER_COUNT = 0x40  # 0x00..0x3F, spec section 3
-DATA_FIRST, DATA_LAST = 0x02, 0x0E  # RATE_X_LSB .. FIFO_STATUS: refreshed every period
-CONFIG_FIRST, CONFIG_LAST = 0x0F, 0x3E  # RANGE .. FIFO_CONFIG_1: what a client may write
-BGW_SOFTRESET, SOFTRESET_COMMAND = address_of("BGW_SOFTRESET"), 0xB6  # spec 4.13
-RANGE, RANGE_MASK = address_of("RANGE"), field_of("RANGE", "range").mask
+DATA_FIRST, DATA_LAST = address_of("RATE_X_LSB"), address_of("FIFO_STATUS")  # refreshed every period
+RANGE = address_of("RANGE")
+CONFIG_FIRST, CONFIG_LAST = RANGE, address_of("FIFO_CONFIG_1")  # what a client may write
+BGW_SOFTRESET = address_of("BGW_SOFTRESET")
+SOFTRESET_COMMAND = 0xB6  # the reset command written to BGW_SOFTRESET (spec 4.13)
+RANGE_FIELD = field_of("RANGE", "range")
 POWER_MODE_REGISTERS = (address_of("LPM1"), address_of("LPM2"))
 SAMPLING_MODES = (NORMAL, POWER_SAVE)  # the modes that take writes and sample (spec 6.7)
 
@@ -291,7 +292,7 @@ class I2CStubAdapter:
                     "register": register,
                     "value": writes[register],
                     "odr_hz": chip.odr_hz,
-                    "range": chip.peek(RANGE) & RANGE_MASK,
+                    "range": RANGE_FIELD.extract(chip.peek(RANGE)),
                     "power_mode": chip.power_mode,
                 })
 

@@ -24,14 +24,16 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from bmg160_emu.bus.i2c import os_error
 from bmg160_emu.bus.transactions import TransactionLog
+from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of, field_of
 
 if TYPE_CHECKING:
     from typing_extensions import Self
 
 UNDRIVEN_BYTE = 0x00  # what a host reads from a data line nobody drives (emulator choice)
-FIFO_DATA = 0x3F  # the address pointer does not advance here (spec 2.4)
-USER_MAP_END = 0x40  # 0x40..0x7F: outside the register map (spec 2.4)
-SPI3_REGISTER, SPI3_BIT = 0x34, 0x01  # BGW_SPI3_WDT.spi3 (spec 4.23)
+FIFO_DATA = address_of("FIFO_DATA")  # the address pointer does not advance here (spec 2.4)
+USER_MAP_END = FIRST_OUTSIDE_MAP  # 0x40..0x7F: outside the register map (spec 2.4)
+SPI3_ADDRESS = address_of("BGW_SPI3_WDT")
+SPI3_BIT = field_of("BGW_SPI3_WDT", "spi3").mask  # 1: 3-wire SPI (spec 4.23)
 MAX_SPEED_HZ = 10_000_000  # maximum SPI clock of the chip (spec 2.2); the fake node's default
 SPIDEV_BUFSIZ = 4096  # spidev's default bufsiz (/sys/module/spidev/parameters/bufsiz)
 SUPPORTED_BITS_PER_WORD = (8, 16, 32)  # word sizes the emulated controller accepts
@@ -357,7 +359,7 @@ class FakeSpiDev:
                 frame = self._frame if self._frame is not None else SpiFrame(chip)
                 start_state, start_address = frame.state, frame.address
                 driven = frame.clock(wire_tx)
-                chip_3wire = bool(chip.peek(SPI3_REGISTER) & SPI3_BIT)
+                chip_3wire = bool(chip.peek(SPI3_ADDRESS) & SPI3_BIT)
                 self._frame = frame if mode & SPI_NO_CS else None
                 if host_3wire != chip_3wire:
                     driven = bytes([UNDRIVEN_BYTE]) * count  # the chip answers on the other line

@@ -1,7 +1,8 @@
 """Command-line options that build emulated chips, shared by every sub-command.
 
 ``add_chip_options(parser)`` adds the options; ``chips_from_args(args)`` turns them into
-``{address: BMG160}``, all chips sharing one clock so they stay in step.
+``{address: BMG160}``, all chips sharing one clock so they stay in step; both go through
+:class:`~bmg160_emu.device.config.ChipConfig` (``configs_from_args``), as trace headers do.
 """
 
 from __future__ import annotations
@@ -9,12 +10,15 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from bmg160_emu.device.config import ChipConfig
+from bmg160_emu.device.registers import address_of
+from bmg160_emu.device.spec_choices import DEFAULT_ADDRESS, RANGE_CODE_BY_DPS, VALID_ADDRESSES
+
 if TYPE_CHECKING:  # the chip module is imported lazily to keep ``--help`` fast
     from bmg160_emu.device.chip import BMG160
 
-# Full scale in deg/s -> RANGE code (spec 4.8).
-RANGE_CODE_BY_DPS = {2000: 0, 1000: 1, 500: 2, 250: 3, 125: 4}
-VALID_ADDRESSES = (0x68, 0x69)  # spec 2.1
+RANGE = address_of("RANGE")  # --range is written here at start (spec 4.8)
+BW = address_of("BW")  # --bandwidth is written here at start (spec 5.3)
 
 
 def _address(text: str) -> int:
@@ -119,41 +123,46 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) 
     )
 
 
+def configs_from_args(args: argparse.Namespace) -> list[ChipConfig]:
+    """One :class:`ChipConfig` per ``--address`` (default 0x68) from parsed options.
+
+    The chips of a session and the header of its trace are both made from these, so an
+    option given here reaches replay.
+    """
+    setup: list[tuple[int, bytes]] = []
+    if getattr(args, "range_dps", None) is not None:
+        setup.append((RANGE, bytes([RANGE_CODE_BY_DPS[args.range_dps]])))
+    if getattr(args, "bandwidth", None) is not None:
+        setup.append((BW, bytes([args.bandwidth])))
+    rate = getattr(args, "true_rate", None)
+    return [
+        ChipConfig(
+            address=address,
+            profile=getattr(args, "profile", "paper"),
+            noise=not getattr(args, "no_noise", False),
+            noise_mode=getattr(args, "noise_mode", "physical"),
+            sensitivity=getattr(args, "sensitivity", "binary"),
+            temperature_c=getattr(args, "temperature", 23.0),
+            strict=getattr(args, "strict", False),
+            true_rate_dps=None if rate is None else tuple(rate),
+            setup_writes=list(setup),
+        )
+        for address in dict.fromkeys(getattr(args, "addresses", None) or [DEFAULT_ADDRESS])
+    ]
+
+
 def chips_from_args(args: argparse.Namespace) -> dict[int, BMG160]:
     """Build ``{address: BMG160}`` from parsed options; every chip shares one clock."""
     from bmg160_emu.clock import RealTimeClock, VirtualClock
-    from bmg160_emu.device.chip import BMG160
 
     clock = RealTimeClock() if getattr(args, "realtime", False) else VirtualClock()
-    addresses = list(dict.fromkeys(getattr(args, "addresses", None) or [0x68]))
     chips: dict[int, BMG160] = {}
-    for address in addresses:
+    for config in configs_from_args(args):
         try:
-            chip = BMG160(
-                seed=getattr(args, "seed", None),
-                profile=getattr(args, "profile", "paper"),
-                noise=not getattr(args, "no_noise", False),
-                noise_mode=getattr(args, "noise_mode", "physical"),
-                clock=clock,
-                address=address,
-                sensitivity=getattr(args, "sensitivity", "binary"),
-                temperature_c=getattr(args, "temperature", 23.0),
-                strict=getattr(args, "strict", False),
-            )
+            chip = config.build(getattr(args, "seed", None), clock)
         except (ValueError, KeyError, OSError) as exc:
-            from bmg160_emu.cli import CommandError
+            from bmg160_emu.commands._common import CommandError
 
             raise CommandError(str(exc)) from None
-        if getattr(args, "true_rate", None) is not None:
-            try:
-                chip.set_true_rate(tuple(args.true_rate))
-            except ValueError as exc:
-                from bmg160_emu.cli import CommandError
-
-                raise CommandError(f"--true-rate: {exc}") from None
-        if getattr(args, "range_dps", None) is not None:
-            chip.write(0x0F, bytes([RANGE_CODE_BY_DPS[args.range_dps]]))
-        if getattr(args, "bandwidth", None) is not None:
-            chip.write(0x10, bytes([args.bandwidth]))
-        chips[address] = chip
+        chips[config.address] = chip
     return chips

@@ -9,6 +9,10 @@ from pathlib import Path
 from typing import Any
 
 
+class CommandError(Exception):
+    """A user-facing error: printed as one line, exit status 2, never a traceback."""
+
+
 def integer_at_least(minimum: int, what: str) -> Callable[[str], int]:
     """An argparse type: an integer (``0x`` and ``0o`` prefixes allowed) of at least
     ``minimum``; anything else is a usage error naming ``what``."""
@@ -58,7 +62,6 @@ def add_file_option(parser: argparse.ArgumentParser, flag: str, metavar: str, he
 def check_writable(path: Path) -> None:
     """Refuse an output path that cannot be written before any work is done (a long
     recording would otherwise be lost at the end)."""
-    from bmg160_emu.cli import CommandError
 
     existed = path.exists()
     try:
@@ -79,7 +82,6 @@ def run_script_file(
     printed to stderr after ``failed_prefix`` and gives exit status 1, else 0.
     """
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.cli import CommandError
     from bmg160_emu.script import ScriptFailure, ScriptSyntaxError, run_script
 
     try:

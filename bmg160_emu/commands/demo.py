@@ -15,15 +15,18 @@ from typing import Any
 
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
 from bmg160_emu.commands._common import add_bus_option, add_command_parser, integer_at_least
+from bmg160_emu.device.registers import address_of, field_of
 
-# Register addresses (spec section 3) and values the session writes.
-CHIP_ID, RATE_X_LSB, TEMP, INT_STATUS_1, FIFO_STATUS = 0x00, 0x02, 0x08, 0x0A, 0x0E
-RANGE, BW, LPM1, BGW_SOFTRESET, INT_EN_0 = 0x0F, 0x10, 0x11, 0x14, 0x15
-FIFO_CONFIG_1, FIFO_DATA = 0x3E, 0x3F
-SOFT_RESET = 0xB6  # spec 4.13
+# Register addresses and fields from the table (spec section 3), and values the session writes.
+(CHIP_ID, RATE_X_LSB, TEMP, INT_STATUS_1, FIFO_STATUS, RANGE, BW, LPM1, BGW_SOFTRESET, INT_EN_0,
+ FIFO_CONFIG_1, FIFO_DATA) = (address_of(name) for name in (
+    "CHIP_ID", "RATE_X_LSB", "TEMP", "INT_STATUS_1", "FIFO_STATUS", "RANGE", "BW", "LPM1",
+    "BGW_SOFTRESET", "INT_EN_0", "FIFO_CONFIG_1", "FIFO_DATA"))
+SOFT_RESET = 0xB6  # the reset command written to BGW_SOFTRESET (spec 4.13)
 STARTUP_S = 0.030  # wait after soft reset (spec 6.6)
-DATA_EN, DATA_INT = 0x80, 0x80  # INT_EN_0 bit 7, INT_STATUS_1 bit 7 (spec 4.14, 4.5)
-FIFO_MODE = 0x40  # FIFO_CONFIG_1 bits 7:6 = 1: stop when full (spec 4.26)
+DATA_EN = field_of("INT_EN_0", "data_en").mask  # spec 4.14
+DATA_INT = field_of("INT_STATUS_1", "data_int").mask  # spec 4.5
+FIFO_MODE = field_of("FIFO_CONFIG_1", "fifo_mode").insert(0, 1)  # 1: FIFO, stops when full (4.26)
 FRAME_BYTES = 6  # X, Y, Z frame without tag (spec 6.5)
 BLOCK_BYTES = 30  # whole frames per SMBus block read (<= 32 bytes)
 DEFAULT_BW_CODE = 4  # ODR 200 Hz, 23 Hz filter (spec 5.3)
@@ -178,7 +181,7 @@ def run(args: argparse.Namespace) -> int:
     import smbus2
 
     from bmg160_emu.bus.patching import patch_smbus
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
 
     chips = chips_from_args(args)
     range_code = RANGE_CODE_BY_DPS[args.range_dps] if args.range_dps is not None else 0

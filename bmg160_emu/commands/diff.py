@@ -6,6 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from bmg160_emu.commands._common import add_command_parser
+
 EPILOG = """\
 examples:
   bmg160-emu diff before.dump after.dump
@@ -17,13 +19,13 @@ Exit status: 0 when the dumps are equal, 1 when they differ, 2 on a bad file.
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "diff",
-        help="compare two register dumps field by field",
-        description="Show the registers two dumps disagree on, side by side, with every "
+        "compare two register dumps field by field",
+        "Show the registers two dumps disagree on, side by side, with every "
         "field that differs decoded by name.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument("a", type=Path, metavar="A", help="first dump")
     parser.add_argument("b", type=Path, metavar="B", help="second dump")
@@ -32,7 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _load(path: Path):
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.io.dump import DumpFormatError, parse_dump
 
     try:
@@ -48,7 +50,7 @@ def _load(path: Path):
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.io.dump import diff_dumps, format_diff
+    from bmg160_emu.decode import diff_dumps, format_diff
 
     a, b = _load(args.a), _load(args.b)
     sys.stdout.write(format_diff(a, b, args.a.name, args.b.name, show_all=args.all))

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import run_script_file
+from bmg160_emu.commands._common import add_command_parser, run_script_file
 
 
 def _address(text: str) -> int:
@@ -32,13 +32,13 @@ The dump reads no register through the bus: it has no read side effects (FIFO, s
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "dump",
-        help="print the chip's 64 registers (i2cdump, decoded table or JSON)",
-        description="Print registers 0x00..0x3F of an emulated BMG160, optionally after "
+        "print the chip's 64 registers (i2cdump, decoded table or JSON)",
+        "Print registers 0x00..0x3F of an emulated BMG160, optionally after "
         "running a register script, in i2cdump's layout, as a decoded table, or as JSON.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument(
         "--format", choices=("i2cdump", "table", "json"), default="table",
@@ -58,7 +58,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.io.dump import RegisterDump, format_dumps
 
     chips = chips_from_args(args)

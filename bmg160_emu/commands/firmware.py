@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from bmg160_emu.commands._common import add_command_parser
+
 EPILOG = """\
 examples:
   bmg160-emu firmware build --profile paper
@@ -20,13 +22,13 @@ writes its UART sample stream (docs/firmware.md).
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "firmware",
-        help="build the ATmega328P firmware or capture its output in simavr",
-        description="The BMG160 firmware for an ATmega328P board: I2C slave at 0x68/0x69 "
+        "build the ATmega328P firmware or capture its output in simavr",
+        "The BMG160 firmware for an ATmega328P board: I2C slave at 0x68/0x69 "
         "with on-chip noise and a UART sample stream.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     actions = parser.add_subparsers(dest="firmware_action", metavar="ACTION")
     build = actions.add_parser(
@@ -79,7 +81,7 @@ def _missing_action(parser: argparse.ArgumentParser) -> int:
 
 
 def _build(args: argparse.Namespace):
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.firmware.build import FirmwareToolError, build_firmware
 
     try:
@@ -117,7 +119,7 @@ def run_build(args: argparse.Namespace) -> int:
 
 
 def run_capture(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.firmware.build import FirmwareToolError, capture_uart
     from bmg160_emu.io.atomic import OutputError, atomic_path, check_writable
 

@@ -7,6 +7,7 @@ import secrets
 import sys
 from pathlib import Path
 
+from bmg160_emu.commands._common import add_command_parser
 from bmg160_emu.durations import parse_duration
 
 EPILOG = """\
@@ -25,13 +26,13 @@ CHUNK_SAMPLES = 1 << 18  # samples per generate() call while streaming (6 MB per
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "generate",
-        help="generate gyroscope noise (N, B, T, K per axis) to .npy or .csv",
-        description="Generate the noise of the three BMG160 axes from a noise profile, "
+        "generate gyroscope noise (N, B, T, K per axis) to .npy or .csv",
+        "Generate the noise of the three BMG160 axes from a noise profile, "
         "seeded and streamed to a file.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument(
         "--profile", default="paper", help="built-in profile (paper, datasheet) or a TOML file"
@@ -62,7 +63,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.io.rates import RateStreamWriter
     from bmg160_emu.noise import NoiseGenerator
 
     suffix = args.output.suffix.lower()
@@ -91,10 +93,9 @@ def run(args: argparse.Namespace) -> int:
     bar = _progress(total)
     try:
         with open(args.output, "wb") as handle:
-            if suffix == ".npy":
-                _stream_npy(gen, total, handle, bar)
-            else:
-                _stream_csv(gen, total, handle, bar, header)
+            writer = RateStreamWriter(handle, suffix, total, gen.rate_hz, [header])
+            for start, block in _chunks(gen, total, bar):
+                writer.write(start, block)
     except OSError as exc:
         raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     finally:
@@ -119,25 +120,3 @@ def _chunks(gen, total: int, bar):
         done += m
         if bar is not None:
             bar.update(m)
-
-
-def _stream_npy(gen, total: int, handle, bar) -> None:
-    import numpy as np
-
-    header = {"descr": "<f8", "fortran_order": False, "shape": (total, 3)}
-    np.lib.format.write_array_header_1_0(handle, header)
-    for _, block in _chunks(gen, total, bar):
-        handle.write(block.astype("<f8", copy=False).tobytes())
-
-
-def _stream_csv(gen, total: int, handle, bar, header: str) -> None:
-    import numpy as np
-
-    handle.write(f"# {header}\nt_s,x_dps,y_dps,z_dps\n".encode())
-    period = 1.0 / gen.rate_hz
-    for start, block in _chunks(gen, total, bar):
-        t = (np.arange(start, start + block.shape[0]) + 1) * period
-        # %.12g keeps the time exact to 1 us over days; %.10g is 1e-10 of a deg/s
-        np.savetxt(
-            handle, np.column_stack([t, block]), fmt=["%.12g"] + ["%.10g"] * 3, delimiter=","
-        )

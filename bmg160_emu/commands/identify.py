@@ -7,6 +7,8 @@ import json
 import sys
 from pathlib import Path
 
+from bmg160_emu.commands._common import add_command_parser
+
 EPILOG = """\
 examples:
   bmg160-emu identify noise.npy --rate 200
@@ -25,13 +27,13 @@ overlay_time, one set per axis).
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "identify",
-        help="identify N, B, T, K (Allan deviation + PSD + fit) from a static record",
-        description="Identify the noise parameters of each axis of a static gyroscope record "
+        "identify N, B, T, K (Allan deviation + PSD + fit) from a static record",
+        "Identify the noise parameters of each axis of a static gyroscope record "
         "and write a profile the generator loads back.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument("file", type=Path, help="record: .csv, .npy or .npz (deg/s)")
     parser.add_argument(
@@ -99,7 +101,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.noise.identification import STAGES_PER_AXIS, IdentificationError, identify
     from bmg160_emu.noise.rate_record import RecordError, load_rate_record
 
@@ -176,7 +178,7 @@ def _step(bar, stage: str) -> None:
 
 
 def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.noise import plots
 
     folder: Path = args.figures

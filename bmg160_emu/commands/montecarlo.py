@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bmg160_emu.commands._common import add_command_parser
+
 EPILOG = """\
 examples:
   bmg160-emu montecarlo orbit.toml --runs 1000
@@ -19,13 +21,13 @@ whatever the scheduler.
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "montecarlo",
-        help="run an ADCS scenario over many noise seeds",
-        description="Run a scenario file (TOML, docs/scenarios.md) once per seed and "
+        "run an ADCS scenario over many noise seeds",
+        "Run a scenario file (TOML, docs/scenarios.md) once per seed and "
         "summarise the angle error of the propagated attitude against truth.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument("scenario", metavar="SCENARIO", help="scenario file (TOML)")
     parser.add_argument("--runs", type=int, default=None, help="number of runs (default 100)")
@@ -58,10 +60,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.adcs.faults import FaultError
     from bmg160_emu.adcs.montecarlo import parse_seeds, run_montecarlo
     from bmg160_emu.adcs.scenarios import ScenarioError, load_scenario
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.faults import FaultError
 
     if args.runs is not None and args.runs < 1:
         raise CommandError("--runs must be at least 1")

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import check_writable
+from bmg160_emu.commands._common import add_command_parser, check_writable
 
 EPILOG = """\
 examples:
@@ -24,13 +24,13 @@ true body rate. --rate picks the BW code the Linux driver uses for that output d
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "record",
-        help="record the chip's output at its ODR (counts, deg/s, true rate) to CSV or NPZ",
-        description="Run an emulated BMG160 for a while and record every output sample as a "
+        "record the chip's output at its ODR (counts, deg/s, true rate) to CSV or NPZ",
+        "Run an emulated BMG160 for a while and record every output sample as a "
         "driver reads it, beside the true rate it was fed.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument(
         "--duration", default=None, metavar="TIME",
@@ -50,7 +50,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.durations import parse_duration
     from bmg160_emu.record import BW_CODE_BY_ODR_HZ, record, write_recording
 

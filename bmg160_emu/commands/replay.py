@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
-from bmg160_emu.commands._common import check_writable, run_script_file
+from bmg160_emu.commands._common import add_command_parser, check_writable, run_script_file
 
 EPILOG = """\
 examples:
@@ -25,13 +25,13 @@ are errors naming the line.
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "replay",
-        help="play a recording (CSV/NPZ) through the chip's registers",
-        description="Make a recording of real gyro data the emulated chip's output, then "
+        "play a recording (CSV/NPZ) through the chip's registers",
+        "Make a recording of real gyro data the emulated chip's output, then "
         "record what a driver reads (-o) or run a register script against it (--script).",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument("data", type=Path, metavar="DATA", help="recording (.csv or .npz)")
     parser.add_argument("--unit", choices=("dps", "counts"), default="dps",
@@ -51,7 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device import spec_choices
     from bmg160_emu.playback import ReplayDataError, ReplaySource, load_replay_data
     from bmg160_emu.record import record, write_recording

@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         UMockdevUnavailable,
         VirtualI2CDevices,
     )
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
 
     program = list(args.program)
     if program and program[0] == "--":
@@ -127,8 +127,9 @@ def _trace_writer(args: argparse.Namespace, bus: Any) -> Any:
     """A TraceWriter fed by the bus's log (None without --trace)."""
     if args.trace is None:
         return None
-    from bmg160_emu.cli import CommandError
-    from bmg160_emu.io.trace import TraceWriter, header_from_chip_args
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands.trace import header_from_chip_args
+    from bmg160_emu.io.trace import TraceWriter
 
     try:
         writer = TraceWriter(args.trace, header_from_chip_args(args))

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+from bmg160_emu.commands._common import add_command_parser
 
 EPILOG = """\
 examples:
@@ -30,13 +31,13 @@ with --spi through SPI frames on a FakeSpiDev (spec 2.2).
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "script",
-        help="run a register script (writes, expected reads, polls, time) against the chip",
-        description="Run a line-oriented register script against an emulated BMG160 and "
+        "run a register script (writes, expected reads, polls, time) against the chip",
+        "Run a line-oriented register script against an emulated BMG160 and "
         "print a readable log; stop at the first failed expectation.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument("file", type=Path, metavar="FILE", help="the register script")
     parser.add_argument(
@@ -54,8 +55,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.cli import CommandError
-    from bmg160_emu.io.trace import TraceWriter, header_from_chip_args
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands.trace import header_from_chip_args
+    from bmg160_emu.io.trace import TraceWriter
     from bmg160_emu.script import (
         ScriptFailure,
         ScriptRunner,

@@ -62,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         bound_driver,
         check_stub_bus,
     )
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
 
     addresses = list(dict.fromkeys(args.addresses or [0x68]))
     if len(addresses) != 1:

@@ -6,6 +6,10 @@ import argparse
 import os
 import sys
 from pathlib import Path
+from typing import Any
+
+from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.io.trace import TraceHeader
 
 EPILOG = """\
 examples:
@@ -23,13 +27,13 @@ again on the replay chips at the same points.
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
+    parser = add_command_parser(
+        subparsers,
         "trace",
-        help="decode a JSON Lines transaction trace, or replay it against a fresh chip",
-        description="Print a transaction trace (docs/trace-format.md) decoded register by "
+        "decode a JSON Lines transaction trace, or replay it against a fresh chip",
+        "Print a transaction trace (docs/trace-format.md) decoded register by "
         "register, or replay it against fresh chips and report the first divergence.",
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        EPILOG,
     )
     parser.add_argument("file", type=Path, metavar="FILE", help="trace file (.jsonl)")
     parser.add_argument("--replay", action="store_true", help="replay and compare instead of printing")
@@ -37,8 +41,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
-    from bmg160_emu.io.trace import TraceFormatError, describe_transaction, read_trace, replay_trace
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.decode import describe_transaction
+    from bmg160_emu.io.trace import TraceFormatError, read_trace
+    from bmg160_emu.replay import replay_trace
 
     try:
         header, records = read_trace(args.file)
@@ -78,3 +84,13 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"divergence at {args.file}:{result.divergence}", file=sys.stderr)
     return 1
+
+
+def header_from_chip_args(args: Any) -> TraceHeader:
+    """The trace header for chips built by ``chips_from_args`` from the same options."""
+    from bmg160_emu.commands._chip_options import configs_from_args
+
+    header = TraceHeader(getattr(args, "seed", None))
+    for config in configs_from_args(args):
+        header.add_config(config)
+    return header

@@ -1,11 +1,43 @@
-"""Argument rules of the chip primitives (docs/architecture.md), shared by every device that
-sits behind the buses (the Python model and the simulated firmware), so both refuse the same
-arguments with the same errors."""
+"""The chip contract (docs/architecture.md): the primitives every device behind the buses
+offers (:class:`RegisterDevice`), and their argument rules, shared by the Python model and
+the simulated firmware so both refuse the same arguments with the same errors."""
 
 from __future__ import annotations
 
 import operator
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
+
+
+@runtime_checkable
+class RegisterDevice(Protocol):
+    """What a front end (I2CBus, FakeSpiDev, i2c-stub, umockdev) needs of a device.
+
+    ``lock`` is a re-entrant lock every primitive takes; ``time`` is the device's current
+    time in seconds. Implemented by ``BMG160``, ``SimulatedFirmwareChip`` and the test suite's
+    register-file stand-in (``tests/test_chip_contract.py`` checks all three).
+    """
+
+    lock: Any
+
+    @property
+    def time(self) -> float: ...
+
+    def write(self, reg: int, data: bytes) -> None: ...
+
+    def read(self, reg: int, n: int) -> bytes: ...
+
+    def i2c_write(self, data: bytes) -> None: ...
+
+    def i2c_read(self, n: int) -> bytes: ...
+
+    def peek(self, reg: int) -> int: ...
+
+    def dump(self) -> bytes: ...
+
+    def advance(self, seconds: float) -> None: ...
+
+
+PRIMITIVES = ("write", "read", "i2c_write", "i2c_read", "peek", "dump", "advance")
 
 
 def _index(value: Any, what: str) -> int:

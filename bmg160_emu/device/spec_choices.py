@@ -6,6 +6,15 @@ with their reasons; change a behaviour here, not in the model.
 
 from __future__ import annotations
 
+from bmg160_emu.device.registers import address_of
+
+# 2.1: the I2C address is 0x68 with SDO low, 0x69 with SDO high; the chip answers nowhere else.
+VALID_ADDRESSES = (0x68, 0x69)
+DEFAULT_ADDRESS = 0x68
+# 4.8: full scale of RANGE codes 0..4 in deg/s (codes 5..7 are reserved: RESERVED_RANGE_AS_CODE).
+RANGE_FULL_SCALE_DPS = (2000, 1000, 500, 250, 125)
+RANGE_CODE_BY_DPS = {dps: code for code, dps in enumerate(RANGE_FULL_SCALE_DPS)}
+
 # 5.1: per-range sensitivity in LSB per deg/s, indexed by RANGE code 0..4.
 SENSITIVITY_BINARY = (16.384, 32.768, 65.536, 131.072, 262.144)  # 32768 / full scale
 SENSITIVITY_NOMINAL = (16.4, 32.8, 65.6, 131.2, 262.4)  # data-sheet typical figures
@@ -43,8 +52,8 @@ FAST_POWER_UP_WAKE_NS = 10_000_000  # wake from fast power-up (DS)
 POWERED_UP_AT_CONSTRUCTION = True
 
 # 6.7: registers writable in each low-power mode (others ignored).
-WRITABLE_IN_SUSPEND = frozenset({0x11, 0x12, 0x14})
-WRITABLE_IN_DEEP_SUSPEND = frozenset({0x11, 0x14})
+WRITABLE_IN_SUSPEND = frozenset(address_of(n) for n in ("LPM1", "LPM2", "BGW_SOFTRESET"))
+WRITABLE_IN_DEEP_SUSPEND = frozenset(address_of(n) for n in ("LPM1", "BGW_SOFTRESET"))
 LEAVING_DEEP_SUSPEND_RESETS = True  # behaves like a soft reset, then stores the LPM1 write
 
 # 6.3: data_int is a pulse after each new sample (B088: 280..400 us on the sister part).

@@ -1,4 +1,4 @@
-"""Snapshots of the BMG160's 64 registers, in three text formats, and decoded differences.
+"""Snapshots of the BMG160's 64 registers in three text formats, each read back.
 
 A dump is what a driver author compares: the ``i2cdump`` format is byte for byte what
 Debian's ``i2cdump -y -r 0x00-0x3f BUS ADDR b`` prints (so Debian's ``i2c-stub-from-dump``
@@ -16,8 +16,19 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bmg160_emu.device import registers, spec_choices
+from bmg160_emu.device.fields import (  # noqa: F401  (the table format prints them; old names)
+    DecodedField,
+    ascii_text,
+    decode_register,
+    describe_register,
+    describe_value_difference,
+    register_label,
+    register_name,
+    resolve_register_name,
+)
+from bmg160_emu.device.registers import REGISTER_COUNT
+from bmg160_emu.io.errors import FormatError
 
-REGISTER_COUNT = 64  # 0x00..0x3F, the user map (spec section 3)
 DUMP_FORMATS = ("i2cdump", "table", "json")
 JSON_FORMAT_TAG = "bmg160-emu register dump"
 JSON_FORMAT_VERSION = 1
@@ -28,7 +39,7 @@ I2CDUMP_HEADER = "     0  1  2  3  4  5  6  7  8  9  a  b  c  d  e  f    0123456
 DUMP_TITLE = "# bmg160-emu register dump"
 
 
-class DumpFormatError(ValueError):
+class DumpFormatError(FormatError):
     """A dump that cannot be read; the message names the line."""
 
 
@@ -56,115 +67,6 @@ class RegisterDump:
             values = bytes(chip.dump())
             time_s = float(chip.time)
         return cls(values, address=getattr(chip, "address", None), time_s=time_s)
-
-
-# --------------------------------------------------------------------------- decoding
-
-
-def ascii_text(text: str) -> str:
-    """The register table's labels in plain ASCII, for terminals and logs (+-500 deg/s)."""
-    return text.replace("±", "+-").replace("°/s", "deg/s").replace("°C", "deg C").replace(
-        "µs", "us"
-    ).replace("·", "*")
-
-
-@dataclass(frozen=True)
-class DecodedField:
-    """One field of a register byte: its value and what it means."""
-
-    name: str
-    raw: int
-    label: str  # the table's name for this value, or ""
-    on_off: bool  # the field is a flag whose values are named off/on
-    qualified: bool = False  # the short text needs the field name (several named fields)
-    width: int = 1  # bits
-
-    @property
-    def value_text(self) -> str:
-        """A whole byte reads best in hex (0xb6), a narrow field in decimal."""
-        return f"0x{self.raw:02x}" if self.width >= 8 else str(self.raw)
-
-    @property
-    def text(self) -> str:
-        """Short form for logs: the flag name when set, the label, or name=value."""
-        if self.on_off:
-            return self.name if self.raw else ""
-        if self.label:
-            bare_quantity = self.label[0].isdigit()  # "2 ms" alone does not say what it is
-            return f"{self.name} {self.label}" if self.qualified or bare_quantity else self.label
-        return f"{self.name}={self.value_text}" if self.raw else ""
-
-    @property
-    def full_text(self) -> str:
-        return f"{self.name}={self.value_text}" + (f" ({self.label})" if self.label else "")
-
-
-def register_name(register: int) -> str:
-    """The spec name of a register (``RESERVED_0x01`` for reserved ones)."""
-    return registers.REGISTERS[register].name
-
-
-def register_label(register: int) -> str:
-    """``0x0F RANGE``: address and name, as every log line names a register."""
-    if not 0 <= register < REGISTER_COUNT:
-        return f"0x{register:02X} (outside the map)"
-    return f"0x{register:02X} {register_name(register)}"
-
-
-def resolve_register_name(name: str) -> int | None:
-    """Address of a spec register name (case-insensitive), or None."""
-    try:
-        return registers.address_of(name)
-    except KeyError:
-        return None
-
-
-def decode_register(register: int, value: int, sensitivity: str | None = None) -> list[DecodedField]:
-    """The fields of one register byte, decoded with the register table.
-
-    With ``sensitivity`` (``binary`` or ``nominal``, spec 5.1), the RANGE field's label also
-    gives the LSB per deg/s of that range.
-    """
-    reg = registers.REGISTERS[register]
-    named = [f for f in reg.fields if f.values and set(f.values.values()) != {"off", "on"}]
-    decoded = []
-    for f in reg.fields:
-        raw = f.extract(value)
-        on_off = set(f.values.values()) == {"off", "on"}
-        label = ascii_text(f.values.get(raw, ""))
-        if sensitivity and reg.name == "RANGE" and f.name == "range":
-            table = spec_choices.SENSITIVITY_TABLES[sensitivity]
-            code = raw if raw < len(table) else spec_choices.RESERVED_RANGE_AS_CODE
-            label += f", {table[code]:g} LSB/(deg/s)"
-        decoded.append(DecodedField(f.name, raw, label, on_off, len(named) > 1, f.msb - f.lsb + 1))
-    return decoded
-
-
-def describe_register(register: int, value: int, sensitivity: str | None = None) -> str:
-    """Every field by name: ``range=2 (+-500 deg/s, 65.536 LSB/(deg/s))``."""
-    fields = decode_register(register, value, sensitivity)
-    if not fields:
-        return "reserved"
-    return " ".join(f.full_text for f in fields)
-
-
-def describe_value_difference(register: int, expected: int, actual: int, mask: int = 0xFF) -> str:
-    """The fields (within ``mask``) whose value differs, expected -> actual."""
-    if not 0 <= register < REGISTER_COUNT:
-        return ""
-    reg = registers.REGISTERS[register]
-    parts = []
-    for f in reg.fields:
-        if not f.mask & mask:
-            continue
-        want, got = f.extract(expected), f.extract(actual)
-        if want != got:
-            lw, lg = (ascii_text(f.values.get(v, "")) for v in (want, got))
-            parts.append(
-                f"{f.name} expected {want}" + (f" ({lw})" if lw else "")
-                + f", got {got}" + (f" ({lg})" if lg else "")
-            )
-    return "; ".join(parts)
 
 
 # --------------------------------------------------------------------------- i2cdump
@@ -502,52 +404,3 @@ def parse_dumps(text: str, source: str = "<dump>") -> list[RegisterDump]:
             )
         dumps.append(dump)
     return dumps
-
-
-# --------------------------------------------------------------------------- diff
-
-
-@dataclass(frozen=True)
-class RegisterDifference:
-    register: int
-    a: int
-    b: int
-
-    @property
-    def fields(self) -> str:
-        return describe_value_difference(self.register, self.a, self.b).replace(
-            " expected ", ": "
-        ).replace(", got ", " -> ")
-
-
-def diff_dumps(a: RegisterDump, b: RegisterDump) -> list[RegisterDifference]:
-    """The registers whose values differ, in address order."""
-    return [
-        RegisterDifference(reg, va, vb) for reg, (va, vb) in enumerate(zip(a.values, b.values)) if va != vb
-    ]
-
-
-def format_diff(
-    a: RegisterDump, b: RegisterDump, a_name: str = "A", b_name: str = "B", show_all: bool = False
-) -> str:
-    """Side by side: register, name, both values and the fields that differ, decoded."""
-    differences = {d.register: d for d in diff_dumps(a, b)}
-    width = max(len(r.name) for r in registers.REGISTERS)
-    col = max(4, len(a_name), len(b_name))
-    lines = [f"{'':6}{'register':<{width}} {a_name:>{col}} {b_name:>{col}}  fields that differ"]
-    for reg in range(REGISTER_COUNT):
-        d = differences.get(reg)
-        if d is None and not show_all:
-            continue
-        mark = "*" if d else " "
-        text = (d.fields or "reserved bits differ") if d else ""
-        lines.append(
-            f"{mark}0x{reg:02X} {register_name(reg):<{width}} {f'0x{a[reg]:02X}':>{col}} "
-            f"{f'0x{b[reg]:02X}':>{col}}  {text}".rstrip()
-        )
-    count = len(differences)
-    if count:
-        lines.append(f"{count} register{'s differ' if count != 1 else ' differs'}")
-    else:
-        lines.append("no difference")
-    return "\n".join(lines) + "\n"

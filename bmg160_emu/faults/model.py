@@ -1,0 +1,190 @@
+"""What can go wrong with a gyro on a spacecraft bus: the fault kinds and their parameters.
+
+:class:`Fault` is one entry of a schedule (trigger + effect, checked when built); the
+engine that acts them is :mod:`bmg160_emu.faults.schedule`. The table of kinds, layers and
+effects is in :mod:`bmg160_emu.faults`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+BUS_KINDS = ("nack", "timeout")
+SAMPLE_KINDS = ("stuck_axis", "bias_step", "spike", "saturation", "lost_samples",
+                "temperature_ramp")
+CHIP_KINDS = ("seu", "brownout")
+FAULT_KINDS = BUS_KINDS + SAMPLE_KINDS + CHIP_KINDS
+
+# One bit per kind in the truth record's ``fault_flags`` column.
+FAULT_FLAGS = {kind: 1 << i for i, kind in enumerate(FAULT_KINDS)}
+
+SATURATED_DPS = 1.0e6  # far beyond +-2000 deg/s: the chip clips it to +-32767 counts
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class FaultError(ValueError):
+    """A fault description that cannot be used, with the reason."""
+
+
+class GyroTarget(Protocol):
+    """What a fault needs to know about a gyro (a :class:`~bmg160_emu.adcs.rig.Gyro`)."""
+
+    @property
+    def index(self) -> int: ...
+    @property
+    def chip(self) -> Any: ...
+    @property
+    def bus(self) -> Any: ...
+    @property
+    def address(self) -> int: ...
+
+
+@dataclass
+class FaultEvent:
+    """The onset of a fault, as it happened: when, where and what."""
+
+    time_s: float
+    kind: str
+    gyro: int | None
+    transaction: int | None
+    detail: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"time_s": self.time_s, "kind": self.kind, "gyro": self.gyro,
+                "transaction": self.transaction, "detail": self.detail}
+
+
+_NUMBER_FIELDS = ("at_s", "probability", "duration_s", "step_dps", "amplitude_dps",
+                  "rate_c_per_s", "stall_s")
+_COUNT_FIELDS = ("on_transaction", "gyro", "samples", "register", "bit", "max_count")
+_OPTIONAL_FIELDS = {"at_s", "probability", "duration_s", "on_transaction", "gyro", "register",
+                    "max_count"}
+
+
+@dataclass
+class Fault:
+    """One scheduled fault: a trigger, an effect and its parameters (see the module table)."""
+
+    kind: str
+    at_s: float | None = None
+    on_transaction: int | None = None
+    probability: float | None = None
+    gyro: int | None = None
+    duration_s: float | None = None
+    axis: int | None = None
+    step_dps: float = 0.0
+    amplitude_dps: float = 0.0
+    samples: int = 1
+    register: int | None = None
+    bit: int = 0
+    rate_c_per_s: float = 0.0
+    tc_bias_dps_per_c: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    stall_s: float = 0.0
+    max_count: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in FAULT_KINDS:
+            raise FaultError(f"fault kind must be one of {list(FAULT_KINDS)}, not {self.kind!r}")
+        self._check_types()
+        triggers = [self.at_s is not None, self.on_transaction is not None,
+                    self.probability is not None]
+        if sum(triggers) != 1:
+            raise FaultError(
+                f"{self.kind}: give exactly one trigger: at_s, on_transaction or probability"
+            )
+        if self.probability is not None and not 0.0 <= self.probability <= 1.0:
+            raise FaultError(f"{self.kind}: probability must be within 0..1, not {self.probability}")
+        if self.on_transaction is not None and self.on_transaction < 0:
+            raise FaultError(f"{self.kind}: on_transaction must be >= 0")
+        if self.duration_s is not None and not self.duration_s > 0:
+            raise FaultError(f"{self.kind}: duration_s must be positive")
+        if isinstance(self.axis, str):
+            if self.axis not in AXES:
+                raise FaultError(f"{self.kind}: axis must be x, y, z or 0, 1, 2, not {self.axis!r}")
+            self.axis = AXES[self.axis]
+        if self.axis is not None and self.axis not in (0, 1, 2):
+            raise FaultError(f"{self.kind}: axis must be x, y, z or 0, 1, 2, not {self.axis!r}")
+        if self.kind in ("stuck_axis", "saturation") and self.axis is None:
+            raise FaultError(f"{self.kind}: needs an axis")
+        if self.kind in ("spike", "lost_samples") and not (
+            isinstance(self.samples, int) and self.samples >= 1
+        ):
+            raise FaultError(f"{self.kind}: samples must be a whole number >= 1")
+        if self.kind == "seu":
+            if self.register is None or not 0 <= self.register <= 0x3F:
+                raise FaultError("seu: register must be an address 0x00..0x3F")
+            if not 0 <= self.bit <= 7:
+                raise FaultError("seu: bit must be 0..7")
+        try:
+            self.tc_bias_dps_per_c = np.broadcast_to(
+                np.asarray(self.tc_bias_dps_per_c, dtype=float), (3,)
+            ).copy()
+        except (TypeError, ValueError):
+            raise FaultError(f"{self.kind}: tc_bias_dps_per_c must be one number or 3 (x, y, z) "
+                             f"in deg/s per degC, not {self.tc_bias_dps_per_c!r}") from None
+        if not np.all(np.isfinite(self.tc_bias_dps_per_c)):
+            raise FaultError(f"{self.kind}: tc_bias_dps_per_c must be finite")
+        if self.max_count is not None and self.max_count < 1:
+            raise FaultError(f"{self.kind}: max_count must be at least 1")
+        if self.stall_s < 0:
+            raise FaultError(f"{self.kind}: stall_s must not be negative")
+
+    def _check_types(self) -> None:
+        """Numbers where numbers are meant, whole numbers where counts are: a quoted TOML
+        value would otherwise be kept and fail mid-run (or a fractional count never fire)."""
+        for name in _NUMBER_FIELDS:
+            value = getattr(self, name)
+            if value is None and name in _OPTIONAL_FIELDS:
+                continue
+            if (isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating))
+                    or not math.isfinite(value)):
+                raise FaultError(f"{self.kind}: {name} must be a finite number, not {value!r}")
+        for name in _COUNT_FIELDS:
+            value = getattr(self, name)
+            if value is None and name in _OPTIONAL_FIELDS:
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise FaultError(f"{self.kind}: {name} must be a whole number, not {value!r}")
+
+    @property
+    def layer(self) -> str:
+        if self.kind in BUS_KINDS:
+            return "bus"
+        return "chip" if self.kind in CHIP_KINDS else "sample"
+
+    def describe(self) -> str:
+        where = "" if self.axis is None else f" axis {'xyz'[self.axis]}"
+        extra = {
+            "bias_step": f" {self.step_dps:+g} deg/s",
+            "spike": f" {self.amplitude_dps:+g} deg/s x{self.samples}",
+            "lost_samples": f" {self.samples} periods",
+            "seu": f" register 0x{self.register or 0:02x} bit {self.bit}",
+            "temperature_ramp": f" {self.rate_c_per_s:+g} degC/s",
+        }.get(self.kind, "")
+        span = "" if self.duration_s is None else f" for {self.duration_s:g} s"
+        return f"{self.kind}{where}{extra}{span}"
+
+
+_FAULT_KEYS = {f for f in Fault.__dataclass_fields__}
+
+
+def fault_from_dict(entry: dict[str, Any], where: str = "fault") -> Fault:
+    """Build a fault from its TOML table (``[[fault]]`` in a scenario file)."""
+    unknown = set(entry) - _FAULT_KEYS
+    if unknown:
+        raise FaultError(f"{where}: unknown keys {sorted(unknown)}")
+    try:
+        return Fault(**entry)
+    except FaultError as exc:
+        raise FaultError(f"{where}: {exc}") from None
+    except TypeError as exc:
+        raise FaultError(f"{where}: {exc}") from None
+
+
+def describe_flags(flags: int) -> list[str]:
+    """Fault kinds named by a ``fault_flags`` value."""
+    return [kind for kind, bit in FAULT_FLAGS.items() if flags & bit]

@@ -1,0 +1,573 @@
+"""Rate files: time and x, y, z rates in CSV, NPZ or NPY; the one reader and writer.
+
+Three kinds of tool read such files (``identify`` a static record, ``replay`` a flight
+recording, ``record``'s own output read back); each one chooses its columns and checks its
+values, but the bytes are read here, once, with one error type (:class:`RateFileError`)
+whose message names the file and the line, key or row.
+
+Memory: a CSV file is parsed in chunks of about 1 MiB of text straight into arrays sized
+from a count of its lines, and NPZ arrays are copied one key at a time into the result, so
+reading costs the result arrays plus one chunk (about 1.33x the rate array for a file with
+a time column and three axes; ``tools/bench_rate_read.py`` measures it).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+import zipfile
+import zlib
+from bisect import bisect_right
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bmg160_emu.io.errors import FileFormat, FormatError, format_for, register_format
+
+# What numpy raises for a damaged .npy/.npz (a cut zip member is EOFError or zlib.error).
+ARRAY_ERRORS = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
+CHUNK_BYTES = 1 << 20  # text parsed per np.loadtxt call: bounds the reader's working memory
+CHUNK_ROWS = 1 << 20  # rows of a time column checked at a time
+MEDIAN_STEPS = 1 << 21  # steps the median step is taken from (evenly spread over the record)
+TIME_COLUMN_NAMES = ("t", "t_s", "time", "time_s", "timestamp")
+
+
+class RateFileError(FormatError):
+    """A rate file that cannot be used: unreadable, wrong shape, bad time column, no rate."""
+
+
+# A choice of columns: given the header (None when the file has none), the number of
+# columns and where the header (or first row) is, the index of the time column (or None)
+# and the indices of the value columns, in the order wanted.
+ColumnChoice = Callable[[list[str] | None, int, str], tuple[int | None, list[int]]]
+
+
+@dataclass
+class RateTable:
+    """Columns read from a rate file, and where each row came from (for messages)."""
+
+    path: Path
+    header: list[str] | None
+    t_s: np.ndarray | None
+    values: np.ndarray  # (n, k) float64
+    comments: list[tuple[int, str]] = field(default_factory=list)  # leading '#' lines
+    _row_starts: list[int] = field(default_factory=list)
+    _row_lines: list[int | np.ndarray] = field(default_factory=list)
+
+    def where(self, row: int) -> str:
+        """``path:LINE`` of CSV data row ``row`` (0-based), or ``path: row N`` for arrays."""
+        if not self._row_starts:
+            return f"{self.path}: row {row}"
+        k = bisect_right(self._row_starts, row) - 1
+        lines = self._row_lines[k]
+        start = self._row_starts[k]
+        line = lines + (row - start) if isinstance(lines, int) else int(lines[row - start])
+        return f"{self.path}:{line}"
+
+    def line_text(self, row: int) -> str:
+        """The text of CSV data row ``row`` as the file holds it (read again: for messages)."""
+        line = int(self.where(row).rsplit(":", 1)[1])
+        with open(self.path, encoding="utf-8", errors="replace") as handle:
+            for number, text in enumerate(handle, 1):
+                if number == line:
+                    return text.strip()
+        return ""
+
+
+def is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _line_count_bound(path: Path) -> int:
+    """Newlines + 1: at least the number of data rows, found without holding the file."""
+    count = 1
+    with open(path, "rb") as handle:
+        while block := handle.read(1 << 20):
+            count += block.count(b"\n")
+    return count
+
+
+_EMPTY_CELL = re.compile(r"(?m)(?:^|(?<=,))[ \t]*(?=,|$)")
+
+
+def read_csv_table(path: str | Path, choose: ColumnChoice) -> RateTable:
+    """Read the columns ``choose`` picks from a CSV rate file.
+
+    ``#`` lines and blank lines are skipped; the first other line is a header when any of
+    its cells is not a number. Every row must have as many cells as the first; an empty
+    cell reads as NaN (the caller decides whether that is allowed).
+    """
+    path = Path(path)
+    try:
+        bound = _line_count_bound(path)
+        handle = open(path, encoding="utf-8", errors="replace")  # noqa: SIM115 (closed below)
+    except OSError as exc:
+        raise RateFileError(f"cannot read the file ({exc.strerror})", path=path) from None
+    comments: list[tuple[int, str]] = []
+    with handle:
+        lineno = 0
+        first: str | None = None
+        while line := handle.readline():
+            lineno += 1
+            stripped = line.strip()
+            if not stripped:
+                continue
+            if stripped.startswith("#"):
+                comments.append((lineno, stripped[1:].strip()))
+                continue
+            first = line
+            break
+        if first is None:
+            raise RateFileError("the CSV file has no data rows", path=path)
+        cells = [c.strip() for c in next(csv.reader([first]))]
+        header = None if all(is_number(c) for c in cells) else cells
+        width = len(cells)
+        t_index, use = choose(header, width, f"{path}:{lineno}")
+        usecols = ([t_index] if t_index is not None else []) + list(use)
+        t = np.empty(bound) if t_index is not None else None
+        values = np.empty((bound, len(use)))
+        table = RateTable(path, header, t, values, comments)
+        n = 0
+        pending = [] if header is not None else [first]
+        next_line = lineno + 1 if header is not None else lineno
+        while True:
+            lines = pending + handle.readlines(CHUNK_BYTES)
+            pending = []
+            if not lines:
+                break
+            n = _parse_chunk(table, lines, next_line, n, width, usecols, t_index is not None)
+            next_line += len(lines)
+    if n == 0:
+        raise RateFileError("the CSV file has no data rows", path=path)
+    table.values = values[:n]
+    table.t_s = None if t is None else t[:n]
+    return table
+
+
+def _parse_chunk(table: RateTable, lines: list[str], first_line: int, row: int, width: int,
+                 usecols: list[int], has_time: bool) -> int:
+    """Parse ``lines`` (file lines from ``first_line``) into the table from ``row``; new row count."""
+    text = "".join(lines)
+    numbers: int | np.ndarray = first_line
+    if "#" in text or "\n\n" in text or not lines[0].strip() or not lines[-1].strip():
+        lines, numbers = _data_lines(lines, first_line)
+        text = "".join(lines)
+    if not lines:
+        return row
+    block = _load_block(table.path, lines, text, numbers, width, usecols)
+    if block is None or block.shape[0] != len(lines):
+        # a line of spaces only: filter the chunk line by line, then parse it again
+        lines, numbers = _data_lines(lines, numbers)
+        if not lines:
+            return row
+        block = _load_block(table.path, lines, "".join(lines), numbers, width, usecols)
+        assert block is not None
+    m = len(lines)
+    if has_time:
+        assert table.t_s is not None
+        table.t_s[row:row + m] = block[:, 0]
+        table.values[row:row + m] = block[:, 1:]
+    else:
+        table.values[row:row + m] = block
+    table._row_starts.append(row)
+    table._row_lines.append(numbers)
+    return row + m
+
+
+def _data_lines(lines: list[str], numbers: int | np.ndarray) -> tuple[list[str], np.ndarray]:
+    """The lines that hold data (comments after ``#`` removed, blank lines dropped), and
+    their line numbers."""
+    if isinstance(numbers, int):
+        numbers = np.arange(numbers, numbers + len(lines))
+    kept, kept_numbers = [], []
+    for number, line in zip(numbers.tolist(), lines):
+        if "#" in line:
+            line = line.split("#", 1)[0].rstrip() + "\n"
+        if line.strip():
+            kept.append(line)
+            kept_numbers.append(number)
+    return kept, np.array(kept_numbers, dtype=np.int64)
+
+
+def _load_block(path: Path, lines: list[str], text: str, numbers: int | np.ndarray, width: int,
+                usecols: list[int]) -> np.ndarray | None:
+    """The chosen columns of ``lines`` as floats (empty cells NaN), errors naming the line;
+    None when the lines hold a line of spaces only (the caller filters them first)."""
+    if text.count(",") != len(lines) * (width - 1):
+        if any(not line.strip() for line in lines):
+            return None
+        _find_bad_line(path, lines, numbers, width, usecols)
+    source: list[str] = lines
+    if ",," in text or ",\n" in text or "\n," in text or text[:1] == "," or text.rstrip("\n")[-1:] == ",":
+        source = _EMPTY_CELL.sub("nan", text.removesuffix("\n")).split("\n")
+    try:
+        return np.loadtxt(source, delimiter=",", usecols=usecols, ndmin=2, dtype=float,
+                          comments=None)
+    except ValueError as exc:
+        if any(not line.strip() for line in lines):
+            return None
+        _find_bad_line(path, lines, numbers, width, usecols)
+        first = numbers if isinstance(numbers, int) else int(numbers[0])
+        raise RateFileError(f"unreadable CSV data ({exc})", path=path, place=first) from None
+
+
+def _find_bad_line(path: Path, lines: list[str], numbers: int | np.ndarray, width: int,
+                   usecols: list[int]) -> None:
+    """Raise the error of the first row in ``lines`` with the wrong width or a non-number."""
+    for k, line in enumerate(lines):
+        lineno = numbers + k if isinstance(numbers, int) else int(numbers[k])
+        cells = line.rstrip("\n").split(",")
+        if len(cells) != width:
+            raise RateFileError(f"{len(cells)} columns, expected {width}", path=path, place=lineno)
+        for i in usecols:
+            cell = cells[i].strip()
+            if cell and not is_number(cell):
+                raise RateFileError(f"not a number: {cell!r}", path=path, place=lineno)
+
+
+# --------------------------------------------------------------------------- arrays
+
+
+def open_npz(path: str | Path):
+    """The archive of an NPZ file (arrays read lazily, one key at a time)."""
+    try:
+        archive = np.load(path, allow_pickle=False)
+    except ARRAY_ERRORS as exc:
+        raise RateFileError(f"not a readable NPZ archive ({exc})", path=path) from None
+    if isinstance(archive, np.ndarray):
+        raise RateFileError("not an NPZ archive (a .npy array)", path=path)
+    return archive
+
+
+def npz_array(archive, key: str, path: str | Path) -> np.ndarray:
+    """One array of the archive; a damaged member is an error naming the key."""
+    try:
+        return archive[key]
+    except ARRAY_ERRORS as exc:
+        raise RateFileError(f"unreadable array ({exc})", path=path, place=f"key {key}") from None
+
+
+def npz_columns(archive, keys: Sequence[str], path: str | Path) -> np.ndarray:
+    """Stack 1-D arrays ``keys`` into one (n, k) float64 array, one key in memory at a time."""
+    out: np.ndarray | None = None
+    for j, key in enumerate(keys):
+        column = numeric(npz_array(archive, key, path), path, f"key {key}").reshape(-1)
+        if out is None:
+            out = np.empty((len(column), len(keys)))
+        elif len(column) != len(out):
+            raise RateFileError(f"{len(column)} values, {keys[0]!r} has {len(out)}",
+                                path=path, place=f"key {key}")
+        out[:, j] = column
+    assert out is not None
+    return out
+
+
+def numeric(data: np.ndarray, path: str | Path, place: str | None = None) -> np.ndarray:
+    """``data`` as float64 (no copy when it already is); refuse anything but numbers."""
+    if data.dtype.kind not in "fiu":
+        raise RateFileError(f"the record must hold numbers, not {data.dtype}", path=path,
+                            place=place)
+    return np.asarray(data, dtype=float)
+
+
+def read_npy(path: str | Path) -> np.ndarray:
+    try:
+        data = np.load(path, allow_pickle=False)
+    except ARRAY_ERRORS as exc:
+        raise RateFileError(f"not a readable .npy array ({exc})", path=path) from None
+    if not isinstance(data, np.ndarray):
+        data.close()
+        raise RateFileError("not a .npy array (an NPZ archive: name it .npz)", path=path)
+    return numeric(data, path)
+
+
+# --------------------------------------------------------------------------- time column
+
+
+def check_time_column(t: np.ndarray, where: Callable[[int], str], gap_factor: float,
+                      gap_hint: str = "split the record at the gap") -> float:
+    """Refuse a time column that is not finite, not increasing or has a gap; its median step.
+
+    A step over ``gap_factor`` median steps is a gap (missing samples), not jitter: Allan
+    deviation, PSD and resampling all need evenly spaced samples.
+    """
+    n = len(t)
+    for start in range(0, n, CHUNK_ROWS):  # in chunks: no (n,) temporaries beside t
+        part = t[start:start + CHUNK_ROWS + 1]
+        bad = np.flatnonzero(~np.isfinite(part))
+        if bad.size:
+            raise RateFileError(f"{where(start + int(bad[0]))}: the time column has NaN or "
+                                "infinite values")
+        back = np.flatnonzero(~(np.diff(part) > 0))
+        if back.size:
+            i = start + int(back[0]) + 1
+            raise RateFileError(
+                f"{where(i)}: time {float(t[i])!r} s is not after {float(t[i - 1])!r} s "
+                f"(the time column is not strictly increasing at sample {i})"
+            )
+    if n < 2:
+        return math.inf
+    typical = median_step(t)
+    for start in range(0, n - 1, CHUNK_ROWS):
+        steps = np.diff(t[start:start + CHUNK_ROWS + 1])
+        wide = np.flatnonzero(steps > gap_factor * typical)
+        if wide.size:
+            i = start + int(wide[0])
+            step = float(steps[wide[0]])
+            raise RateFileError(
+                f"{where(i + 1)}: gap of {step:.6g} s after sample {i} ({step / typical:.1f} "
+                f"sample periods of {typical:.6g} s): evenly spaced samples are needed; {gap_hint}"
+            )
+    return typical
+
+
+def median_step(t: np.ndarray) -> float:
+    """The median time step; of evenly spread steps when there are over MEDIAN_STEPS.
+
+    Exact up to MEDIAN_STEPS + 1 samples (2.9 h at 200 Hz); beyond, the median of every
+    k-th step, which is within a small fraction of the jitter of the exact one (a sample
+    median of 2**21 values has a standard error of 1.25 sd / 1450) and needs no (n,) copy.
+    """
+    n_steps = len(t) - 1
+    if n_steps <= MEDIAN_STEPS:
+        return float(np.median(np.diff(t)))
+    k = -(-n_steps // MEDIAN_STEPS)
+    return float(np.median(t[k::k][: n_steps // k] - t[0:-1:k][: n_steps // k]))
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def write_csv(path: str | Path, comments: Sequence[str], names: Sequence[str],
+              blocks: Sequence[np.ndarray]) -> None:
+    """Write ``#`` comment lines, a header and the columns of ``blocks`` side by side.
+
+    Integer arrays are written with ``str``, floats with ``repr`` (the shortest text that
+    reads back to the same float), NaN as an empty cell.
+    """
+    columns = [b.reshape(len(b), -1) for b in blocks]
+    formats = [str if c.dtype.kind in "iu" else _float_cell for c in columns]
+    with open(path, "w", encoding="utf-8", newline="") as handle:
+        handle.write("".join(f"# {c}\n" for c in comments))
+        handle.write(",".join(names) + "\n")
+        buffer = io.StringIO()
+        for cells in zip(*(c.tolist() for c in columns)):
+            buffer.write(",".join(f(v) for f, group in zip(formats, cells) for v in group) + "\n")
+        handle.write(buffer.getvalue())
+
+
+def _float_cell(value: float) -> str:
+    return "" if math.isnan(value) else repr(value)
+
+
+def write_npz(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+    """Write the named arrays, compressed."""
+    np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
+
+
+# --------------------------------------------------------------------------- generic files
+
+
+@dataclass(frozen=True)
+class RateRecord:
+    """A rate record ready for identification."""
+
+    rate_dps: np.ndarray  # (n, k), k = 1..3
+    rate_hz: float
+    axis_names: tuple[str, ...]
+    source: str
+
+
+RATE_COLUMN_SETS = (("x_dps", "y_dps", "z_dps"), ("x", "y", "z"), ("gx", "gy", "gz"))
+GAP_FACTOR = 2.5  # identify: a step this many times the median step is a gap
+
+
+def load_rate_record(
+    path: str | Path, rate_hz: float | None = None, columns: list[str] | None = None
+) -> RateRecord:
+    """Read a static record (deg/s); ``rate_hz`` overrides (and is checked against) a time column.
+
+    - CSV: one column per axis, optionally a time column (t, t_s, time, time_s or
+      timestamp); an optional header row names the columns; when it has x_dps, y_dps,
+      z_dps (the ``record`` and ``generate`` layout) those are the axes.
+    - .npy: an (n,) or (n, k) array, k <= 3, no time.
+    - .npz: a single array, or rate_dps (n, 3) and t_s, or x, y, z with an optional t.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise RateFileError(f"no such record file: {path}")
+    suffix = path.suffix.lower()
+    if columns and suffix not in (".csv", ".txt"):
+        raise RateFileError("--columns applies to CSV files with a header row", path=path)
+    if suffix not in (".csv", ".txt", ".npy", ".npz"):
+        raise RateFileError(f"record file must end in .csv, .npy or .npz, not {path.name!r}")
+    table = _READERS[".csv" if suffix == ".txt" else suffix](path, columns)
+    data = table.values
+    if data.ndim == 1:
+        data = data[:, None]
+    if data.ndim != 2 or not 1 <= data.shape[1] <= 3:
+        raise RateFileError(
+            f"expected one column per axis (1 to 3 axes), got shape {data.shape}", path=path
+        )
+    names = table.header or ("x", "y", "z")[: data.shape[1]]
+    rate = _resolve_rate(table, rate_hz, data.shape[0])
+    return RateRecord(data, rate, tuple(n.removesuffix("_dps") for n in names), str(path))
+
+
+def _resolve_rate(table: RateTable, rate_hz: float | None, n: int) -> float:
+    path, t = table.path, table.t_s
+    valid = isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0
+    if rate_hz is not None and not valid:
+        raise RateFileError(f"sample rate must be a positive number of Hz, got {rate_hz!r}")
+    if t is None:
+        if rate_hz is None:
+            raise RateFileError("no time column: give the sample rate (--rate HZ)", path=path)
+        return float(rate_hz)
+    check_time_column(t, table.where, GAP_FACTOR)
+    if n < 2:
+        if rate_hz is None:
+            raise RateFileError("too few samples to read the rate from the time column", path=path)
+        return float(rate_hz)
+    from_time = (n - 1) / float(t[-1] - t[0])
+    if rate_hz is not None:
+        if abs(from_time / rate_hz - 1.0) > 0.01:
+            raise RateFileError(
+                f"--rate {rate_hz:g} Hz disagrees with the time column ({from_time:.6g} Hz)",
+                path=path,
+            )
+        return float(rate_hz)
+    return from_time
+
+
+def _read_record_npy(path: Path, columns: list[str] | None) -> RateTable:
+    return RateTable(path, None, None, read_npy(path))
+
+
+def _read_record_npz(path: Path, columns: list[str] | None) -> RateTable:
+    with open_npz(path) as archive:
+        keys = list(archive.files)
+        t_key = next((k for k in TIME_COLUMN_NAMES if k in keys), None)
+        t = numeric(npz_array(archive, t_key, path), path, f"key {t_key}") if t_key else None
+        if "rate_dps" in keys:
+            return RateTable(path, None, t, numeric(npz_array(archive, "rate_dps", path), path))
+        for names in RATE_COLUMN_SETS:
+            present = [k for k in names if k in keys]
+            if present:
+                return RateTable(path, present, t, npz_columns(archive, present, path))
+        others = [k for k in keys if k not in TIME_COLUMN_NAMES]
+        numbers = [k for k in others if npz_array(archive, k, path).dtype.kind in "fiu"]
+        if len(numbers) == 1:
+            return RateTable(path, None, t, numeric(npz_array(archive, numbers[0], path), path))
+    raise RateFileError(
+        f"cannot tell which arrays hold the rates (found {sorted(keys)}); "
+        "store one array, or rate_dps, or x, y, z", path=path,
+    )
+
+
+def _read_record_csv(path: Path, columns: list[str] | None) -> RateTable:
+    chosen: list[str] = []
+
+    def choose(header: list[str] | None, width: int, where: str) -> tuple[int | None, list[int]]:
+        if header is None:
+            if columns:
+                raise RateFileError(f"{where}: --columns needs a header row naming the columns")
+            return None, list(range(width))
+        names = [c.lower() for c in header]
+        time_index = next((names.index(n) for n in TIME_COLUMN_NAMES if n in names), None)
+        if columns:
+            wanted = [c.lower() for c in columns]
+            missing = [c for c in wanted if c not in names]
+            if missing:
+                raise RateFileError(f"{where}: no column(s) {missing}; the header has {names}")
+            rate_names = wanted
+        else:
+            rate_names = next(
+                ([n for n in s if n in names] for s in RATE_COLUMN_SETS if s[0] in names),
+                [n for i, n in enumerate(names) if i != time_index],
+            )
+        if len(rate_names) > 3:
+            raise RateFileError(
+                f"{where}: {len(rate_names)} rate columns ({', '.join(rate_names)}); "
+                "choose up to three with --columns"
+            )
+        chosen.extend(rate_names)
+        return time_index, [names.index(n) for n in rate_names]
+
+    table = read_csv_table(path, choose)
+    if table.header is not None:
+        table.header = chosen
+    return table
+
+
+_READERS = {".csv": _read_record_csv, ".npy": _read_record_npy, ".npz": _read_record_npz}
+
+
+def write_rates(path: str | Path, t_s: np.ndarray | None, rate_dps: np.ndarray,
+                comments: Sequence[str] = ()) -> None:
+    """Write a rate record that :func:`load_rate_record` reads back exactly.
+
+    CSV: ``#`` comments, header ``t_s,x_dps,...``; NPZ: ``t_s`` and ``rate_dps``; NPY: the
+    (n, k) array alone (no time: the reader is given the rate).
+    """
+    rate_dps = np.asarray(rate_dps, dtype=float)
+    rate_dps = rate_dps.reshape(len(rate_dps), -1)
+    names = ("x_dps", "y_dps", "z_dps")[: rate_dps.shape[1]]
+    fmt = format_for("rates", path, RateFileError)
+    if fmt.suffix == ".npy":
+        np.save(path, rate_dps)
+    elif fmt.suffix == ".npz":
+        arrays = {"rate_dps": rate_dps}
+        if t_s is not None:
+            arrays["t_s"] = np.asarray(t_s, dtype=float)
+        write_npz(path, arrays)
+    else:
+        blocks = ([np.asarray(t_s, dtype=float)] if t_s is not None else []) + [rate_dps]
+        write_csv(path, comments, (["t_s"] if t_s is not None else []) + list(names), blocks)
+
+
+class RateStreamWriter:
+    """Write a rate record block by block (a day of samples never in memory at once).
+
+    ``.npy``: an (n, 3) float64 array, n given up front; ``.csv``: ``# comment`` lines, the
+    header ``t_s,x_dps,y_dps,z_dps``, then sample k at t = (k + 1) / rate_hz, time with
+    ``%.12g`` (exact to 1 us over days) and rates with ``%.10g`` (1e-10 of a deg/s).
+    """
+
+    def __init__(self, handle, suffix: str, total: int, rate_hz: float,
+                 comments: Sequence[str] = ()) -> None:
+        self.handle, self.suffix, self.period_s = handle, suffix.lower(), 1.0 / rate_hz
+        if self.suffix == ".npy":
+            header = {"descr": "<f8", "fortran_order": False, "shape": (total, 3)}
+            np.lib.format.write_array_header_1_0(handle, header)
+        elif self.suffix == ".csv":
+            text = "".join(f"# {c}\n" for c in comments) + "t_s,x_dps,y_dps,z_dps\n"
+            handle.write(text.encode())
+        else:
+            raise RateFileError(f"a rate stream must end in .npy or .csv, not {suffix!r}")
+
+    def write(self, start: int, block: np.ndarray) -> None:
+        """Samples ``start .. start + len(block) - 1`` as a (m, 3) deg/s block."""
+        if self.suffix == ".npy":
+            self.handle.write(block.astype("<f8", copy=False).tobytes())
+            return
+        t = (np.arange(start, start + block.shape[0]) + 1) * self.period_s
+        np.savetxt(self.handle, np.column_stack([t, block]), fmt=["%.12g"] + ["%.10g"] * 3,
+                   delimiter=",")
+
+
+def _register() -> None:
+    for suffix, description in ((".csv", "header row, optional time column"),
+                                (".npz", "rate_dps (n, k) and t_s, or x, y, z and t"),
+                                (".npy", "(n, k) array, no time")):
+        register_format(FileFormat("rates", suffix, load_rate_record, write_rates, description))
+
+
+_register()

@@ -1,0 +1,147 @@
+"""The recording file: what ``bmg160-emu record`` writes, one row per output sample.
+
+Per sample: the chip's sample time, the three rate words as the driver reads them (raw
+counts from RATE_X/Y/Z), the same in deg/s with the range's sensitivity, and the true body
+rate the chip was fed. CSV (readable, the chip settings in ``#`` comment lines) or NPZ
+(compact), see ``docs/commands/record.md``; both are read and written with the rate-file
+reader and writer of :mod:`bmg160_emu.io.rates`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bmg160_emu.io.rates import (
+    ARRAY_ERRORS,
+    RateFileError,
+    npz_array,
+    open_npz,
+    read_csv_table,
+    write_csv,
+    write_npz,
+)
+
+RECORDING_FORMAT_TAG = "bmg160-emu recording"
+RECORDING_FORMAT_VERSION = 1
+CSV_COLUMNS = (
+    "t_s",
+    "x_counts", "y_counts", "z_counts",
+    "x_dps", "y_dps", "z_dps",
+    "true_x_dps", "true_y_dps", "true_z_dps",
+)
+
+RecordingFormatError = RateFileError  # the one rate-file error; the old name stays
+
+
+@dataclass
+class Recording:
+    """Chip output at its ODR. ``t_s`` (n,), ``counts`` (n, 3) int, deg/s arrays (n, 3)."""
+
+    t_s: np.ndarray
+    counts: np.ndarray
+    lsb_per_dps: float
+    true_rate_dps: np.ndarray | None = None
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.t_s = np.asarray(self.t_s, dtype=float).reshape(-1)
+        self.counts = np.asarray(self.counts, dtype=np.int64).reshape(-1, 3)
+        if len(self.counts) != len(self.t_s):
+            raise ValueError("t_s and counts must have the same number of samples")
+        if self.true_rate_dps is not None:
+            self.true_rate_dps = np.asarray(self.true_rate_dps, dtype=float).reshape(-1, 3)
+            if len(self.true_rate_dps) != len(self.t_s):
+                raise ValueError("true_rate_dps must have one row per sample")
+        if not (self.lsb_per_dps > 0 and math.isfinite(self.lsb_per_dps)):
+            raise ValueError(f"lsb_per_dps must be positive, not {self.lsb_per_dps}")
+
+    @property
+    def rate_dps(self) -> np.ndarray:
+        """The output in deg/s: counts divided by the range's sensitivity (spec 5.1)."""
+        return self.counts / self.lsb_per_dps
+
+    @property
+    def odr_hz(self) -> float:
+        if "odr_hz" in self.metadata:
+            return float(self.metadata["odr_hz"])
+        if len(self.t_s) < 2:
+            raise ValueError("the output data rate of a recording needs two samples or metadata")
+        return float(1.0 / np.median(np.diff(self.t_s)))
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+
+def write_recording(rec: Recording, path: str | Path) -> None:
+    """Write CSV or NPZ, chosen by the file suffix."""
+    path = Path(path)
+    truth = rec.true_rate_dps if rec.true_rate_dps is not None else np.full((len(rec), 3), np.nan)
+    suffix = path.suffix.lower()
+    if suffix == ".npz":
+        meta = dict(rec.metadata, lsb_per_dps=rec.lsb_per_dps, format=RECORDING_FORMAT_TAG,
+                    version=RECORDING_FORMAT_VERSION)
+        write_npz(path, {
+            "t_s": rec.t_s, "counts": rec.counts.astype(np.int16), "rate_dps": rec.rate_dps,
+            "true_rate_dps": truth, "metadata": np.array(json.dumps(meta)),
+        })
+    elif suffix == ".csv":
+        meta = dict(rec.metadata)
+        meta["lsb_per_dps"] = rec.lsb_per_dps
+        comments = [f"{RECORDING_FORMAT_TAG} v{RECORDING_FORMAT_VERSION}", json.dumps(meta, sort_keys=True)]
+        write_csv(path, comments, CSV_COLUMNS, [rec.t_s, rec.counts, rec.rate_dps, truth])
+    else:
+        raise ValueError(f"recording file must end in .csv or .npz, not {path.name!r}")
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Read a file written by :func:`write_recording` (CSV or NPZ)."""
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        return _read_npz(path)
+    with open(path, encoding="utf-8", errors="replace") as handle:
+        head = [handle.readline() for _ in range(2)]
+    if not head[0].startswith(f"# {RECORDING_FORMAT_TAG}"):
+        raise RateFileError(f"not a {RECORDING_FORMAT_TAG} CSV file", path=path, place=1)
+    try:
+        meta = json.loads(head[1][1:])
+    except json.JSONDecodeError as exc:
+        raise RateFileError(f"bad settings line: {exc.msg}", path=path, place=2) from None
+
+    def choose(header: list[str] | None, width: int, where: str) -> tuple[int, list[int]]:
+        if header != list(CSV_COLUMNS) or not where.endswith(":3"):
+            raise RateFileError(f"{path}:3: expected the columns {','.join(CSV_COLUMNS)}")
+        return 0, list(range(1, len(CSV_COLUMNS)))
+
+    table = read_csv_table(path, choose)
+    assert table.t_s is not None
+    truth = table.values[:, 6:9]
+    lsb = float(meta.pop("lsb_per_dps"))
+    return Recording(
+        table.t_s, table.values[:, 0:3].astype(np.int64), lsb,
+        None if np.isnan(truth).all() else truth, meta,
+    )
+
+
+def _read_npz(path: Path) -> Recording:
+    try:
+        with open_npz(path) as data:
+            meta = json.loads(str(npz_array(data, "metadata", path)))
+            if meta.get("format") != RECORDING_FORMAT_TAG:
+                raise RateFileError(f"not a {RECORDING_FORMAT_TAG}", path=path)
+            truth = npz_array(data, "true_rate_dps", path)
+            meta.pop("format", None)
+            meta.pop("version", None)
+            lsb = float(meta.pop("lsb_per_dps"))
+            return Recording(
+                npz_array(data, "t_s", path), npz_array(data, "counts", path), lsb,
+                None if np.isnan(truth).all() else truth, meta,
+            )
+    except ARRAY_ERRORS as exc:
+        if isinstance(exc, RateFileError):
+            raise
+        raise RateFileError(f"not a {RECORDING_FORMAT_TAG} NPZ file ({exc})", path=path) from None

@@ -1,0 +1,39 @@
+"""The chip contract: every device behind the buses offers the same primitives."""
+
+from __future__ import annotations
+
+import inspect
+
+from _standin_chip import RegisterFileChip
+
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.contract import PRIMITIVES, RegisterDevice
+from bmg160_emu.firmware.simulated import SimulatedFirmwareChip
+
+
+def test_the_model_and_the_stand_in_are_register_devices():
+    assert isinstance(BMG160(seed=1), RegisterDevice)
+    assert isinstance(RegisterFileChip(), RegisterDevice)
+
+
+def test_the_simulated_firmware_has_every_primitive():
+    # building it needs avr-gcc and simavr: check the class, and `time` as a property
+    for name in PRIMITIVES:
+        assert callable(getattr(SimulatedFirmwareChip, name)), name
+    assert isinstance(inspect.getattr_static(SimulatedFirmwareChip, "time"), property)
+
+
+def test_an_object_missing_a_primitive_is_not_a_register_device():
+    class NoPeek:
+        def __init__(self) -> None:
+            self._inner = RegisterFileChip()
+            self.lock = self._inner.lock
+            self.time = 0.0
+
+        def __getattr__(self, name):
+            if name == "peek":
+                raise AttributeError(name)
+            return getattr(self._inner, name)
+
+    assert not isinstance(NoPeek(), RegisterDevice)
+    assert not isinstance(object(), RegisterDevice)
