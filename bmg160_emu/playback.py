@@ -20,7 +20,6 @@ RATE registers, the FIFO and the interrupt engines. The method (``docs/replay.md
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -28,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bmg160_emu.io.errors import loads_json
 from bmg160_emu.io.rates import (
     RateFileError,
     check_time_column,
@@ -171,6 +171,19 @@ def load_replay_data(
     return _load_csv(path, unit, lsb_per_dps, max_gap_factor)
 
 
+def _lsb_from_settings(text: str) -> float | None:
+    """``lsb_per_dps`` of a recording's JSON settings, or None when they hold none (a file of
+    counts then needs --lsb-per-dps; _to_dps says so)."""
+    try:
+        settings = loads_json(text, ReplayDataError, "settings")
+    except ReplayDataError:
+        return None
+    value = settings.get("lsb_per_dps") if isinstance(settings, dict) else None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return float(value)
+
+
 def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
     def choose(header: list[str] | None, width: int, where: str) -> tuple[int, list[int]]:
         if header is None:
@@ -186,10 +199,7 @@ def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
     if lsb_per_dps is None:
         for _, text in table.comments:
             if text.startswith("{"):
-                try:
-                    lsb_per_dps = json.loads(text).get("lsb_per_dps")
-                except json.JSONDecodeError:
-                    continue
+                lsb_per_dps = _lsb_from_settings(text)
                 break
     t, xyz = table.t_s, table.values
     assert t is not None
@@ -210,10 +220,7 @@ def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
         if t_key is None:
             raise ReplayDataError(f"{path}: no time array (one of {', '.join(TIME_COLUMNS)})")
         if "metadata" in keys and lsb_per_dps is None:
-            try:
-                lsb_per_dps = json.loads(str(npz_array(data, "metadata", path))).get("lsb_per_dps")
-            except json.JSONDecodeError:
-                pass
+            lsb_per_dps = _lsb_from_settings(str(npz_array(data, "metadata", path)))
         wanted = {"dps": ("rate_dps", "gyro_dps"), "counts": ("counts", "raw")}[unit]
         other = {"dps": ("counts", "raw"), "counts": ("rate_dps", "gyro_dps")}[unit]
         key = next((k for k in wanted if k in keys), None)

@@ -13,6 +13,7 @@ import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from bmg160_emu import durations
@@ -250,6 +251,18 @@ def _parse_statement(
         cur.done()
         return Statement(line, command, text, dump_format=fmt)
     raise _LineError(tokens[0].column, f"unknown command {tokens[0].text!r} (one of {', '.join(COMMANDS)})")
+
+
+def read_script(path: str | Path) -> str:
+    """A script file's text; bytes that are not UTF-8 are a ScriptSyntaxError at their line
+    and column (OSError for a missing file passes through)."""
+    from bmg160_emu.io.errors import FormatError, read_text
+
+    try:
+        return read_text(path, FormatError)
+    except FormatError as exc:
+        where, line, column, message = str(exc).rsplit(":", 3)
+        raise ScriptSyntaxError(where, [(int(line), int(column), message.strip())]) from None
 
 
 def parse_script(

@@ -151,13 +151,14 @@ def _finite(values: Any, what: str) -> None:
 
 
 def load_script(path: Path) -> None:
-    from bmg160_emu.script import parse_script
+    from bmg160_emu.script import parse_script, read_script
 
-    parse_script(path.read_text(encoding="utf-8", errors="strict"), source=str(path))
+    parse_script(read_script(path), source=str(path))
 
 
 def load_trace(path: Path) -> None:
-    from bmg160_emu.io.trace import describe_transaction, read_trace
+    from bmg160_emu.decode import describe_transaction
+    from bmg160_emu.io.trace import read_trace
 
     _header, records = read_trace(path)
     for record in records:  # what `bmg160-emu trace` prints for a person
@@ -165,14 +166,14 @@ def load_trace(path: Path) -> None:
 
 
 def load_dump(path: Path) -> None:
-    from bmg160_emu.io.dump import parse_dumps
+    from bmg160_emu.io.dump import read_dumps
 
-    for dump in parse_dumps(path.read_text(encoding="utf-8"), source=str(path)):
+    for dump in read_dumps(path):
         assert len(dump.values) == 64
 
 
 def load_rate_file(path: Path) -> None:
-    from bmg160_emu.noise.rate_record import load_rate_record
+    from bmg160_emu.io.rates import load_rate_record
 
     record = load_rate_record(path, rate_hz=None if path.suffix != ".npy" else 200.0)
     _finite(record.rate_dps, "rate record")
@@ -247,17 +248,17 @@ FORMATS: tuple[FuzzFormat, ...] = (
     FuzzFormat("dump-json", "dump.json", load_dump,
                _errors("bmg160_emu.io.dump.DumpFormatError")),
     FuzzFormat("rates-csv", "noise.csv", load_rate_file,
-               _errors("bmg160_emu.noise.rate_record.RecordError")),
+               _errors("bmg160_emu.io.rates.RateFileError")),
     FuzzFormat("rates-npy", "noise.npy", load_rate_file,
-               _errors("bmg160_emu.noise.rate_record.RecordError"), text=False),
+               _errors("bmg160_emu.io.rates.RateFileError"), text=False),
     FuzzFormat("replay-csv", "recording.csv", load_replay,
-               _errors("bmg160_emu.playback.ReplayDataError")),
+               _errors("bmg160_emu.io.rates.RateFileError")),
     FuzzFormat("replay-npz", "recording.npz", load_replay,
-               _errors("bmg160_emu.playback.ReplayDataError"), text=False),
+               _errors("bmg160_emu.io.rates.RateFileError"), text=False),
     FuzzFormat("recording-csv", "recording.csv", load_recording,
-               _errors("bmg160_emu.record.RecordingFormatError")),
+               _errors("bmg160_emu.io.rates.RateFileError")),
     FuzzFormat("recording-npz", "recording.npz", load_recording,
-               _errors("bmg160_emu.record.RecordingFormatError"), text=False),
+               _errors("bmg160_emu.io.rates.RateFileError"), text=False),
     FuzzFormat("scenario", "scenario.toml", load_scenario_file,
                _errors("bmg160_emu.adcs.scenarios.ScenarioError")),
     FuzzFormat("profile", "profile.toml", load_profile_file,

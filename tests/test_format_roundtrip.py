@@ -87,7 +87,7 @@ def _trace_sample():
     header = TraceHeader(seed=7)
     header.add_chip({"address": 0x68}, (1.0, 0.0, -2.5), [(0x0F, b"\x03")])
     records = [
-        Transaction(0.001 * k, 1, 0x68, "read", register=0x02, read=bytes(range(k, k + 6))).to_dict()
+        Transaction(0.001 * k, 1, 0x68, "read_i2c_block_data", register=0x02, read=bytes(range(k, k + 6))).to_dict()
         for k in range(20)
     ]
     return header, records

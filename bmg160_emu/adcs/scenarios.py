@@ -28,7 +28,6 @@ and :mod:`bmg160_emu.adcs.faults`.
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,10 +35,7 @@ from typing import Any
 
 import numpy as np
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
+from bmg160_emu.io.errors import FormatError, loads_toml, read_text
 
 # WGS-84 / EGM-96 constants for the orbital period of a circular orbit.
 EARTH_MU_KM3_S2 = 398600.4418  # km^3/s^2, EGM-96 gravitational parameter
@@ -48,7 +44,7 @@ EARTH_RADIUS_KM = 6378.137  # km, WGS-84 equatorial radius
 RateFunction = Callable[[Any], Any]  # t (float, or an array when vectorised) -> 3 deg/s
 
 
-class ScenarioError(ValueError):
+class ScenarioError(FormatError):
     """A scenario file or description that cannot be used, with the reason."""
 
 
@@ -341,13 +337,20 @@ def _finite(value: Any, what: str) -> float:
     return float(value)
 
 
+# Largest magnitude of any vector in a scenario (rates in deg/s, angles in deg): 500 times
+# the chip's largest range (+-2000 deg/s), so every derived rate and attitude stays finite.
+MAX_COMPONENT = 1e6
+
+
 def _vector(value: Any, what: str) -> np.ndarray:
     try:
         array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         array = np.zeros(0)
-    if array.shape != (3,) or not np.all(np.isfinite(array)):
-        raise ScenarioError(f"{what} must be 3 finite numbers (x, y, z), not {value!r}")
+    if array.shape != (3,) or not np.all(np.isfinite(array)) \
+            or np.any(np.abs(array) > MAX_COMPONENT):
+        raise ScenarioError(f"{what} must be 3 finite numbers (x, y, z) within "
+                            f"+-{MAX_COMPONENT:g}, not {value!r}"[:300])
     return array
 
 
@@ -388,7 +391,7 @@ def _read_csv_table(path: Path, where: str) -> np.ndarray:
     """Rows of numbers; '#' comments, blank lines and one header line of names are skipped."""
     rows: list[list[float]] = []
     header_skipped = False
-    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
+    for number, line in enumerate(read_text(path, ScenarioError).splitlines(), 1):
         text = line.split("#", 1)[0].strip()
         if not text:
             continue
@@ -446,7 +449,7 @@ def motion_from_dict(
 ) -> Motion:
     """Build one motion component from its TOML table."""
     kind = entry.get("kind")
-    if kind not in _MOTION_KEYS:
+    if not isinstance(kind, str) or kind not in _MOTION_KEYS:
         raise ScenarioError(f"{where}: kind must be one of {sorted(_MOTION_KEYS)}, not {kind!r}")
     unknown = set(entry) - _MOTION_KEYS[kind] - {"kind", "start_s", "end_s"}
     if unknown:
@@ -555,13 +558,10 @@ def load_scenario(path: str | Path) -> Scenario:
     """Read a TOML scenario file; relative table files are found next to it."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path, ScenarioError)
     except OSError as exc:
         raise ScenarioError(f"cannot read scenario {path}: {exc.strerror}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+    data = loads_toml(text, ScenarioError, str(path))
     try:
         scenario = scenario_from_dict(data, base=path.parent)
     except ScenarioError as exc:

@@ -82,15 +82,14 @@ def run_script_file(
     printed to stderr after ``failed_prefix`` and gives exit status 1, else 0.
     """
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.script import ScriptFailure, ScriptSyntaxError, run_script
+    from bmg160_emu.script import ScriptFailure, ScriptSyntaxError, read_script, run_script
 
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise CommandError(f"cannot read {path}: {exc.strerror}") from None
     chip = next(iter(chips.values()))
     try:
+        text = read_script(path)
         run_script(text, chip, log, str(path), bus=I2CBus(1, chips))
+    except OSError as exc:
+        raise CommandError(f"cannot read {path}: {exc.strerror}") from None
     except ScriptSyntaxError as exc:
         raise CommandError(str(exc)) from None
     except ScriptFailure as exc:

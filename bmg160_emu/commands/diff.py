@@ -36,15 +36,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _load(path: Path):
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.io.dump import DumpFormatError, parse_dump
+    from bmg160_emu.io.errors import read_text
 
     try:
-        text = path.read_text(encoding="utf-8")
+        return parse_dump(read_text(path, DumpFormatError), str(path))
     except OSError as exc:
         raise CommandError(f"cannot read {path}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise CommandError(f"{path}: not a text dump") from None
-    try:
-        return parse_dump(text, str(path))
     except DumpFormatError as exc:
         raise CommandError(str(exc)) from None
 

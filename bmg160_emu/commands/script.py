@@ -63,16 +63,13 @@ def run(args: argparse.Namespace) -> int:
         ScriptRunner,
         ScriptSyntaxError,
         parse_script,
+        read_script,
     )
 
     try:
-        text = args.file.read_text(encoding="utf-8")
+        statements = parse_script(read_script(args.file), str(args.file))
     except OSError as exc:
         raise CommandError(f"cannot read {args.file}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise CommandError(f"{args.file}: not a text file") from None
-    try:
-        statements = parse_script(text, str(args.file))
     except ScriptSyntaxError as exc:
         raise CommandError(
             f"{len(exc.errors)} error(s) in the script, nothing was run:\n{exc}"

@@ -13,6 +13,7 @@ import json
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from bmg160_emu.device import registers, spec_choices
@@ -27,7 +28,7 @@ from bmg160_emu.device.fields import (  # noqa: F401  (the table format prints t
     resolve_register_name,
 )
 from bmg160_emu.device.registers import REGISTER_COUNT
-from bmg160_emu.io.errors import FormatError
+from bmg160_emu.io.errors import FormatError, loads_json, read_text
 
 DUMP_FORMATS = ("i2cdump", "table", "json")
 JSON_FORMAT_TAG = "bmg160-emu register dump"
@@ -193,10 +194,7 @@ def _int_field(value, where: str) -> int:
 
 def parse_json(text: str, source: str = "<dump>") -> RegisterDump:
     """Read the ``json`` format back; only register numbers and values are used."""
-    try:
-        document = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise DumpFormatError(f"{source}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+    document = loads_json(text, DumpFormatError, source, lines=True)
     if not isinstance(document, dict) or document.get("format") != JSON_FORMAT_TAG:
         raise DumpFormatError(f"{source}: not a {JSON_FORMAT_TAG} (missing \"format\" tag)")
     if document.get("version") != JSON_FORMAT_VERSION:
@@ -363,11 +361,17 @@ def format_dumps(dumps: Sequence[RegisterDump], fmt: str = "table") -> str:
 def _block_count(text: str) -> int:
     if text.lstrip().startswith("["):
         try:
-            document = json.loads(text)
-        except json.JSONDecodeError:
+            document = loads_json(text, DumpFormatError, "<dump>", lines=True)
+        except DumpFormatError:
             return 1
         return len(document) if isinstance(document, list) else 1
     return max(1, sum(1 for line in text.splitlines() if line.startswith(DUMP_TITLE)))
+
+
+def read_dumps(path: str | Path) -> list[RegisterDump]:
+    """The dumps in a file (any format); a file that is not UTF-8 text is a DumpFormatError
+    at its line (OSError for a missing file passes through)."""
+    return parse_dumps(read_text(path, DumpFormatError), str(path))
 
 
 def parse_dumps(text: str, source: str = "<dump>") -> list[RegisterDump]:
@@ -375,10 +379,7 @@ def parse_dumps(text: str, source: str = "<dump>") -> list[RegisterDump]:
 
     Errors name the line in the whole text."""
     if text.lstrip().startswith("["):
-        try:
-            documents = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise DumpFormatError(f"{source}:{exc.lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
+        documents = loads_json(text, DumpFormatError, source, lines=True)
         if not isinstance(documents, list) or not documents:
             raise DumpFormatError(f"{source}: a list of dumps must hold at least one")
         return [parse_json(json.dumps(doc), f"{source}[{i}]") for i, doc in enumerate(documents)]

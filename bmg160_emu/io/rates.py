@@ -127,7 +127,10 @@ def read_csv_table(path: str | Path, choose: ColumnChoice) -> RateTable:
             break
         if first is None:
             raise RateFileError("the CSV file has no data rows", path=path)
-        cells = [c.strip() for c in next(csv.reader([first]))]
+        try:
+            cells = [c.strip() for c in next(csv.reader([first]))]
+        except csv.Error as exc:  # a field over csv's 131,072-character limit, a stray quote
+            raise RateFileError(f"not a CSV row: {exc}", path=path, place=lineno) from None
         header = None if all(is_number(c) for c in cells) else cells
         width = len(cells)
         t_index, use = choose(header, width, f"{path}:{lineno}")
@@ -278,6 +281,17 @@ def numeric(data: np.ndarray, path: str | Path, place: str | None = None) -> np.
     return np.asarray(data, dtype=float)
 
 
+def first_non_finite(data: np.ndarray, chunk: int = 1 << 20) -> int | None:
+    """The first row holding NaN or an infinity, or None; in chunks, so checking a 24 h
+    record costs a few MB, not a copy."""
+    rows = data.reshape(data.shape[0], -1)
+    for start in range(0, rows.shape[0], chunk):
+        ok = np.isfinite(rows[start : start + chunk]).all(axis=1)
+        if not ok.all():
+            return start + int(np.argmin(ok))
+    return None
+
+
 def read_npy(path: str | Path) -> np.ndarray:
     try:
         data = np.load(path, allow_pickle=False)
@@ -417,6 +431,10 @@ def load_rate_record(
         raise RateFileError(
             f"expected one column per axis (1 to 3 axes), got shape {data.shape}", path=path
         )
+    bad = first_non_finite(data)
+    if bad is not None:
+        raise RateFileError(f"{table.where(bad)}: not a finite rate: "
+                            f"{[float(v) for v in np.ravel(data[bad])]}")
     names = table.header or ("x", "y", "z")[: data.shape[1]]
     rate = _resolve_rate(table, rate_hz, data.shape[0])
     return RateRecord(data, rate, tuple(n.removesuffix("_dps") for n in names), str(path))

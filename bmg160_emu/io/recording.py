@@ -16,9 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from bmg160_emu.io.errors import loads_json
 from bmg160_emu.io.rates import (
     ARRAY_ERRORS,
     RateFileError,
+    first_non_finite,
     npz_array,
     open_npz,
     read_csv_table,
@@ -107,36 +109,54 @@ def read_recording(path: str | Path) -> Recording:
         head = [handle.readline() for _ in range(2)]
     if not head[0].startswith(f"# {RECORDING_FORMAT_TAG}"):
         raise RateFileError(f"not a {RECORDING_FORMAT_TAG} CSV file", path=path, place=1)
-    try:
-        meta = json.loads(head[1][1:])
-    except json.JSONDecodeError as exc:
-        raise RateFileError(f"bad settings line: {exc.msg}", path=path, place=2) from None
+    meta = loads_json(head[1][1:], RateFileError, f"{path}:2")
+    if not isinstance(meta, dict):
+        raise RateFileError("the settings line must be a JSON object", path=path, place=2)
 
     def choose(header: list[str] | None, width: int, where: str) -> tuple[int, list[int]]:
         if header != list(CSV_COLUMNS) or not where.endswith(":3"):
             raise RateFileError(f"{path}:3: expected the columns {','.join(CSV_COLUMNS)}")
         return 0, list(range(1, len(CSV_COLUMNS)))
 
+    lsb = _lsb_per_dps(meta, path, 2)
     table = read_csv_table(path, choose)
     assert table.t_s is not None
     truth = table.values[:, 6:9]
-    lsb = float(meta.pop("lsb_per_dps"))
+    counts = table.values[:, 0:3]
+    bad = first_non_finite(counts)
+    if bad is None:
+        bad = first_non_finite(table.values[:, 3:6])
+    if bad is not None:
+        raise RateFileError(f"{table.where(bad)}: counts and deg/s must be finite numbers")
+    if np.any(np.abs(counts) > 32768) or np.any(counts != np.round(counts)):
+        row = int(np.argmax(np.any((np.abs(counts) > 32768) | (counts != np.round(counts)), axis=1)))
+        raise RateFileError(f"{table.where(row)}: counts must be 16-bit integers")
     return Recording(
-        table.t_s, table.values[:, 0:3].astype(np.int64), lsb,
+        table.t_s, counts.astype(np.int64), lsb,
         None if np.isnan(truth).all() else truth, meta,
     )
+
+
+def _lsb_per_dps(meta: dict, path: Path, place: int | None) -> float:
+    value = meta.pop("lsb_per_dps", None)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) \
+            or not (0 < value < 1e6 and math.isfinite(value)):
+        raise RateFileError(f"settings need lsb_per_dps, a positive number (LSB per deg/s), "
+                            f"not {value!r}", path=path, place=place)
+    return float(value)
 
 
 def _read_npz(path: Path) -> Recording:
     try:
         with open_npz(path) as data:
-            meta = json.loads(str(npz_array(data, "metadata", path)))
-            if meta.get("format") != RECORDING_FORMAT_TAG:
+            meta = loads_json(str(npz_array(data, "metadata", path)), RateFileError,
+                              f"{path}: key metadata")
+            if not isinstance(meta, dict) or meta.get("format") != RECORDING_FORMAT_TAG:
                 raise RateFileError(f"not a {RECORDING_FORMAT_TAG}", path=path)
             truth = npz_array(data, "true_rate_dps", path)
             meta.pop("format", None)
             meta.pop("version", None)
-            lsb = float(meta.pop("lsb_per_dps"))
+            lsb = _lsb_per_dps(meta, path, "key metadata")
             return Recording(
                 npz_array(data, "t_s", path), npz_array(data, "counts", path), lsb,
                 None if np.isnan(truth).all() else truth, meta,

@@ -10,6 +10,7 @@ transaction as ``Transaction.to_dict()`` gives it. The writer is a sink a front 
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 from collections.abc import Iterable
@@ -17,9 +18,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from bmg160_emu.bus.transactions import Transaction
+from bmg160_emu.bus.i2c import KIND_FUNCS
+from bmg160_emu.bus.transactions import Transaction, bytes_from_json
 from bmg160_emu.device.config import SETTING_KEYS, ChipConfig
-from bmg160_emu.io.errors import FileFormat, FormatError, register_format
+from bmg160_emu.io.errors import (
+    FileFormat,
+    FormatError,
+    loads_json,
+    read_text,
+    register_format,
+)
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
@@ -189,41 +197,110 @@ class TraceWriter:
 
 
 def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
-    """Read a trace file: (header, transaction dictionaries), with line-numbered errors."""
+    """Read a trace file: (header, transaction dictionaries), every field checked against the
+    schema of docs/trace-format.md, errors naming the line (never another exception)."""
     header: dict | None = None
     records: list[dict] = []
-    with open(path, encoding="utf-8") as handle:
-        for lineno, line in enumerate(handle, 1):
-            if not line.strip():
-                continue
-            try:
-                obj = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise TraceFormatError(f"{path}:{lineno}:{exc.colno}: invalid JSON: {exc.msg}") from None
-            if not isinstance(obj, dict):
-                raise TraceFormatError(f"{path}:{lineno}: each line must be a JSON object")
-            if header is None and "format" not in obj and "kind" in obj:
-                header = {}  # a bare log (Transaction.to_dict() lines): decodable, not replayable
-            if header is None:
-                if obj.get("format") != TRACE_FORMAT_TAG:
-                    raise TraceFormatError(f"{path}:{lineno}: not a {TRACE_FORMAT_TAG} (header line missing)")
-                if obj.get("version") != TRACE_FORMAT_VERSION:
-                    raise TraceFormatError(f"{path}:{lineno}: unsupported trace version {obj.get('version')!r}")
-                if not isinstance(obj.get("chips", []), list):
-                    raise TraceFormatError(f"{path}:{lineno}: header 'chips' must be a list")
-                header = obj
-                continue
-            for key in ("kind",):
-                if key not in obj:
-                    raise TraceFormatError(f"{path}:{lineno}: transaction without {key!r}")
-            t = obj.get("time", obj.get("time_s"))
-            if not isinstance(t, (int, float)) or isinstance(t, bool) or not math.isfinite(t):
-                raise TraceFormatError(f"{path}:{lineno}: transaction without a finite 'time'")
-            obj["_line"] = lineno
-            records.append(obj)
+    text = read_text(path, TraceFormatError)
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        where = f"{path}:{lineno}"
+        obj = loads_json(line, TraceFormatError, where)
+        if not isinstance(obj, dict):
+            raise TraceFormatError(f"{where}: each line must be a JSON object")
+        if header is None and "format" not in obj and "kind" in obj:
+            header = {}  # a bare log (Transaction.to_dict() lines): decodable, not replayable
+        if header is None:
+            if obj.get("format") != TRACE_FORMAT_TAG:
+                raise TraceFormatError(f"{where}: not a {TRACE_FORMAT_TAG} (header line missing)")
+            if obj.get("version") != TRACE_FORMAT_VERSION:
+                raise TraceFormatError(f"{where}: unsupported trace version {obj.get('version')!r}")
+            _check_header(obj, where)
+            header = obj
+            continue
+        _check_record(obj, where)
+        obj["_line"] = lineno
+        records.append(obj)
     if header is None:
         raise TraceFormatError(f"{path}: empty trace")
     return header, records
+
+
+# every kind a front end logs: the I2C kinds of I2CBus, the SPI frames, the annotations
+_KINDS = frozenset(KIND_FUNCS) | {"spi_read", "spi_write", "spi_frame", TRUE_RATE_KIND}
+_MAX_BYTES = 1 << 16  # far beyond any bus transaction (SMBus blocks: 32, i2c_rdwr: 8192)
+
+
+def _integer(value: Any, low: int, high: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
+
+
+def _check_bytes(value: Any, key: str, where: str) -> None:
+    if value is None:
+        return
+    if isinstance(value, str):
+        try:
+            data = bytes_from_json(value)
+        except ValueError:
+            raise TraceFormatError(f"{where}: {key!r} is not hex bytes: {value[:40]!r}") from None
+        if len(data) > _MAX_BYTES:
+            raise TraceFormatError(f"{where}: {key!r} holds more than {_MAX_BYTES} bytes")
+        return
+    if not isinstance(value, list) or len(value) > _MAX_BYTES \
+            or not all(_integer(v, 0, 255) for v in value):
+        raise TraceFormatError(f"{where}: {key!r} must be a list of bytes 0..255 or hex text")
+
+
+def _check_record(obj: dict, where: str) -> None:
+    kind = obj.get("kind")
+    if not isinstance(kind, str) or not (kind in _KINDS or kind.startswith("fault:")):
+        raise TraceFormatError(f"{where}: unknown transaction kind {str(kind)[:40]!r}")
+    t = obj.get("time", obj.get("time_s"))
+    if not isinstance(t, (int, float)) or isinstance(t, bool) or not 0 <= t < 1e12:
+        raise TraceFormatError(f"{where}: transaction without a finite 'time' >= 0 in seconds")
+    bus = obj.get("bus", 0)
+    if not (_integer(bus, 0, 2**31 - 1) or (isinstance(bus, str) and len(bus) <= 64)):
+        raise TraceFormatError(f"{where}: 'bus' must be a bus number or an SPI device name")
+    address = obj.get("address")
+    if address is not None and not _integer(address, 0, 0x3FF):
+        raise TraceFormatError(f"{where}: 'address' must be null or an I2C address 0..0x3FF")
+    register = obj.get("register")
+    if register is not None and not _integer(register, 0, 0xFF):
+        raise TraceFormatError(f"{where}: 'register' must be null or 0..255")
+    for key in ("written", "read"):
+        _check_bytes(obj.get(key), key, where)
+    error = obj.get("error")
+    if error is not None and (not isinstance(error, str) or error not in _ERRNO_NAMES):
+        raise TraceFormatError(f"{where}: 'error' must be null or an errno name (EREMOTEIO)")
+
+
+_ERRNO_NAMES = frozenset(errno.errorcode.values())
+
+
+def _check_header(obj: dict, where: str) -> None:
+    seed = obj.get("seed")
+    if seed is not None and not _integer(seed, 0, 2**64 - 1):
+        raise TraceFormatError(f"{where}: header 'seed' must be null or an integer >= 0")
+    chips = obj.get("chips", [])
+    if not isinstance(chips, list):
+        raise TraceFormatError(f"{where}: header 'chips' must be a list")
+    for i, chip in enumerate(chips):
+        if not isinstance(chip, dict):
+            raise TraceFormatError(f"{where}: header chips[{i}] must be an object")
+        if not isinstance(chip.get("settings", {}), dict):
+            raise TraceFormatError(f"{where}: header chips[{i}].settings must be an object")
+        rate = chip.get("true_rate_dps")
+        if rate is not None and not (isinstance(rate, list) and len(rate) == 3 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in rate)):
+            raise TraceFormatError(f"{where}: header chips[{i}].true_rate_dps must be 3 numbers")
+        writes = chip.get("setup_writes", [])
+        if not isinstance(writes, list) or not all(
+                isinstance(w, list) and len(w) == 2 and _integer(w[0], 0, 0xFF) for w in writes):
+            raise TraceFormatError(
+                f"{where}: header chips[{i}].setup_writes must be [register, [bytes]] pairs")
+        for w in writes:
+            _check_bytes(w[1], f"chips[{i}].setup_writes", where)
 
 
 register_format(FileFormat("trace", ".jsonl", read_trace, TraceWriter,
