@@ -121,3 +121,28 @@ def test_bus_faults_over_spi_are_refused_with_the_line(tmp_path, capsys):
     path = _script(tmp_path, "fault nack max_count=2\nread CHIP_ID\n")
     assert main(["script", str(path), "--spi"]) == 1
     assert f"{path}:1: bus faults need the script to run on a bus" in capsys.readouterr().err
+
+
+def test_a_trace_onto_a_full_disk_is_a_one_line_error(tmp_path, capsys):
+    # was an OSError traceback; the session itself runs to its end (a failing trace file
+    # must not fail the driver's bus transactions), the error comes when the trace is closed
+    full = tmp_path / "full.jsonl"
+    full.symlink_to("/dev/full")
+    status = main(["script", str(_script(tmp_path)), "--trace", str(full), "-q"])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1 and "No space left on device" in err
+    assert full.is_symlink()
+
+
+def test_a_trace_appears_only_when_the_session_is_over(tmp_path, monkeypatch):
+    # the writer works under a temporary name beside the target and renames at close
+    from bmg160_emu.io.trace import TraceHeader, TraceWriter, read_trace
+
+    target = tmp_path / "s.jsonl"
+    writer = TraceWriter(target, TraceHeader(seed=1))
+    writer({"time": 0.0, "bus": 1, "address": 0x68, "kind": "read_byte_data",
+            "register": 0, "written": [], "read": [15], "error": None})
+    assert not target.exists() and len(list(tmp_path.glob(".s.jsonl.*.part*"))) == 1
+    writer.close()
+    assert [r["read"] for r in read_trace(target)[1]] == [[15]]
+    assert list(tmp_path.glob(".s.jsonl.*")) == []

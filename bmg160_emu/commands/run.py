@@ -115,11 +115,14 @@ def run(args: argparse.Namespace) -> int:
             for error in devices.handler_errors():
                 print(f"bmg160-emu run: internal error answered as EIO: {error}", file=sys.stderr)
     finally:
-        if writer is not None:
-            writer.close()
         if log_file is not None:
             with log_file:
                 log_file.write(str(bus.log) + os.linesep)
+        if writer is not None:
+            try:
+                writer.close()  # the transactions so far, also when stopped
+            except OSError as exc:
+                raise CommandError(f"cannot write {args.trace}: {exc.strerror or exc}") from None
     return 128 - status if status < 0 else status
 
 

@@ -114,7 +114,10 @@ def run(args: argparse.Namespace) -> int:
         return 1
     finally:
         if writer is not None:
-            writer.close()
+            try:
+                writer.close()  # the transactions so far, also when stopped
+            except OSError as exc:
+                raise CommandError(f"cannot write {args.trace}: {exc.strerror or exc}") from None
     if not args.quiet:
         print(f"ok: {len(statements)} statements, t = {chip.time:.6f} s")
     return 0

@@ -25,7 +25,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-__all__ = ["OutputError", "atomic_open", "atomic_path", "check_free_space", "check_writable"]
+__all__ = [
+    "AtomicFile", "OutputError", "atomic_open", "atomic_path", "check_free_space", "check_writable",
+]
 
 
 class OutputError(OSError):
@@ -129,3 +131,46 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs: Any) ->
         raise ValueError(f"atomic_open writes new files: mode must start with 'w', not {mode!r}")
     with atomic_path(path) as temp, temp.open(mode, **kwargs) as handle:
         yield handle
+
+
+class AtomicFile:
+    """A file written over a long session under a temporary name beside ``path``, renamed into
+    place by :meth:`commit` (a complete file, or the honest part of one: every line written so
+    far) and removed by :meth:`discard`. A process killed outright (SIGKILL) leaves only the
+    hidden ``.NAME.*.part*`` file, never a half-written one under the target's name."""
+
+    def __init__(self, path: str | os.PathLike[str], mode: str = "w", **kwargs: Any) -> None:
+        if not mode.startswith("w"):
+            raise ValueError(f"AtomicFile writes new files: mode must start with 'w', not {mode!r}")
+        self.path = Path(os.fspath(path))
+        self._context = atomic_path(path)
+        temp = self._context.__enter__()
+        try:
+            self.file: IO[Any] = temp.open(mode, **kwargs)
+        except BaseException:
+            self._context.__exit__(None, None, None)
+            raise
+        self._done = False
+
+    def commit(self) -> None:
+        """Close and rename into place (a write error, such as a full disk, is raised)."""
+        if self._done:
+            return
+        self._done = True
+        try:
+            self.file.close()
+        except BaseException as exc:
+            self._context.__exit__(type(exc), exc, exc.__traceback__)
+            raise
+        self._context.__exit__(None, None, None)
+
+    def discard(self) -> None:
+        """Close and remove; the target is left as it was."""
+        if self._done:
+            return
+        self._done = True
+        with contextlib.suppress(OSError):
+            self.file.close()
+        error = RuntimeError("discarded")
+        with contextlib.suppress(RuntimeError):
+            self._context.__exit__(RuntimeError, error, None)

@@ -21,6 +21,7 @@ from typing import IO, Any
 from bmg160_emu.bus.i2c import KIND_FUNCS
 from bmg160_emu.bus.transactions import Transaction, bytes_from_json
 from bmg160_emu.device.config import SETTING_KEYS, ChipConfig
+from bmg160_emu.io.atomic import AtomicFile
 from bmg160_emu.io.errors import (
     FileFormat,
     FormatError,
@@ -164,8 +165,13 @@ class TraceWriter:
     """
 
     def __init__(self, path_or_file: str | Path | IO[str], header: TraceHeader | None = None):
+        self._atomic: AtomicFile | None = None
+        self._error: OSError | None = None
         if isinstance(path_or_file, (str, Path)):
-            self._file: IO[str] = open(path_or_file, "w", encoding="utf-8")  # noqa: SIM115
+            # under a temporary name until closed: a killed session leaves no half line
+            # under the target's name; close() (also after ^C) renames the lines written
+            self._atomic = AtomicFile(path_or_file, "w", encoding="utf-8")
+            self._file: IO[str] = self._atomic.file
             self._owns = True
         else:
             self._file = path_or_file
@@ -174,9 +180,15 @@ class TraceWriter:
         self.count = 0
 
     def __call__(self, transaction: Any) -> None:
+        if self._error is not None:
+            return  # the file already failed: the session goes on, close() reports it
         record = transaction if isinstance(transaction, dict) else transaction.to_dict()
-        self._file.write(json.dumps(record, default=_json_default, allow_nan=False) + "\n")
-        self._file.flush()
+        try:
+            self._file.write(json.dumps(record, default=_json_default, allow_nan=False) + "\n")
+            self._file.flush()
+        except OSError as exc:  # a full disk must not fail the driver's bus transaction
+            self._error = exc
+            return
         self.count += 1
 
     write = __call__
@@ -186,8 +198,17 @@ class TraceWriter:
             self(transaction)
 
     def close(self) -> None:
-        if self._owns:
+        """Finish the file: every transaction written so far, renamed into place (a write
+        error, such as a full disk, is raised here)."""
+        if self._atomic is not None:
+            if self._error is not None:
+                self._atomic.discard()
+                raise self._error
+            self._atomic.commit()
+        elif self._owns:
             self._file.close()
+        if self._error is not None:
+            raise self._error
 
     def __enter__(self):  # returns self (subclasses too)
         return self
