@@ -344,11 +344,28 @@ def _build() -> tuple[Register, ...]:
     return tuple(regs[a] for a in range(REGISTER_COUNT))
 
 
-REGISTERS: tuple[Register, ...] = _build()
-BY_NAME: Mapping[str, Register] = MappingProxyType({r.name: r for r in REGISTERS})
-RESET_VALUES: bytes = bytes(r.reset for r in REGISTERS)
-WRITE_MASKS: bytes = bytes(r.write_mask for r in REGISTERS)
-NVM_ADDRESSES: tuple[int, ...] = tuple(r.address for r in REGISTERS if r.nvm)
+REGISTERS: tuple[Register, ...]
+BY_NAME: Mapping[str, Register]
+RESET_VALUES: bytes
+WRITE_MASKS: bytes
+NVM_ADDRESSES: tuple[int, ...]
+
+
+def _install(table: tuple[Register, ...]) -> None:
+    """Make ``table`` the register map and derive the names above from it. Called once at
+    import; a test of a spec correction calls it with a corrected copy before the model is
+    imported (the model evaluates addresses and masks at import)."""
+    global REGISTERS, BY_NAME, RESET_VALUES, WRITE_MASKS, NVM_ADDRESSES
+    if [r.address for r in table] != list(range(REGISTER_COUNT)):
+        raise ValueError(f"a register table lists addresses 0x00..0x{REGISTER_COUNT - 1:02X} in order")
+    REGISTERS = table
+    BY_NAME = MappingProxyType({r.name: r for r in table})
+    RESET_VALUES = bytes(r.reset for r in table)
+    WRITE_MASKS = bytes(r.write_mask for r in table)
+    NVM_ADDRESSES = tuple(r.address for r in table if r.nvm)
+
+
+_install(_build())
 
 
 def address_of(name: str) -> int:
