@@ -32,8 +32,6 @@ from bmg160_emu.device.true_rate import TrueRate, true_rate_source
 
 log = logging.getLogger(__name__)
 
-_BLOCK = 1024  # samples computed ahead
-_MAX_BLOCK = 65536  # when catching up a long gap
 
 _RATE_X_LSB, _RATE_END = address_of("RATE_X_LSB"), address_of("RATE_Z_MSB") + 1
 _RANGE, _BW, _LPM1, _LPM2 = (address_of(name) for name in ("RANGE", "BW", "LPM1", "LPM2"))
@@ -106,6 +104,8 @@ class BMG160:
         self._bist = engines.SelfTest()
         self._k = -1  # index of the last sample produced
         self._block: datapath.Block | None = None
+        self._span = (0, 0)  # the samples computed ahead, in pieces (datapath.next_piece)
+        self._span_used = datapath.SPAN  # samples of the last span used before a change
         self._rate: TrueRate = true_rate_source((0.0, 0.0, 0.0), None, first_k=0, first_ns=0)
         self._pointer = 0
         self._next_ns = NEVER
@@ -358,21 +358,24 @@ class BMG160:
 
     def _invalidate(self) -> None:
         """Drop the computed-ahead samples after the current one (configuration changed)."""
+        if self._block is not None:
+            self._span_used = max(self._k + 1 - self._span[0], 1)
         self._path.invalidate(self._block, self._k)
         self._block = None
 
     def _times_ns(self, k0: int, n: int) -> np.ndarray:
         return self._anchor_ns + (np.arange(k0, k0 + n) - self._anchor_k) * self._period_ns
 
-    def _build_block(self, k0: int, n: int) -> datapath.Block:
-        body = self._rate.block(k0, n, self._times_ns)
-        return self._path.build(k0, body, self._offset_dps(), self.sensitivity,
-                                bool(self._regs[_RATE_HBW] & _DATA_HIGH_BW), self._rate.constant)
-
-    def _block_for(self, k: int) -> datapath.Block:
+    def _block_for(self, k: int, want: int = 1) -> datapath.Block:
+        """The block holding sample k, built for ``want`` samples from k if it is missing."""
         b = self._block
-        if b is None or k >= b.end or k < b.k0:
-            b = self._block = self._build_block(k, _BLOCK)
+        if b is not None and b.k0 <= k < b.end:
+            return b
+        first, n, self._span = datapath.next_piece(b, k, want, self._span, self._span_used)
+        body = self._rate.block(k, n, self._times_ns)
+        b = self._block = self._path.build(
+            k, body, self._offset_dps(), self.sensitivity,
+            bool(self._regs[_RATE_HBW] & _DATA_HIGH_BW), self._rate.constant, first=first)
         return b
 
     # ------------------------------------------------------------------ catch-up
@@ -426,10 +429,7 @@ class BMG160:
             axis, tag = regmap.frame_format(self)
         k = k_first
         while True:
-            b = self._block
-            if b is None or k >= b.end or k < b.k0:
-                size = _BLOCK if k_last - k < _BLOCK else min(k_last - k + 1, _MAX_BLOCK)
-                b = self._block = self._build_block(k, size)
+            b = self._block_for(k, want=k_last - k + 1)
             seg_end = min(b.end, k_last + 1)
             if wanted:
                 frames += b.frames(max(k, wanted.start), min(seg_end, wanted.stop), axis, tag)
@@ -471,7 +471,7 @@ class BMG160:
             if rate is None:
                 return  # a lost sample: no data-ready, no register update
             counts = datapath.to_counts(rate, self.sensitivity)
-            rate_bytes = counts.astype("<i2").tobytes()
+            rate_bytes = datapath.to_bytes(counts)
             counts_f = counts_u = counts
             dps_pre = rate
         self._cur = rate_bytes

@@ -176,15 +176,17 @@ def sign_extend(value: int, bits: int) -> int:
 
 
 OFFSET_PARTS, OFFSET_BITS = offset_parts(), offset_bits()
+# per axis: (address, mask, lsb, position) of each piece, as plain ints for speed
+_OFFSET_PIECES = tuple(tuple((a, f.mask, f.lsb, pos) for a, f, pos in axis) for axis in OFFSET_PARTS)
 
 
 def offsets_from(regs: bytearray) -> tuple[int, int, int]:
     """The signed offsets of X, Y, Z, assembled from their register fields (4.24)."""
     out = []
-    for axis in OFFSET_PARTS:
+    for pieces in _OFFSET_PIECES:
         value = 0
-        for address, f, position in axis:
-            value |= f.extract(regs[address]) << position
+        for address, mask, lsb, position in pieces:
+            value |= (regs[address] & mask) >> lsb << position
         out.append(sign_extend(value, OFFSET_BITS))
     x, y, z = out
     return x, y, z
