@@ -31,6 +31,8 @@ from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, RESET_VALUES, address
 from bmg160_emu.device.true_rate import TrueRate, true_rate_source
 
 log = logging.getLogger(__name__)
+NORMAL, DEEP_SUSPEND, SUSPEND, FAST_POWER_UP, POWER_SAVE = engines.MODES  # names as before
+VALID_ADDRESSES = contract.VALID_ADDRESSES
 
 
 _RATE_X_LSB, _RATE_END = address_of("RATE_X_LSB"), address_of("RATE_Z_MSB") + 1

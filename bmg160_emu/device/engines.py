@@ -25,6 +25,7 @@ from bmg160_emu.device.registers import (
 NEVER = 1 << 62  # "no sample due": a time in ns no clock reaches
 NORMAL, DEEP_SUSPEND, SUSPEND, FAST_POWER_UP, POWER_SAVE = (
     "normal", "deep suspend", "suspend", "fast power-up", "advanced power saving")
+MODES = (NORMAL, DEEP_SUSPEND, SUSPEND, FAST_POWER_UP, POWER_SAVE)
 SAMPLING_MODES = (NORMAL, POWER_SAVE)  # 6.7: power saving samples as normal (unconfirmed)
 
 _SUSPEND = field_of("LPM1", "suspend").mask
