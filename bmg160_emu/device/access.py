@@ -40,6 +40,7 @@ def read_burst(chip: BMG160, reg: int, n: int, now: int) -> tuple[bytes, int]:
 
 
 def read_fifo(chip: BMG160, n: int, now: int) -> bytes:
+    """n bytes of FIFO_DATA in one transaction (6.5): frames, then the empty pattern."""
     regmap.sync_bypass(chip)
     axis, tag = regmap.frame_format(chip)
     data = chip._fifo.read(n, axis.stop - axis.start, bool(tag))
@@ -50,6 +51,7 @@ def read_fifo(chip: BMG160, n: int, now: int) -> bytes:
 
 
 def read_reg(chip: BMG160, addr: int, now: int) -> int:
+    """One register read with its side effects (MSB latch, data-ready cleared)."""
     if RATE_X_LSB <= addr < RATE_END:
         axis, msb = divmod(addr - RATE_X_LSB, 2)
         chip._data_ready_pending = False
@@ -69,6 +71,7 @@ def read_reg(chip: BMG160, addr: int, now: int) -> int:
 
 
 def peek_reg(chip: BMG160, addr: int, now: int) -> int:
+    """One register's content without side effects."""
     if addr >= FIRST_OUTSIDE_MAP:
         return 0
     if RATE_X_LSB <= addr < RATE_END:
@@ -83,6 +86,7 @@ def peek_reg(chip: BMG160, addr: int, now: int) -> int:
 
 
 def write_burst(chip: BMG160, reg: int, data: bytes, now: int) -> int:
+    """One write transaction; returns the pointer after it (auto-increment, 2.4)."""
     if len(data) > 1:
         chip._strict(f"multi-byte write of {len(data)} bytes at 0x{reg:02X} (spec 2.1)")
     addr = reg

@@ -264,6 +264,7 @@ EFFECTS: dict[str, Callable[[Any, int, int, int], None]] = {
 
 
 def power_transition(chip: BMG160, old_mode: str, addr: int, value: int, now: int) -> None:
+    """LPM1/LPM2 changed (6.7): stop or start sampling; leaving deep suspend is a reset."""
     new_mode = chip.power_mode
     if {old_mode, new_mode} in ({SUSPEND, DEEP_SUSPEND}, {FAST_POWER_UP, DEEP_SUSPEND}):
         chip._strict(f"direct switch {old_mode} -> {new_mode} (spec 6.7)")
@@ -286,6 +287,7 @@ def power_transition(chip: BMG160, old_mode: str, addr: int, value: int, now: in
 
 
 def change_bandwidth(chip: BMG160) -> None:
+    """A new BW code: new filter from the last output, next sample one new period on."""
     chip._invalidate()
     old_odr = chip._odr
     chip._set_filter(running=True)
@@ -297,6 +299,7 @@ def change_bandwidth(chip: BMG160) -> None:
 
 
 def frame_format(chip: BMG160) -> tuple[slice, bytes]:
+    """The FIFO frame: the selected axes and the tag bytes if on (4.26)."""
     select = _FIFO_SELECT.extract(chip._regs[_FIFO_CONFIG_1])
     tag = b""
     if chip._regs[_FIFO_CONFIG_0] & _FIFO_TAG:
@@ -305,6 +308,7 @@ def frame_format(chip: BMG160) -> tuple[slice, bytes]:
 
 
 def sync_bypass(chip: BMG160) -> None:
+    """Bypass mode holds the newest sample only (6.5): put it there when read."""
     if chip._fifo_mode == fifo_mod.BYPASS and chip._have_sample \
             and chip._bypass_seq != chip._sample_seq:
         axis, tag = frame_format(chip)
@@ -318,6 +322,7 @@ def fifo_count(chip: BMG160) -> int:
 
 
 def update_fifo_int(chip: BMG160, now: int) -> None:
+    """fifo_int: at the watermark, or at 100 frames without one (6.5, spec_choices)."""
     r = chip._regs
     if r[_INT_EN_0] & _FIFO_EN:
         count = fifo_count(chip)
@@ -331,12 +336,14 @@ def update_fifo_int(chip: BMG160, now: int) -> None:
 
 
 def start_foc(chip: BMG160) -> None:
+    """fast_offset_en written (6.9): average from the next sample on."""
     chip._irq.offset_started()
     chip._foc = FastOffset(chip._regs[_A_FOC], chip._regs[_ANY_TH])
     update_engine_flags(chip)
 
 
 def update_engine_flags(chip: BMG160) -> None:
+    """What runs per sample, from the registers: engines, FIFO mode, FIFO interrupt."""
     r = chip._regs
     chip._irq.configure(r)
     chip._fifo_int_on = bool(r[_INT_EN_0] & _FIFO_EN)
@@ -348,15 +355,15 @@ def update_engine_flags(chip: BMG160) -> None:
     chip._per_sample = bool(chip._irq.any_axes or chip._irq.high_axes or chip._foc is not None)
 
 
-
 def engine_config_changed(chip: BMG160, now: int) -> None:
+    """An interrupt engine register changed: engines, flags and fifo_int follow."""
     chip._irq.reconfigure(chip._regs, now)
     update_engine_flags(chip)
     update_fifo_int(chip, now)
 
 
-
 def finish_foc(chip: BMG160) -> None:
+    """The FOC average is complete: offsets written, fast_offset_int raised (6.9)."""
     foc, chip._foc = chip._foc, None
     if foc is None:
         return
@@ -376,6 +383,7 @@ def data_int(chip: BMG160, now: int) -> bool:
 
 
 def pins(chip: BMG160, now: int) -> tuple[bool, bool]:
+    """(INT1, INT2) asserted."""
     return chip._irq.pins(chip._regs, now, data_int(chip, now))
 
 
