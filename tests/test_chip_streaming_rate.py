@@ -1,11 +1,14 @@
-"""A closed loop's true rate, one constant per step (``set_true_rate`` between samples), gives
-the samples the same rates given up front as rows (one per output sample) give: the model
-recomputes only what a step changes, not the samples it had computed ahead."""
+"""A closed loop's true rate, one constant per step (``set_true_rate`` between samples): the
+model recomputes only the sample a step changes, not the block it had computed ahead, and
+gives the samples it gave when it recomputed whole blocks."""
 
 import numpy as np
 import pytest
 
+from bmg160_emu.device import datapath
 from bmg160_emu.device.chip import BMG160
+
+SEED = 11
 
 
 def _rates(n: int, seed: int) -> np.ndarray:
@@ -14,44 +17,61 @@ def _rates(n: int, seed: int) -> np.ndarray:
     return np.cumsum(steps, axis=0) + np.array([10.0, -20.0, 5.0])
 
 
-@pytest.mark.parametrize("bw", [0x04, 0x01])  # 200 Hz and 2000 Hz ODR
-@pytest.mark.parametrize("hooks", [False, True])
-def test_set_true_rate_each_step_gives_the_samples_of_the_rows(bw, hooks):
-    rates = _rates(600, seed=bw)
-    stepped = BMG160(seed=11, true_rate=rates[0])
-    rows = BMG160(seed=11, true_rate=rates)
-    seen: dict[int, list[np.ndarray]] = {id(stepped): [], id(rows): []}
-    for chip in (stepped, rows):
-        chip.write(0x10, bytes([bw]))  # at t = 0: sample 0 is already out at BW code 0
-        if hooks:  # the per-sample route, with the rates (deg/s) as hooks see them
-            chip.sample_hooks.append(lambda c, t, r: seen[id(c)].append(r.copy()))
-    period = 1.0 / stepped.odr_hz
+def _whole_spans(block, k, want, span, hint):
+    """The policy before pieces: every span computed in one block after any change."""
+    return _PIECES(block, k, want, span, datapath.SPAN)
+
+
+_PIECES = datapath.next_piece
+
+
+def _run(rates: np.ndarray, bw: int, *, stepped: bool, tail_s: float = 0.0):
+    """(register bytes after each step, the rates hooks saw, bytes after the tail)."""
+    chip = BMG160(seed=SEED, true_rate=rates[0] if stepped else rates)
+    chip.write(0x10, bytes([bw]))  # at t = 0: sample 0 is already out at BW code 0
+    seen: list[np.ndarray] = []
+    chip.sample_hooks.append(lambda c, t, r: seen.append(r.copy()))
+    period = 1.0 / chip.odr_hz
+    reads = []
     for k in range(1, len(rates)):
-        stepped.set_true_rate(rates[k])
-        for chip in (stepped, rows):
-            chip.advance(period)
-        assert stepped.read(0x02, 6) == rows.read(0x02, 6), k
-    assert stepped.dump() == rows.dump()
-    if hooks:
-        assert len(seen[id(stepped)]) == len(seen[id(rows)]) == len(rates) - 1
-        assert all(np.array_equal(a, b) for a, b in zip(seen[id(stepped)], seen[id(rows)]))
-
-
-def test_a_rate_held_after_the_steps_goes_on_as_the_last_row():
-    # after the loop stops, long advances use large pieces again; the samples stay those of
-    # the rows' last value held
-    rates = _rates(50, seed=3)
-    stepped = BMG160(seed=2, true_rate=rates[0])
-    rows = BMG160(seed=2, true_rate=rates)
-    for chip in (stepped, rows):
+        if stepped:
+            chip.set_true_rate(rates[k])
+        chip.advance(period)
+        reads.append(chip.read(0x02, 6))
+    reads.append(chip.dump())
+    tail = []
+    if tail_s:  # left alone after the loop: the held rate, pieces growing back to spans
+        chip.sample_hooks.clear()
         chip.write(0x3E, bytes([0x80]))  # stream mode: the FIFO keeps the last 100 frames
-    period = 1.0 / stepped.odr_hz
-    for k in range(1, len(rates)):
-        stepped.set_true_rate(rates[k])
-        stepped.advance(period)
-        rows.advance(period)
-    for seconds in (0.3, 1.7, 0.0005):
-        stepped.advance(seconds)
-        rows.advance(seconds)
-        assert stepped.read(0x3F, 600) == rows.read(0x3F, 600)
-        assert stepped.dump() == rows.dump()
+        for seconds in (tail_s, 0.0005, 3 * tail_s):
+            chip.advance(seconds)
+            tail.append(chip.read(0x3F, 600) + chip.dump())
+    return reads, seen, tail
+
+
+@pytest.mark.parametrize("bw", [0x04, 0x01])  # 200 Hz and 2000 Hz ODR
+def test_set_true_rate_each_step_gives_the_samples_of_whole_blocks(bw, monkeypatch):
+    rates = _rates(400, seed=bw)
+    pieces = _run(rates, bw, stepped=True, tail_s=0.3)
+    monkeypatch.setattr(datapath, "next_piece", _whole_spans)
+    blocks = _run(rates, bw, stepped=True, tail_s=0.3)
+    assert pieces[0] == blocks[0]  # every read and the final dump
+    # the rates before scaling, bit for bit: a one-sample block is the first sample of a
+    # long one (the low-pass's sub-block products add exact zeros for the samples after it)
+    assert len(pieces[1]) == len(blocks[1]) == len(rates) - 1
+    assert all(np.array_equal(a, b) for a, b in zip(pieces[1], blocks[1]))
+    # left alone, pieces of 1, 2, 4, ... samples: the same register bytes (the low-pass's
+    # matrix sub-blocks round differently in different pieces, ~1e-15 of the rate, far below
+    # the 1/16.384 deg/s of one count)
+    assert pieces[2] == blocks[2]
+
+
+@pytest.mark.parametrize("bw", [0x04, 0x01])
+def test_set_true_rate_each_step_gives_the_samples_of_the_rates_as_rows(bw):
+    rates = _rates(400, seed=bw + 1)
+    stepped = _run(rates, bw, stepped=True)
+    rows = _run(rates, bw, stepped=False)
+    assert stepped[0] == rows[0]
+    # rows are filtered in whole blocks, steps one sample at a time: equal to rounding
+    # (lowpass.py: about 1e-15 of the signal; 1e-12 deg/s on rates of tens of deg/s)
+    assert np.allclose(np.array(stepped[1]), np.array(rows[1]), rtol=0.0, atol=1e-12)

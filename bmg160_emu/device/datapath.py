@@ -58,8 +58,12 @@ def next_piece(block: Block | None, k: int, want: int, span: tuple[int, int],
     A span (SPAN samples, or the gap being caught up) is computed in pieces: after a change,
     first as many samples as the last span used, then doubling. So a closed loop changing the
     true rate after each sample recomputes one sample, not a span, while a chip left alone
-    computes whole spans. The pieces of a span give the samples one block of it would (the
-    filter runs on; it is re-referenced only where a span starts)."""
+    computes whole spans. The filter runs on across the pieces of a span (re-referenced only
+    where a span starts). In a closed loop the one-sample pieces are bit for bit the first
+    samples of the blocks they replace; after a change, the pieces' rates agree with one
+    block's to rounding (~1e-15 of the rate: the low-pass's sub-block products round by where
+    a block starts, lowpass.py), so the counts agree but where a rate lies that close to a
+    rounding boundary (as lowpass.py says of its own blocks)."""
     natural = block is not None and k == block.end == span[1]
     if block is None or k != block.end or k >= span[1]:
         size = SPAN if want <= SPAN else min(want, MAX_SPAN)
