@@ -7,6 +7,10 @@ from __future__ import annotations
 import operator
 from typing import Any, Protocol, runtime_checkable
 
+import numpy as np
+
+from bmg160_emu.device.spec_choices import VALID_ADDRESSES
+
 
 @runtime_checkable
 class RegisterDevice(Protocol):
@@ -38,10 +42,6 @@ class RegisterDevice(Protocol):
 
 
 PRIMITIVES = ("write", "read", "i2c_write", "i2c_read", "peek", "dump", "advance")
-
-import numpy as np
-
-VALID_ADDRESSES = (0x68, 0x69)  # I2C address with SDO low / high (spec 2.1)
 NOISE_MODES = ("physical", "paper")
 
 
