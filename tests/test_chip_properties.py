@@ -67,7 +67,7 @@ def test_soft_reset_always_restores_the_reset_map(ops):
         if reg.nvm:
             expected = chip.nvm_image[reg.address - 0x36]
         if reg.address == 0x33:
-            expected = (chip._nvm_remain << 4) | (dump[0x33] & 0x04)
+            expected = (chip._nvm.remain << 4) | (dump[0x33] & 0x04)
         if reg.address == 0x3C:
             expected = 0x00  # rate_ok after start-up
         assert dump[reg.address] == expected, reg.name

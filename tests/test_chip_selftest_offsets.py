@@ -5,6 +5,7 @@ import pytest
 from _chip_helpers import period_s, quiet_chip, rates
 
 from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.engines import set_offsets
 
 
 def test_self_test_reports_ready_and_pass_after_its_test_time():
@@ -38,7 +39,7 @@ def test_self_test_after_soft_reset_as_qc_does_it():
 
 
 def _offset_registers(chip, x, y, z):
-    chip._set_offsets_lsb((x, y, z))  # as the bytes of 4.24 below check
+    set_offsets(chip._regs, (x, y, z))  # as the bytes of 4.24 below check
     return chip.read(0x36, 6)
 
 

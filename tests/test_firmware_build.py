@@ -8,8 +8,9 @@ import pytest
 from _firmware_backends import firmware_skip_reason, require_firmware_build
 
 from bmg160_emu import cli
-from bmg160_emu.device.registers import RESET_VALUES, WRITE_MASKS
+from bmg160_emu.device.registers import BY_NAME, REGISTERS, RESET_VALUES, WRITE_MASKS
 from bmg160_emu.firmware import build as build_mod
+from bmg160_emu.firmware import register_table
 from bmg160_emu.firmware.params_header import BW_ODR_HZ, render_params_header
 from bmg160_emu.firmware.register_table import FIRMWARE_REGISTERS
 from bmg160_emu.noise.discretization import axis_coefficients
@@ -26,6 +27,19 @@ def _floats(header: str, name: str) -> list[float]:
 def test_firmware_register_table_is_the_project_register_table():
     assert [r.reset for r in FIRMWARE_REGISTERS] == list(RESET_VALUES[:0x40])
     assert [r.write_mask for r in FIRMWARE_REGISTERS] == list(WRITE_MASKS[:0x40])
+    # what the firmware does is said for every spec register, by a name the table has
+    assert set(register_table._KINDS) <= set(BY_NAME)
+    for reg in REGISTERS:
+        assert reg.reserved or reg.name in register_table._KINDS, reg.name
+
+
+def test_generated_register_header_defines_every_register_and_field():
+    header = register_table.render_registers_header()
+    for reg in REGISTERS:
+        if not reg.reserved:
+            assert f"#define BMG_REG_{reg.name} 0x{reg.address:02X}\n" in header
+        for f in reg.fields:
+            assert f"#define BMG_{reg.name}_{f.name.upper()}_MASK 0x{f.mask:02X}\n" in header
 
 
 def test_header_carries_the_discretization_of_the_noise_engine_for_every_bw_code():

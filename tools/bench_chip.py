@@ -3,9 +3,11 @@
 Measures chip.advance(one output period) + chip.read(0x02, 6) (one new sample per read, noise
 on) and prints it beside a plain dict lookup loop and a dict-backed 6-byte "read"; then the
 same loop without noise and with a moving true rate, and the low-pass filter alone per
-sample, as shares of it.
+sample, as shares of it; then a closed-loop step, chip.set_true_rate(a new constant) +
+advance + read (a simulator feeding the chip its body rate each step, issue 15), beside
+advance + read alone, timed in alternation.
 
-    python tools/bench_chip.py [--n 100000] [--bw 4] [--repeat 5]
+    python tools/bench_chip.py [--n 100000] [--steps 5000] [--bw 4] [--repeat 5]
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ def _per_op(func, n: int, repeat: int) -> float:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=100_000, help="operations per measurement")
+    parser.add_argument("--steps", type=int, default=5000, help="closed-loop steps per measurement")
     parser.add_argument("--bw", type=int, default=4, help="BW code (ODR) for the chip")
     parser.add_argument("--repeat", type=int, default=5, help="timed loops, best kept")
     args = parser.parse_args()
@@ -91,7 +94,7 @@ def main() -> int:
         return loop
 
     block = np.random.default_rng(0).standard_normal((1024, 3))
-    filt = moving._filter
+    filt = moving._path.filter
 
     def lowpass_blocks(n: int) -> None:
         for _ in range(n // len(block)):
@@ -113,7 +116,44 @@ def main() -> int:
     print(f"new samples produced: {new_samples} for {args.repeat} x {args.n} advance+read")
     for name, cost in shares.items():
         print(f"{name:45s} {cost * 1e6:8.3f} us/op  {cost / adv:7.1%} of advance+read")
+    closed_loop(args.steps, args.bw, args.repeat)
     return 0
+
+
+def closed_loop(steps: int, bw: int, repeat: int) -> None:
+    """Per step: set_true_rate(constant) + advance(period) + read(0x02, 6), against
+    advance(period) + read(0x02, 6) on a second chip, alternating the two timed loops."""
+    chips = {}
+    for name in ("loop", "plain"):
+        chip = BMG160(seed=1)
+        chip.write(0x10, bytes([bw]))
+        chips[name] = chip
+    period = 1.0 / chips["loop"].odr_hz
+    rates = [(0.001 * i, -0.5, 2.0 + 0.0001 * i) for i in range(steps)]
+
+    def with_rate(n: int) -> None:
+        chip = chips["loop"]
+        for rate in rates[:n]:
+            chip.set_true_rate(rate)
+            chip.advance(period)
+            chip.read(2, 6)
+
+    def without_rate(n: int) -> None:
+        chip = chips["plain"]
+        for _ in range(n):
+            chip.advance(period)
+            chip.read(2, 6)
+
+    with_rate(100)
+    without_rate(100)
+    best = {"with": float("inf"), "without": float("inf")}
+    for _ in range(repeat):  # alternated, so both see the same machine load
+        best["with"] = min(best["with"], _per_op(with_rate, steps, 1))
+        best["without"] = min(best["without"], _per_op(without_rate, steps, 1))
+    print(f"{'set_true_rate + advance + read (per step)':45s} {best['with'] * 1e6:8.3f} us/step")
+    print(f"{'advance + read (per step)':45s} {best['without'] * 1e6:8.3f} us/step")
+    print(f"{'closed-loop step vs advance+read alone':45s} "
+          f"{best['with'] / best['without']:7.2f} x")
 
 
 if __name__ == "__main__":

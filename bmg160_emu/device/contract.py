@@ -7,6 +7,10 @@ from __future__ import annotations
 import operator
 from typing import Any, Protocol, runtime_checkable
 
+import numpy as np
+
+from bmg160_emu.device.spec_choices import VALID_ADDRESSES
+
 
 @runtime_checkable
 class RegisterDevice(Protocol):
@@ -38,6 +42,7 @@ class RegisterDevice(Protocol):
 
 
 PRIMITIVES = ("write", "read", "i2c_write", "i2c_read", "peek", "dump", "advance")
+NOISE_MODES = ("physical", "paper")
 
 
 def _index(value: Any, what: str) -> int:
@@ -73,3 +78,18 @@ def check_data(data: Any) -> bytes:
         return bytes(data)
     except ValueError:
         raise ValueError("data bytes must be in 0..255") from None
+
+
+def check_chip_options(address: Any, noise_mode: Any, seed: Any) -> None:
+    """The BMG160 constructor's address, noise mode and seed."""
+    if address not in VALID_ADDRESSES:
+        raise ValueError(f"BMG160 address must be 0x68 or 0x69, not {address!r}")
+    if noise_mode not in NOISE_MODES:
+        raise ValueError(f"noise_mode must be 'physical' or 'paper', not {noise_mode!r}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
+        raise TypeError(f"seed must be an int or None, not {type(seed).__name__}")
+
+
+def check_clock(clock: Any) -> None:
+    if not hasattr(clock, "now_ns"):
+        raise TypeError("clock must be a VirtualClock or RealTimeClock")

@@ -71,6 +71,15 @@ class Fifo:
         else:
             self.frames.extend(frames[:room])
 
+    def kept(self, k_first: int, n: int, mode: int) -> range:
+        """Which of n new samples k_first.. end up stored: the first that fit in FIFO mode,
+        the last ``capacity`` in stream mode (for ``push_many``)."""
+        if mode == FIFO:
+            room = max(self.capacity - self.count, 0)
+            return range(k_first, k_first + min(n, room))
+        k_last = k_first + n - 1
+        return range(max(k_first, k_last - self.capacity + 1), k_last + 1)
+
     def read(self, n: int, axis_bytes: int, tagged: bool) -> bytes:
         """Pop ``n`` bytes; past the last frame, the empty pattern of the current format."""
         out = bytearray()

@@ -6,6 +6,7 @@ Spec 6.3 (statuses, latching, pins) and 6.4 (engine models, unconfirmed in detai
 from __future__ import annotations
 
 from bmg160_emu.device import spec_choices
+from bmg160_emu.device.registers import address_of, field_of
 
 LATCHED = 1 << 62  # "held until reset_int", as a time in ns no clock reaches
 
@@ -19,9 +20,12 @@ _LATCH_HOLD_NS = {
 }
 
 
-def latch_hold_ns(latch_int: int) -> int:
-    """How long a status stays set after its condition ends, for a latch_int code."""
-    return _LATCH_HOLD_NS[latch_int & 0xF]
+_LATCH_INT = field_of("INT_RST_LATCH", "latch_int")
+
+
+def latch_hold_ns(int_rst_latch: int) -> int:
+    """How long a status stays set after its condition ends, for an INT_RST_LATCH byte."""
+    return _LATCH_HOLD_NS[_LATCH_INT.extract(int_rst_latch)]
 
 
 class InterruptStatus:
@@ -161,3 +165,141 @@ class HighRate:
     def status_byte(self) -> int:
         """INT_STATUS_3 bits: high_sign (3), high_first_z/y/x (2..0)."""
         return self.sign << 3 | 1 << self.first_axis
+
+
+# ---------------------------------------------------------------- the chip's interrupt block
+
+SOURCES = ("any", "high", "fifo", "fast_offset", "auto_offset")  # latched statuses (6.3)
+_INT_RST_LATCH = address_of("INT_RST_LATCH")
+_INT_DATA_SRC = address_of("INT_DATA_SRC")
+_ANY_UNFILT = field_of("INT_DATA_SRC", "any_unfilt_data").mask
+_HIGH_UNFILT = field_of("INT_DATA_SRC", "high_unfilt_data").mask
+_ANY_TH_REG, _ANY_EN_REG = address_of("ANY_TH"), address_of("ANY_EN")
+_ANY_TH = field_of("ANY_TH", "any_th")
+_ANY_DURSAMPLE = field_of("ANY_EN", "any_dursample")
+_ANY_AXES = tuple(field_of("ANY_EN", f"any_en_{axis}").mask for axis in "xyz")
+# per axis: (HIGH_TH address, high_th, high_hy, high_en, HIGH_DUR address, high_dur)
+_HIGH_AXES = tuple(
+    (address_of(f"HIGH_TH_{axis.upper()}"), field_of(f"HIGH_TH_{axis.upper()}", f"high_th_{axis}"),
+     field_of(f"HIGH_TH_{axis.upper()}", f"high_hy_{axis}"),
+     field_of(f"HIGH_TH_{axis.upper()}", f"high_en_{axis}").mask,
+     address_of(f"HIGH_DUR_{axis.upper()}"),
+     field_of(f"HIGH_DUR_{axis.upper()}", f"high_dur_{axis}"))
+    for axis in "xyz")
+# source -> the (register, bit) mapping it to INT1 and to INT2 (4.16)
+_MAP = {
+    source: tuple((address_of(reg), field_of(reg, f"{pin}_{name}").mask) for pin, reg in regs)
+    for source, name, regs in (
+        ("high", "high", (("int1", "INT_MAP_0"), ("int2", "INT_MAP_2"))),
+        ("any", "any", (("int1", "INT_MAP_0"), ("int2", "INT_MAP_2"))),
+        ("data", "data", (("int1", "INT_MAP_1"), ("int2", "INT_MAP_1"))),
+        ("fast_offset", "fast_offset", (("int1", "INT_MAP_1"), ("int2", "INT_MAP_1"))),
+        ("fifo", "fifo", (("int1", "INT_MAP_1"), ("int2", "INT_MAP_1"))),
+        ("auto_offset", "auto_offset", (("int1", "INT_MAP_1"), ("int2", "INT_MAP_1"))),
+    )
+}
+_LATCH_STATUS_BITS = field_of("INT_RST_LATCH", "latch_status_bits").mask
+_STATUS_0 = tuple((source, field_of("INT_STATUS_0", f"{source}_int").lsb) for source in ("any", "high"))
+_STATUS_1 = tuple((source, field_of("INT_STATUS_1", f"{source}_int").lsb)
+                  for source in ("auto_offset", "fast_offset", "fifo"))
+_DATA_INT_LSB = field_of("INT_STATUS_1", "data_int").lsb
+
+
+class Interrupts:
+    """The statuses, the any-motion and high-rate engines and what they report (6.3, 6.4)."""
+
+    def __init__(self) -> None:
+        self.status = {name: InterruptStatus() for name in SOURCES}
+        self.any = AnyMotion()
+        self.high = HighRate()
+        self.int_status_2 = 0  # any-motion axis and sign (4.6)
+        self.int_status_3 = 0  # high-rate axis and sign
+        self.any_axes = 0  # bit per axis: engine enabled
+        self.high_axes = 0
+
+    def configure(self, regs: bytearray) -> None:
+        any_en = regs[_ANY_EN_REG]
+        self.any_axes = sum(1 << axis for axis, mask in enumerate(_ANY_AXES) if any_en & mask)
+        self.high_axes = sum(1 << axis for axis, (th, _, _, en, _, _) in enumerate(_HIGH_AXES)
+                             if regs[th] & en)
+
+    def reconfigure(self, regs: bytearray, now_ns: int) -> None:
+        """An engine register was written: an engine switched on starts afresh, one
+        switched off also drops its condition."""
+        had_any, had_high = self.any_axes, self.high_axes
+        self.configure(regs)
+        hold = latch_hold_ns(regs[_INT_RST_LATCH])
+        if not self.any_axes and had_any:
+            self.any.reset()
+            self.status["any"].update(False, now_ns, hold)
+        elif self.any_axes and not had_any:
+            self.any.reset()
+        if not self.high_axes and had_high:
+            self.high.reset()
+            self.status["high"].update(False, now_ns, hold)
+        elif self.high_axes and not had_high:
+            self.high.reset()
+
+    def step(self, regs: bytearray, counts_f, counts_u, odr_hz: int, t_ns: int) -> None:
+        """Feed one output sample (counts filtered / unfiltered) to the enabled engines."""
+        hold = latch_hold_ns(regs[_INT_RST_LATCH])
+        if self.any_axes:
+            src = counts_u if regs[_INT_DATA_SRC] & _ANY_UNFILT else counts_f
+            rose = self.any.step(
+                (int(src[0]), int(src[1]), int(src[2])), self.any_axes,
+                (1 + _ANY_TH.extract(regs[_ANY_TH_REG])) * 16,  # 4.17: (1 + any_th) * 16 LSB
+                4 * (_ANY_DURSAMPLE.extract(regs[_ANY_EN_REG]) + 1),  # 4, 8, 12, 16 samples
+                -(-odr_hz // spec_choices.ANY_MOTION_MAX_RATE_HZ))
+            if rose:
+                self.int_status_2 = self.any.status_byte()
+            self.status["any"].update(self.any.active, t_ns, hold)
+        if self.high_axes:
+            src = counts_u if regs[_INT_DATA_SRC] & _HIGH_UNFILT else counts_f
+            ths, hys, durs = [], [], []
+            for th_reg, th, hy, _, dur_reg, dur in _HIGH_AXES:  # 4.20
+                ths.append((255 + 256 * th.extract(regs[th_reg])) * 4)
+                hys.append((255 + 256 * hy.extract(regs[th_reg])) * 4)
+                durs.append(-(-(1 + dur.extract(regs[dur_reg])) * 25 * odr_hz // 10000))
+            rose = self.high.step((int(src[0]), int(src[1]), int(src[2])), self.high_axes,
+                                  ths, hys, durs)
+            if rose:
+                self.int_status_3 = self.high.status_byte()
+            self.status["high"].update(self.high.active, t_ns, hold)
+
+    def offset_done(self) -> None:
+        """Fast offset compensation finished: an event, held until reset_int (spec_choices)."""
+        st = self.status["fast_offset"]
+        st.condition, st.seen = True, True
+
+    def offset_started(self) -> None:
+        st = self.status["fast_offset"]
+        st.condition = st.seen = False
+
+    def reset_int(self) -> None:
+        """reset_int (4.19): latches forgotten; a live condition stays."""
+        for st in self.status.values():
+            st.reset_latch()
+        self.offset_started()
+        self.int_status_2 = self.any.status_byte() if self.any.active else 0
+        self.int_status_3 = self.high.status_byte() if self.high.active else 0
+
+    def pins(self, regs: bytearray, now_ns: int, data_int: bool) -> tuple[bool, bool]:
+        """(INT1, INT2) asserted: any mapped source active (4.16)."""
+        int1 = int2 = False
+        for source, ((reg1, bit1), (reg2, bit2)) in _MAP.items():
+            active = data_int if source == "data" else self.status[source].pin_active(now_ns)
+            if active:
+                int1 = int1 or bool(regs[reg1] & bit1)
+                int2 = int2 or bool(regs[reg2] & bit2)
+        return int1, int2
+
+    def status_0(self, regs: bytearray, now_ns: int) -> int:
+        """INT_STATUS_0 (4.4)."""
+        held = bool(regs[_INT_RST_LATCH] & _LATCH_STATUS_BITS)
+        return sum(self.status[s].status(now_ns, held) << lsb for s, lsb in _STATUS_0)
+
+    def status_1(self, regs: bytearray, now_ns: int, data_int: bool) -> int:
+        """INT_STATUS_1 (4.5)."""
+        held = bool(regs[_INT_RST_LATCH] & _LATCH_STATUS_BITS)
+        return (data_int << _DATA_INT_LSB
+                | sum(self.status[s].status(now_ns, held) << lsb for s, lsb in _STATUS_1))

@@ -12,6 +12,7 @@ Bits not covered by a field are reserved: they read 0 and ignore writes.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -343,11 +344,28 @@ def _build() -> tuple[Register, ...]:
     return tuple(regs[a] for a in range(REGISTER_COUNT))
 
 
-REGISTERS: tuple[Register, ...] = _build()
-BY_NAME: Mapping[str, Register] = MappingProxyType({r.name: r for r in REGISTERS})
-RESET_VALUES: bytes = bytes(r.reset for r in REGISTERS)
-WRITE_MASKS: bytes = bytes(r.write_mask for r in REGISTERS)
-NVM_ADDRESSES: tuple[int, ...] = tuple(r.address for r in REGISTERS if r.nvm)
+REGISTERS: tuple[Register, ...]
+BY_NAME: Mapping[str, Register]
+RESET_VALUES: bytes
+WRITE_MASKS: bytes
+NVM_ADDRESSES: tuple[int, ...]
+
+
+def _install(table: tuple[Register, ...]) -> None:
+    """Make ``table`` the register map and derive the names above from it. Called once at
+    import; a test of a spec correction calls it with a corrected copy before the model is
+    imported (the model evaluates addresses and masks at import)."""
+    global REGISTERS, BY_NAME, RESET_VALUES, WRITE_MASKS, NVM_ADDRESSES
+    if [r.address for r in table] != list(range(REGISTER_COUNT)):
+        raise ValueError(f"a register table lists addresses 0x00..0x{REGISTER_COUNT - 1:02X} in order")
+    REGISTERS = table
+    BY_NAME = MappingProxyType({r.name: r for r in table})
+    RESET_VALUES = bytes(r.reset for r in table)
+    WRITE_MASKS = bytes(r.write_mask for r in table)
+    NVM_ADDRESSES = tuple(r.address for r in table if r.nvm)
+
+
+_install(_build())
 
 
 def address_of(name: str) -> int:
@@ -371,6 +389,35 @@ def field_of(register_name: str, field_name: str) -> Field:
     """A field by spec names, e.g. ``field_of("RANGE", "range").mask``: code outside this
     module takes register addresses and field masks from here, never as typed numbers."""
     return register(register_name).field(field_name)
+
+
+def offset_parts() -> tuple[tuple[tuple[int, Field, int], ...], ...]:
+    """The pieces of the three axis offsets (4.24) as ``(address, field, position)`` per axis
+    X, Y, Z: the field holds offset bits ``position + width - 1 .. position``. Read from the
+    field names ``offset_<axis>_<msb>_<lsb>`` (or ``offset_<axis>_<bit>``), so moving an
+    offset bit in the table moves it in the model."""
+    parts: dict[str, list[tuple[int, Field, int]]] = {axis: [] for axis in "xyz"}
+    for reg in REGISTERS:
+        for f in reg.fields:
+            match = re.fullmatch(r"offset_([xyz])_(\d+)(?:_(\d+))?", f.name)
+            if match:
+                hi = int(match[2])
+                lo = int(match[3]) if match[3] else hi
+                if hi - lo != f.msb - f.lsb:
+                    raise ValueError(f"{reg.name}.{f.name} is {f.msb - f.lsb + 1} bits wide, "
+                                     f"its name says {hi - lo + 1}")
+                parts[match[1]].append((reg.address, f, lo))
+    return tuple(tuple(parts[axis]) for axis in "xyz")
+
+
+def offset_bits() -> int:
+    """Width of one axis offset (12 in spec 4.24), from the fields that hold it."""
+    return max(pos + f.msb - f.lsb + 1 for axis in offset_parts() for _, f, pos in axis)
+
+
+def offset_mask(address: int) -> int:
+    """Bits of a register that hold offset bits (0 for a register without any)."""
+    return sum(f.mask for axis in offset_parts() for a, f, _ in axis if a == address)
 
 
 def decode_dump(dump: bytes) -> list[str]:

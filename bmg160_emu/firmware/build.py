@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bmg160_emu.firmware.params_header import render_params_header
+from bmg160_emu.firmware.register_table import REGISTERS_HEADER, render_registers_header
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware"
 AVR_TOOLS = ("avr-gcc", "avr-objcopy", "avr-size")
@@ -91,7 +92,8 @@ def build_firmware(
     normal: str = "ziggurat",
     out_dir: str | Path | None = None,
 ) -> FirmwareBuild:
-    """Write bmg160_params.h for the profile and build bmg160.elf and bmg160.hex.
+    """Write bmg160_params.h for the profile and bmg160_registers.h from the register table,
+    and build bmg160.elf and bmg160.hex.
 
     Raises ValueError for a bad profile/address/mode and FirmwareToolError when gcc-avr is
     missing or the build fails.
@@ -99,6 +101,7 @@ def build_firmware(
     if normal not in NORMAL_METHODS:
         raise ValueError(f"unknown normal generator {normal!r}: use {', '.join(NORMAL_METHODS)}")
     header_text = render_params_header(profile=profile, address=address, mode=mode, seed=seed)
+    registers_text = render_registers_header()
     missing = missing_avr_tools()
     if missing:
         raise FirmwareToolError(
@@ -106,11 +109,13 @@ def build_firmware(
             "(apt-get install gcc-avr avr-libc binutils-avr)"
         )
     _check_sources()
-    directory = Path(out_dir) if out_dir is not None else default_build_dir(header_text, normal)
+    directory = (Path(out_dir) if out_dir is not None
+                 else default_build_dir(header_text + registers_text, normal))
     directory.mkdir(parents=True, exist_ok=True)
     header = directory / "bmg160_params.h"
-    if not header.is_file() or header.read_text(encoding="utf-8") != header_text:
-        header.write_text(header_text, encoding="utf-8")  # unchanged header: no rebuild
+    for path, text in ((header, header_text), (directory / REGISTERS_HEADER, registers_text)):
+        if not path.is_file() or path.read_text(encoding="utf-8") != text:
+            path.write_text(text, encoding="utf-8")  # unchanged header: no rebuild
     flags = NORMAL_FLAGS[normal]
     _run(
         [

@@ -3,8 +3,8 @@
 The firmware computes no coefficient itself: for every BW code (each with its ODR, spec
 section 5.3) the header holds the per-axis coefficients of the project's discretization
 (:func:`bmg160_emu.noise.discretization.axis_coefficients`), so the chip and the Python
-engine run the same recursion. It also carries the register table, the sensitivities and the
-I2C address.
+engine run the same recursion. It also carries the sensitivities and the I2C address; the
+register map is in the second generated header, ``bmg160_registers.h`` (register_table.py).
 """
 
 from __future__ import annotations
@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from bmg160_emu.firmware.register_table import reset_values, write_masks
 from bmg160_emu.noise.discretization import axis_coefficients, check_mode
 from bmg160_emu.noise.profile import Profile, load_profile
 
@@ -59,13 +58,6 @@ def _c_float(value: float) -> str:
     if "." not in text and "e" not in text:
         text += ".0"
     return text + "f"
-
-
-def _c_bytes(values: list[int]) -> str:
-    rows = []
-    for start in range(0, len(values), 8):
-        rows.append("\t" + ", ".join(f"0x{v:02X}" for v in values[start : start + 8]) + ",")
-    return "\n".join(rows)
 
 
 def _c_identifier_string(text: str) -> str:
@@ -120,14 +112,6 @@ def render_params_header(
         f"#define BMG_PROFILE_NAME {_c_identifier_string(prof.name)}",
         f'#define BMG_NOISE_MODE_NAME "{mode}"',
         f"#define BMG_SEED {int(seed)}UL",
-        "",
-        "/* Register reset values and write masks (bmg160_emu/firmware/register_table.py). */",
-        "static const uint8_t bmg_reset_values[64] PROGMEM = {",
-        _c_bytes(reset_values()),
-        "};",
-        "static const uint8_t bmg_write_masks[64] PROGMEM = {",
-        _c_bytes(write_masks()),
-        "};",
         "",
         "/* LSB per deg/s for RANGE codes 0..7 (spec 5.1, binary column). */",
         "static const float bmg_sensitivity_lsb_per_dps[8] PROGMEM = {"

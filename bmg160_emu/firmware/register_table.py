@@ -1,19 +1,24 @@
-"""What the firmware does with each of the 64 registers: the table behind docs/firmware.md.
+"""What the firmware does with each of the 64 registers (the table behind docs/firmware.md),
+and the C header of the register map it is built with.
 
-Each register is one of:
+Addresses, reset values, write masks and field masks all come from the project's register
+table, :mod:`bmg160_emu.device.registers` (read when called, so a corrected table is the
+firmware's at the next build); this module adds only what the firmware does with each:
 
 - ``modelled``: behaviour implemented in ``firmware/src/regmap.c`` (data path, shadowing,
   FIFO, triggers, power modes);
 - ``stored``: written bits (the write mask) are kept and read back, with no further effect;
 - ``unmodelled``: reads the spec's reset value, writes are ignored.
-
-Reset values are those of the register spec (docs: bmg160-registers.md, section 3 and 5.4);
-masks follow the field tables of section 4 (reserved bits read 0).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+
+from bmg160_emu.device import registers
+
+REGISTERS_HEADER = "bmg160_registers.h"
 
 
 @dataclass(frozen=True)
@@ -26,78 +31,119 @@ class FirmwareRegister:
     note: str = ""
 
 
-def _table() -> list[FirmwareRegister]:
-    rows: dict[int, FirmwareRegister] = {}
-
-    def add(addr: int, name: str, reset: int, mask: int, kind: str, note: str = "") -> None:
-        rows[addr] = FirmwareRegister(addr, name, reset, mask, kind, note)
-
-    add(0x00, "CHIP_ID", 0x0F, 0x00, "modelled", "always 0x0F (spec 4.1)")
-    for i, axis in enumerate("XYZ"):
-        add(0x02 + 2 * i, f"RATE_{axis}_LSB", 0x00, 0x00, "modelled", "latches the MSB (6.2)")
-        add(0x03 + 2 * i, f"RATE_{axis}_MSB", 0x00, 0x00, "modelled", "shadowed (6.2)")
-    add(0x08, "TEMP", 0x00, 0x00, "modelled", "constant 23 degC (raw 0): no thermal model")
-    add(0x09, "INT_STATUS_0", 0x00, 0x00, "unmodelled", "any/high-rate engines not on chip")
-    add(0x0A, "INT_STATUS_1", 0x00, 0x00, "modelled", "data_int pulse, fifo_int")
-    add(0x0B, "INT_STATUS_2", 0x00, 0x00, "unmodelled", "any-motion engine not on chip")
-    add(0x0C, "INT_STATUS_3", 0x00, 0x00, "unmodelled", "high-rate engine not on chip")
-    add(0x0E, "FIFO_STATUS", 0x00, 0x00, "modelled", "overrun, frame counter")
-    add(0x0F, "RANGE", 0x00, 0xFF, "modelled", "bits 2:0 scale the output; 7:3 stored")
-    add(0x10, "BW", 0x80, 0x0F, "modelled", "bit 7 reads 1; code sets the ODR timer")
-    add(0x11, "LPM1", 0x00, 0xAE, "modelled", "suspend / deep suspend stop sampling")
-    add(0x12, "LPM2", 0x00, 0xF7, "modelled", "fast power-up, power-save (samples as normal)")
-    add(0x13, "RATE_HBW", 0x00, 0xC0, "modelled", "shadow_dis; data_high_bw stored")
-    add(0x14, "BGW_SOFTRESET", 0x00, 0x00, "modelled", "0xB6 resets; reads 0x00")
-    add(0x15, "INT_EN_0", 0x00, 0xC4, "modelled", "data_en, fifo_en gate the status bits")
-    add(0x16, "INT_EN_1", 0x0F, 0x0F, "stored", "no interrupt pins driven")
-    add(0x17, "INT_MAP_0", 0x00, 0x0A, "stored")
-    add(0x18, "INT_MAP_1", 0x00, 0xFF, "stored")
-    add(0x19, "INT_MAP_2", 0x00, 0x0A, "stored")
-    add(0x1A, "INT_DATA_SRC", 0x00, 0x2A, "stored")
-    add(0x1B, "ANY_TH", 0x04, 0xFF, "stored")
-    add(0x1C, "ANY_EN", 0xA0, 0xF7, "stored")
-    add(0x1E, "FIFO_WM_EN", 0x00, 0xFF, "modelled", "bit 7 selects the watermark interrupt")
-    add(
-        0x21,
-        "INT_RST_LATCH",
-        0x00,
-        0x1F,
-        "modelled",
-        "offset_reset clears offsets; latch modes stored",
-    )
-    for i, axis in enumerate("XYZ"):
-        add(0x22 + 2 * i, f"HIGH_TH_{axis}", 0x02, 0xFF, "stored")
-        add(0x23 + 2 * i, f"HIGH_DUR_{axis}", 0x19, 0xFF, "stored")
-    add(0x31, "SOC", 0x60, 0xFF, "stored", "slow offset compensation not on chip")
-    add(0x32, "A_FOC", 0xC0, 0xF7, "stored", "fast offset compensation not on chip: bit 3 ignored")
-    add(
-        0x33,
-        "TRIM_NVM_CTRL",
-        0xF4,
-        0x01,
-        "modelled",
-        "nvm_load restores the zero image; no programming",
-    )
-    add(0x34, "BGW_SPI3_WDT", 0x00, 0x07, "stored")
-    for addr, name in zip(range(0x36, 0x3B), ("OFC1", "OFC2", "OFC3", "OFC4", "TRIM_GP0")):
-        add(addr, name, 0x00, 0xFF, "modelled", "offsets added to the output (6.9)")
-    add(0x3B, "TRIM_GP1", 0x00, 0xFF, "stored", "general-purpose byte")
-    add(0x3C, "BIST", 0x10, 0x00, "modelled", "rate_ok while sampling; bist_rdy 5 ms after trig")
-    add(0x3D, "FIFO_CONFIG_0", 0x00, 0xFF, "modelled", "tag, watermark; a write empties the FIFO")
-    add(0x3E, "FIFO_CONFIG_1", 0x00, 0xFF, "modelled", "mode, data select; a write empties it")
-    add(0x3F, "FIFO_DATA", 0x00, 0x00, "modelled", "pointer stays; empty pattern 0x00 0x80")
-    for addr in range(0x40):
-        if addr not in rows:
-            add(addr, "reserved", 0x00, 0x00, "unmodelled", "reads 0x00")
-    return [rows[a] for a in range(0x40)]
+# register name -> (kind, note); registers not named here are reserved: unmodelled
+_KINDS: dict[str, tuple[str, str]] = {
+    "CHIP_ID": ("modelled", "always 0x0F (spec 4.1)"),
+    **{f"RATE_{axis}_LSB": ("modelled", "latches the MSB (6.2)") for axis in "XYZ"},
+    **{f"RATE_{axis}_MSB": ("modelled", "shadowed (6.2)") for axis in "XYZ"},
+    "TEMP": ("modelled", "constant 23 degC (raw 0): no thermal model"),
+    "INT_STATUS_0": ("unmodelled", "any/high-rate engines not on chip"),
+    "INT_STATUS_1": ("modelled", "data_int pulse, fifo_int"),
+    "INT_STATUS_2": ("unmodelled", "any-motion engine not on chip"),
+    "INT_STATUS_3": ("unmodelled", "high-rate engine not on chip"),
+    "FIFO_STATUS": ("modelled", "overrun, frame counter"),
+    "RANGE": ("modelled", "bits 2:0 scale the output; 7:3 stored"),
+    "BW": ("modelled", "bit 7 reads 1; code sets the ODR timer"),
+    "LPM1": ("modelled", "suspend / deep suspend stop sampling"),
+    "LPM2": ("modelled", "fast power-up, power-save (samples as normal)"),
+    "RATE_HBW": ("modelled", "shadow_dis; data_high_bw stored"),
+    "BGW_SOFTRESET": ("modelled", "0xB6 resets; reads 0x00"),
+    "INT_EN_0": ("modelled", "data_en, fifo_en gate the status bits"),
+    "INT_EN_1": ("stored", "no interrupt pins driven"),
+    "INT_MAP_0": ("stored", ""),
+    "INT_MAP_1": ("stored", ""),
+    "INT_MAP_2": ("stored", ""),
+    "INT_DATA_SRC": ("stored", ""),
+    "ANY_TH": ("stored", ""),
+    "ANY_EN": ("stored", ""),
+    "FIFO_WM_EN": ("modelled", "bit 7 selects the watermark interrupt"),
+    "INT_RST_LATCH": ("modelled", "offset_reset clears offsets; latch modes stored"),
+    **{f"HIGH_{kind}_{axis}": ("stored", "") for kind in ("TH", "DUR") for axis in "XYZ"},
+    "SOC": ("stored", "slow offset compensation not on chip"),
+    "A_FOC": ("stored", "fast offset compensation not on chip: bit 3 ignored"),
+    "TRIM_NVM_CTRL": ("modelled", "nvm_load restores the zero image; no programming"),
+    "BGW_SPI3_WDT": ("stored", ""),
+    **{name: ("modelled", "offsets added to the output (6.9)")
+       for name in ("OFC1", "OFC2", "OFC3", "OFC4", "TRIM_GP0")},
+    "TRIM_GP1": ("stored", "general-purpose byte"),
+    "BIST": ("modelled", "rate_ok while sampling; bist_rdy 5 ms after trig"),
+    "FIFO_CONFIG_0": ("modelled", "tag, watermark; a write empties the FIFO"),
+    "FIFO_CONFIG_1": ("modelled", "mode, data select; a write empties it"),
+    "FIFO_DATA": ("modelled", "pointer stays; empty pattern 0x00 0x80"),
+}
 
 
-FIRMWARE_REGISTERS: tuple[FirmwareRegister, ...] = tuple(_table())
+def firmware_registers() -> tuple[FirmwareRegister, ...]:
+    """The firmware's view of every register of the current register table."""
+    rows = []
+    for r in registers.REGISTERS:
+        kind, note = _KINDS.get(r.name, ("unmodelled", "reads 0x00"))
+        rows.append(FirmwareRegister(r.address, "reserved" if r.reserved else r.name, r.reset,
+                                     r.write_mask, kind, note))
+    return tuple(rows)
+
+
+FIRMWARE_REGISTERS: tuple[FirmwareRegister, ...] = firmware_registers()
 
 
 def reset_values() -> list[int]:
-    return [r.reset for r in FIRMWARE_REGISTERS]
+    return [r.reset for r in registers.REGISTERS]
 
 
 def write_masks() -> list[int]:
-    return [r.write_mask for r in FIRMWARE_REGISTERS]
+    return [r.write_mask for r in registers.REGISTERS]
+
+
+def _c_bytes(values: list[int]) -> str:
+    rows = []
+    for start in range(0, len(values), 8):
+        rows.append("\t" + ", ".join(f"0x{v:02X}" for v in values[start : start + 8]) + ",")
+    return "\n".join(rows)
+
+
+def render_registers_header() -> str:
+    """The text of bmg160_registers.h: register count, an address macro per register
+    (``BMG_REG_<NAME>``), mask and shift per field (``BMG_<REG>_<FIELD>_MASK/_SHIFT``), the
+    reset values and the write masks, all from the register table."""
+    lines = [
+        "/* Generated from bmg160_emu/device/registers.py by `bmg160-emu firmware build`:",
+        " * do not edit; correct the register table instead. */",
+        "#ifndef BMG160_REGISTERS_H",
+        "#define BMG160_REGISTERS_H",
+        "#include <avr/pgmspace.h>",
+        "#include <stdint.h>",
+        "",
+        f"#define BMG_REG_COUNT {registers.REGISTER_COUNT}",
+        "",
+    ]
+    for r in registers.REGISTERS:
+        if r.reserved:
+            continue
+        lines.append(f"#define BMG_REG_{r.name} 0x{r.address:02X}")
+        for f in r.fields:
+            stem = f"BMG_{r.name}_{f.name.upper()}"
+            lines.append(f"#define {stem}_MASK 0x{f.mask:02X}")
+            lines.append(f"#define {stem}_SHIFT {f.lsb}")
+    lines += [
+        "",
+        f"static const uint8_t bmg_reset_values[{registers.REGISTER_COUNT}] PROGMEM = {{",
+        _c_bytes(reset_values()),
+        "};",
+        f"static const uint8_t bmg_write_masks[{registers.REGISTER_COUNT}] PROGMEM = {{",
+        _c_bytes(write_masks()),
+        "};",
+        "",
+        "#endif",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_registers_header(path: str | Path) -> Path:
+    """Write the header to path (a file, or a directory to hold bmg160_registers.h)."""
+    target = Path(path)
+    if target.is_dir():
+        target = target / REGISTERS_HEADER
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(render_registers_header(), encoding="utf-8")
+    return target

@@ -1,5 +1,6 @@
 /* FIFO of spec 6.5: bypass / FIFO / stream modes, frame-aligned reads, fifo_frames
  * leave when their last byte is read, empty pattern 0x00 0x80 per word. */
+#include "bmg160_registers.h"
 #include "fifo.h"
 
 static uint8_t fifo_frames[FIFO_CAPACITY][6];
@@ -53,9 +54,10 @@ void fifo_push(const int16_t counts[3], uint8_t mode)
 
 uint8_t fifo_read_byte(uint8_t config0, uint8_t config1)
 {
-	uint8_t select = config1 & 0x03;
+	uint8_t select = (config1 & BMG_FIFO_CONFIG_1_FIFO_DATA_SELECT_MASK)
+		>> BMG_FIFO_CONFIG_1_FIFO_DATA_SELECT_SHIFT;
 	uint8_t data_bytes = select ? 2 : 6;
-	uint8_t frame_size = data_bytes + ((config0 & 0x80) ? 2 : 0); /* tag (4.26) */
+	uint8_t frame_size = data_bytes + ((config0 & BMG_FIFO_CONFIG_0_TAG_MASK) ? 2 : 0); /* tag (4.26) */
 	uint8_t value;
 
 	if (fifo_byte_pos >= data_bytes) {

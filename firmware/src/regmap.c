@@ -1,7 +1,8 @@
 /* Register semantics of the BMG160 as implemented on the ATmega328P.
  *
- * Reset values and write masks come from the generated header (the project's
- * register table); this file holds the behaviour: MSB shadowing (spec 6.2),
+ * Addresses, field masks, reset values and write masks come from the generated
+ * bmg160_registers.h (the project's register table, bmg160_emu/device/registers.py);
+ * this file holds the behaviour: MSB shadowing (spec 6.2),
  * FIFO status and data (6.5), BW bit 7 (4.9), triggers (5.4), soft reset (6.6)
  * and power-mode write rules (6.7). A register with write mask 0 that is not
  * handled below reads its reset value and ignores writes. */
@@ -13,28 +14,10 @@
 #include "regmap.h"
 #include "sampler.h"
 #include "millis.h"
-#include "bmg160_params.h"
+#include "bmg160_registers.h"
 
-#define REG_RATE_X_LSB 0x02
-#define REG_RATE_Z_MSB 0x07
-#define REG_INT_STATUS_1 0x0A
-#define REG_FIFO_STATUS 0x0E
-#define REG_RANGE 0x0F
-#define REG_BW 0x10
-#define REG_LPM1 0x11
-#define REG_LPM2 0x12
-#define REG_RATE_HBW 0x13
-#define REG_BGW_SOFTRESET 0x14
-#define REG_INT_EN_0 0x15
-#define REG_FIFO_WM_EN 0x1E
-#define REG_INT_RST_LATCH 0x21
-#define REG_A_FOC 0x32
-#define REG_TRIM_NVM_CTRL 0x33
-#define REG_OFC1 0x36
-#define REG_TRIM_GP0 0x3A
-#define REG_BIST 0x3C
-#define REG_FIFO_CONFIG_0 0x3D
-#define REG_FIFO_CONFIG_1 0x3E
+/* Field value of a register byte, and the byte with a field set (generated masks). */
+#define FIELD(value, reg_field) (((value) & reg_field##_MASK) >> reg_field##_SHIFT)
 
 #define SOFTRESET_KEY 0xB6 /* spec 4.13 */
 
@@ -48,29 +31,34 @@ static uint8_t bist_triggered;
 
 static void apply_power_mode(enum bmg_power_mode old_mode, uint8_t reg, uint8_t value);
 
-uint8_t regmap_bw_code(void) { return bmg_regs[REG_BW] & 0x07; }
+/* Codes 8..15 behave as code & 7 (spec 4.9): the eight codes of table 5.3. */
+uint8_t regmap_bw_code(void) { return FIELD(bmg_regs[BMG_REG_BW], BMG_BW_BW) & 7; }
 
-uint8_t regmap_range_code(void) { return bmg_regs[REG_RANGE] & 0x07; }
+uint8_t regmap_range_code(void) { return FIELD(bmg_regs[BMG_REG_RANGE], BMG_RANGE_RANGE); }
 
 static int16_t sign_extend12(uint16_t v) { return (int16_t)(v << 4) >> 4; }
 
 void regmap_offsets(int16_t offsets[3])
 {
-	uint8_t ofc1 = bmg_regs[REG_OFC1], gp0 = bmg_regs[REG_TRIM_GP0];
-	offsets[0] = sign_extend12((uint16_t)(bmg_regs[0x37] << 4 | (ofc1 >> 6) << 2 | (gp0 >> 2 & 3)));
-	offsets[1] = sign_extend12((uint16_t)(bmg_regs[0x38] << 4 | (ofc1 >> 3 & 7) << 1 | (gp0 >> 1 & 1)));
-	offsets[2] = sign_extend12((uint16_t)(bmg_regs[0x39] << 4 | (ofc1 & 7) << 1 | (gp0 & 1)));
+	/* offset = OFCn << 4 | OFC1 field << 1 or 2 | TRIM_GP0 bits (spec 4.24) */
+	uint8_t ofc1 = bmg_regs[BMG_REG_OFC1], gp0 = bmg_regs[BMG_REG_TRIM_GP0];
+	offsets[0] = sign_extend12((uint16_t)(bmg_regs[BMG_REG_OFC2] << 4
+		| FIELD(ofc1, BMG_OFC1_OFFSET_X_3_2) << 2 | FIELD(gp0, BMG_TRIM_GP0_OFFSET_X_1_0)));
+	offsets[1] = sign_extend12((uint16_t)(bmg_regs[BMG_REG_OFC3] << 4
+		| FIELD(ofc1, BMG_OFC1_OFFSET_Y_3_1) << 1 | FIELD(gp0, BMG_TRIM_GP0_OFFSET_Y_0)));
+	offsets[2] = sign_extend12((uint16_t)(bmg_regs[BMG_REG_OFC4] << 4
+		| FIELD(ofc1, BMG_OFC1_OFFSET_Z_3_1) << 1 | FIELD(gp0, BMG_TRIM_GP0_OFFSET_Z_0)));
 }
 
 enum bmg_power_mode regmap_power_mode(void)
 {
 	/* Priority rule of spec 6.7. */
-	uint8_t lpm1 = bmg_regs[REG_LPM1], lpm2 = bmg_regs[REG_LPM2];
-	if (lpm1 & 0x20)
+	uint8_t lpm1 = bmg_regs[BMG_REG_LPM1], lpm2 = bmg_regs[BMG_REG_LPM2];
+	if (lpm1 & BMG_LPM1_DEEP_SUSPEND_MASK)
 		return BMG_MODE_DEEP_SUSPEND;
-	if (lpm1 & 0x80)
-		return (lpm2 & 0x80) ? BMG_MODE_FAST_POWER_UP : BMG_MODE_SUSPEND;
-	if (lpm2 & 0x40)
+	if (lpm1 & BMG_LPM1_SUSPEND_MASK)
+		return (lpm2 & BMG_LPM2_FAST_POWER_UP_MASK) ? BMG_MODE_FAST_POWER_UP : BMG_MODE_SUSPEND;
+	if (lpm2 & BMG_LPM2_POWER_SAVE_MODE_MASK)
 		return BMG_MODE_POWER_SAVE;
 	return BMG_MODE_NORMAL;
 }
@@ -98,25 +86,27 @@ void regmap_publish(const int16_t counts[3])
 		rate_now[2 * i] = (uint8_t)counts[i];
 		rate_now[2 * i + 1] = (uint8_t)((uint16_t)counts[i] >> 8);
 	}
-	memcpy(&bmg_regs[REG_RATE_X_LSB], rate_now, 6);
-	fifo_push(counts, bmg_regs[REG_FIFO_CONFIG_1] >> 6);
+	memcpy(&bmg_regs[BMG_REG_RATE_X_LSB], rate_now, 6);
+	fifo_push(counts, FIELD(bmg_regs[BMG_REG_FIFO_CONFIG_1], BMG_FIFO_CONFIG_1_FIFO_MODE));
 	sampler_mark_published();
 }
 
 static uint8_t int_status_1(void)
 {
 	uint8_t status = 0;
-	uint8_t en = bmg_regs[REG_INT_EN_0];
-	if ((en & 0x80) && sampler_data_pulse())
-		status |= 0x80; /* data_int, a short non-latched pulse (spec 6.3) */
-	if (en & 0x40) {
+	uint8_t en = bmg_regs[BMG_REG_INT_EN_0];
+	if ((en & BMG_INT_EN_0_DATA_EN_MASK) && sampler_data_pulse())
+		status |= BMG_INT_STATUS_1_DATA_INT_MASK; /* a short non-latched pulse (spec 6.3) */
+	if (en & BMG_INT_EN_0_FIFO_EN_MASK) {
 		uint8_t frames = fifo_frame_count();
-		uint8_t level = (bmg_regs[REG_FIFO_WM_EN] & 0x80)
-			? (bmg_regs[REG_FIFO_CONFIG_0] & 0x7F) : FIFO_CAPACITY;
+		uint8_t level = (bmg_regs[BMG_REG_FIFO_WM_EN] & BMG_FIFO_WM_EN_FIFO_WM_EN_MASK)
+			? FIELD(bmg_regs[BMG_REG_FIFO_CONFIG_0],
+				BMG_FIFO_CONFIG_0_FIFO_WATER_MARK_LEVEL_TRIGGER_RETAIN)
+			: FIFO_CAPACITY;
 		if (!level)
 			level = 1; /* a watermark of 0 fires from one frame */
 		if (frames >= level)
-			status |= 0x10; /* fifo_int at watermark, or full (spec 6.5) */
+			status |= BMG_INT_STATUS_1_FIFO_INT_MASK; /* at watermark, or full (6.5) */
 	}
 	return status;
 }
@@ -125,10 +115,10 @@ uint8_t regmap_read(uint8_t reg)
 {
 	if (reg >= BMG_REG_COUNT)
 		return 0x00; /* outside the user map (spec 2.4) */
-	if (reg >= REG_RATE_X_LSB && reg <= REG_RATE_Z_MSB) {
-		uint8_t axis = (uint8_t)((reg - REG_RATE_X_LSB) >> 1);
+	if (reg >= BMG_REG_RATE_X_LSB && reg <= BMG_REG_RATE_Z_MSB) {
+		uint8_t axis = (uint8_t)((reg - BMG_REG_RATE_X_LSB) >> 1);
 		uint8_t bit = (uint8_t)(1 << axis);
-		uint8_t shadowing = !(bmg_regs[REG_RATE_HBW] & 0x40);
+		uint8_t shadowing = !(bmg_regs[BMG_REG_RATE_HBW] & BMG_RATE_HBW_SHADOW_DIS_MASK);
 		if (!(reg & 1)) { /* LSB: latch the matching MSB */
 			if (shadowing) {
 				msb_shadow[axis] = rate_now[2 * axis + 1];
@@ -144,18 +134,19 @@ uint8_t regmap_read(uint8_t reg)
 		return rate_now[2 * axis + 1];
 	}
 	switch (reg) {
-	case REG_INT_STATUS_1:
+	case BMG_REG_INT_STATUS_1:
 		return int_status_1();
-	case REG_FIFO_STATUS:
-		return (uint8_t)((fifo_overrun() << 7) | fifo_frame_count());
-	case REG_BIST: {
-		uint8_t value = sampler_valid() ? 0x10 : 0x00; /* rate_ok */
+	case BMG_REG_FIFO_STATUS:
+		return (uint8_t)((fifo_overrun() << BMG_FIFO_STATUS_FIFO_OVERRUN_SHIFT)
+			| fifo_frame_count());
+	case BMG_REG_BIST: {
+		uint8_t value = sampler_valid() ? BMG_BIST_RATE_OK_MASK : 0x00;
 		if (bist_triggered && (uint16_t)(millis() - bist_start_ms) >= BIST_TIME_MS)
-			value |= 0x02; /* bist_rdy, never bist_fail */
+			value |= BMG_BIST_BIST_RDY_MASK; /* never bist_fail */
 		return value;
 	}
-	case BMG_FIFO_DATA:
-		return fifo_read_byte(bmg_regs[REG_FIFO_CONFIG_0], bmg_regs[REG_FIFO_CONFIG_1]);
+	case BMG_REG_FIFO_DATA:
+		return fifo_read_byte(bmg_regs[BMG_REG_FIFO_CONFIG_0], bmg_regs[BMG_REG_FIFO_CONFIG_1]);
 	default:
 		return bmg_regs[reg];
 	}
@@ -165,10 +156,10 @@ static uint8_t write_allowed(uint8_t reg, enum bmg_power_mode mode)
 {
 	switch (mode) {
 	case BMG_MODE_DEEP_SUSPEND:
-		return reg == REG_LPM1 || reg == REG_BGW_SOFTRESET;
+		return reg == BMG_REG_LPM1 || reg == BMG_REG_BGW_SOFTRESET;
 	case BMG_MODE_SUSPEND:
 	case BMG_MODE_FAST_POWER_UP:
-		return reg == REG_LPM1 || reg == REG_LPM2 || reg == REG_BGW_SOFTRESET;
+		return reg == BMG_REG_LPM1 || reg == BMG_REG_LPM2 || reg == BMG_REG_BGW_SOFTRESET;
 	default:
 		return 1;
 	}
@@ -181,7 +172,7 @@ void regmap_write(uint8_t reg, uint8_t value)
 
 	if (reg >= BMG_REG_COUNT || !write_allowed(reg, mode))
 		return;
-	if (reg == REG_BGW_SOFTRESET) {
+	if (reg == BMG_REG_BGW_SOFTRESET) {
 		if (value == SOFTRESET_KEY)
 			regmap_reset();
 		return;
@@ -190,40 +181,41 @@ void regmap_write(uint8_t reg, uint8_t value)
 	old = bmg_regs[reg];
 	bmg_regs[reg] = (uint8_t)((bmg_regs[reg] & ~mask) | (value & mask));
 	switch (reg) {
-	case REG_BW:
-		if ((old ^ bmg_regs[REG_BW]) & 0x07) {
+	case BMG_REG_BW:
+		if (FIELD(old ^ bmg_regs[BMG_REG_BW], BMG_BW_BW) & 7) { /* the code as it behaves */
 			sampler_discard_backlog();
 			sampler_set_bw(regmap_bw_code());
 		}
 		break;
-	case REG_LPM1:
-	case REG_LPM2:
+	case BMG_REG_LPM1:
+	case BMG_REG_LPM2:
 		apply_power_mode(mode, reg, value);
 		break;
-	case REG_INT_RST_LATCH:
-		if (value & 0x40) { /* offset_reset: offsets to 0 (spec 4.19, 6.9) */
-			bmg_regs[REG_OFC1] = 0;
-			bmg_regs[REG_OFC1 + 1] = 0;
-			bmg_regs[REG_OFC1 + 2] = 0;
-			bmg_regs[REG_OFC1 + 3] = 0;
-			bmg_regs[REG_TRIM_GP0] &= 0xF0;
+	case BMG_REG_INT_RST_LATCH:
+		if (value & BMG_INT_RST_LATCH_OFFSET_RESET_MASK) { /* offsets to 0 (4.19, 6.9) */
+			bmg_regs[BMG_REG_OFC1] = 0;
+			bmg_regs[BMG_REG_OFC2] = 0;
+			bmg_regs[BMG_REG_OFC3] = 0;
+			bmg_regs[BMG_REG_OFC4] = 0;
+			bmg_regs[BMG_REG_TRIM_GP0] &= (uint8_t)~(BMG_TRIM_GP0_OFFSET_X_1_0_MASK
+				| BMG_TRIM_GP0_OFFSET_Y_0_MASK | BMG_TRIM_GP0_OFFSET_Z_0_MASK);
 		}
 		break;
-	case REG_TRIM_NVM_CTRL:
-		if (value & 0x08) /* nvm_load: the factory image, all zeros (spec 6.10) */
-			memset(&bmg_regs[REG_OFC1], 0, 6);
+	case BMG_REG_TRIM_NVM_CTRL:
+		if (value & BMG_TRIM_NVM_CTRL_NVM_LOAD_MASK) /* the factory image, zeros (6.10) */
+			memset(&bmg_regs[BMG_REG_OFC1], 0, BMG_REG_TRIM_GP1 - BMG_REG_OFC1 + 1);
 		break;
-	case REG_BIST:
-		if (value & 0x01) {
+	case BMG_REG_BIST:
+		if (value & BMG_BIST_TRIG_BIST_MASK) {
 			bist_start_ms = millis();
 			bist_triggered = 1;
 		}
 		break;
-	case REG_FIFO_CONFIG_0:
+	case BMG_REG_FIFO_CONFIG_0:
 		sampler_discard_backlog();
 		fifo_clear();
 		break;
-	case REG_FIFO_CONFIG_1:
+	case BMG_REG_FIFO_CONFIG_1:
 		sampler_discard_backlog();
 		fifo_clear();
 		fifo_clear_overrun();
@@ -241,8 +233,8 @@ static void apply_power_mode(enum bmg_power_mode old_mode, uint8_t reg, uint8_t 
 	if (old_mode == BMG_MODE_DEEP_SUSPEND) {
 		/* Leaving deep suspend is a reset, then the LPM1 write is kept (spec 6.7). */
 		regmap_reset();
-		if (reg == REG_LPM1)
-			bmg_regs[REG_LPM1] = value & pgm_read_byte(&bmg_write_masks[REG_LPM1]);
+		if (reg == BMG_REG_LPM1)
+			bmg_regs[BMG_REG_LPM1] = value & pgm_read_byte(&bmg_write_masks[BMG_REG_LPM1]);
 		if (!mode_samples(regmap_power_mode()))
 			sampler_stop();
 		return;

@@ -7,6 +7,7 @@
 #include <avr/io.h>
 #include <util/twi.h>
 
+#include "bmg160_registers.h"
 #include "config.h"
 #include "fifo.h"
 #include "regmap.h"
@@ -22,7 +23,7 @@ volatile uint32_t twi_transactions; /* completed transactions, for benchmarks */
 static inline void advance(void)
 {
 	/* stays on FIFO_DATA (spec 2.4); saturates at 0xFF past the map */
-	if (pointer != BMG_FIFO_DATA && pointer != 0xFF)
+	if (pointer != BMG_REG_FIFO_DATA && pointer != 0xFF)
 		pointer++;
 }
 

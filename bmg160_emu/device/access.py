@@ -1,0 +1,131 @@
+"""One bus transaction against the register file (spec 2.4, 6.2): a burst with
+auto-increment, the pointer staying on FIFO_DATA, 0x00 past the map, the MSB shadowing of
+the rate registers, the write rules of the power modes; each register's own behaviour comes
+from ``regmap``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from bmg160_emu.device import regmap
+from bmg160_emu.device import spec_choices as choice
+from bmg160_emu.device.engines import DEEP_SUSPEND, FAST_POWER_UP, SUSPEND
+from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, WRITE_MASKS, address_of, field_of
+
+if TYPE_CHECKING:
+    from bmg160_emu.device.chip import BMG160
+
+POINTER_MAX = 0xFF  # the 8-bit register pointer saturates here (spec 2.4)
+RATE_X_LSB, RATE_END = address_of("RATE_X_LSB"), address_of("RATE_Z_MSB") + 1
+_FIFO_DATA = address_of("FIFO_DATA")
+_RATE_HBW = address_of("RATE_HBW")
+_SHADOW_DIS = field_of("RATE_HBW", "shadow_dis").mask
+
+
+def read_burst(chip: BMG160, reg: int, n: int, now: int) -> tuple[bytes, int]:
+    """Bytes of one read transaction and the pointer after it (2.4)."""
+    out = bytearray(n)
+    addr = reg
+    for pos in range(n):
+        if addr >= FIRST_OUTSIDE_MAP:
+            addr = min(addr + n - pos, POINTER_MAX)
+            break
+        if addr == _FIFO_DATA:
+            out[pos:] = read_fifo(chip, n - pos, now)
+            break
+        out[pos] = read_reg(chip, addr, now)
+        addr += 1
+    return bytes(out), addr
+
+
+def read_fifo(chip: BMG160, n: int, now: int) -> bytes:
+    """n bytes of FIFO_DATA in one transaction (6.5): frames, then the empty pattern."""
+    regmap.sync_bypass(chip)
+    axis, tag = regmap.frame_format(chip)
+    data = chip._fifo.read(n, axis.stop - axis.start, bool(tag))
+    chip._fifo.end_transaction()
+    if chip._fifo_int_on:
+        regmap.update_fifo_int(chip, now)
+    return data
+
+
+def read_reg(chip: BMG160, addr: int, now: int) -> int:
+    """One register read with its side effects (MSB latch, data-ready cleared)."""
+    if RATE_X_LSB <= addr < RATE_END:
+        axis, msb = divmod(addr - RATE_X_LSB, 2)
+        chip._data_ready_pending = False
+        shadowing = not chip._regs[_RATE_HBW] & _SHADOW_DIS
+        if not msb:
+            if shadowing:  # the LSB read latches the MSB (6.2)
+                chip._msb_latch[axis] = chip._cur[addr - RATE_X_LSB + 1]
+                chip._latched = True
+            return chip._cur[addr - RATE_X_LSB]
+        latched = chip._msb_latch[axis]
+        if latched is not None:
+            chip._msb_latch[axis] = None
+            if shadowing:
+                return latched
+        return chip._cur[addr - RATE_X_LSB]
+    return peek_reg(chip, addr, now)
+
+
+def peek_reg(chip: BMG160, addr: int, now: int) -> int:
+    """One register's content without side effects."""
+    if addr >= FIRST_OUTSIDE_MAP:
+        return 0
+    if RATE_X_LSB <= addr < RATE_END:
+        axis, msb = divmod(addr - RATE_X_LSB, 2)
+        if msb and not chip._regs[_RATE_HBW] & _SHADOW_DIS:
+            latched = chip._msb_latch[axis]
+            if latched is not None:
+                return latched
+        return chip._cur[addr - RATE_X_LSB]
+    hook = regmap.PEEK_AT[addr]
+    return chip._regs[addr] if hook is None else hook(chip, now)
+
+
+def write_burst(chip: BMG160, reg: int, data: bytes, now: int) -> int:
+    """One write transaction; returns the pointer after it (auto-increment, 2.4)."""
+    if len(data) > 1:
+        chip._strict(f"multi-byte write of {len(data)} bytes at 0x{reg:02X} (spec 2.1)")
+    addr = reg
+    for value in data:
+        if addr < FIRST_OUTSIDE_MAP:
+            write_reg(chip, addr, value, now)
+        if addr != _FIFO_DATA:
+            addr = min(addr + 1, POINTER_MAX)
+    return addr
+
+
+def write_reg(chip: BMG160, addr: int, value: int, now: int) -> None:
+    """A bus write: access rule of the power mode (6.7), store, action, effect."""
+    mode = chip.power_mode
+    if mode == DEEP_SUSPEND and addr not in choice.WRITABLE_IN_DEEP_SUSPEND or \
+            mode in (SUSPEND, FAST_POWER_UP) and addr not in choice.WRITABLE_IN_SUSPEND:
+        chip._strict(f"write of 0x{value:02X} to 0x{addr:02X} ignored in {mode} (6.7)")
+        return
+    mask = WRITE_MASKS[addr]
+    old = chip._regs[addr]
+    chip._regs[addr] = (old & ~mask) | (value & mask)
+    action = regmap.ACTION_AT[addr]
+    if action is not None:
+        action(chip, value, now)  # may reset the chip (a new register file)
+    effect = regmap.EFFECT_AT[addr]
+    if effect is not None:
+        effect(chip, old, chip._regs[addr], now)
+
+
+def poke_reg(chip: BMG160, reg: int, value: int, now: int) -> None:
+    """An upset: the content changes without access rules or write actions; what follows
+    from the new content (``regmap.EFFECTS``) follows as after a write."""
+    if RATE_X_LSB <= reg < RATE_END:
+        cur = bytearray(chip._cur)
+        cur[reg - RATE_X_LSB] = value
+        chip._cur = bytes(cur)
+        return
+    old = chip._regs[reg]
+    chip._regs[reg] = value
+    effect = regmap.EFFECT_AT[reg]
+    if effect is not None:
+        effect(chip, old, value, now)

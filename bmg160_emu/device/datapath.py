@@ -1,0 +1,282 @@
+"""The chip's data path, computed ahead in blocks (spec 6.1):
+
+    true body rate -> mounting, scale factor, misalignment -> low-pass for BW
+    -> + noise (output-referred) -> + offset (6.9) -> x sensitivity(RANGE)
+    -> round, saturate to int16 -> the bytes of the RATE registers.
+
+A block is thrown away from the current sample on when the configuration changes
+(``invalidate``); the filter state and the noise realisation carry over, so the samples do
+not depend on how far ahead a block was computed.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from bmg160_emu.device import spec_choices as choice
+from bmg160_emu.device.lowpass import LowPass
+
+NOISE_CHUNK = 256  # least noise drawn at once (the generator buffers small requests)
+SPAN = 1024  # samples computed ahead, in pieces of 1, 2, 4, ... as they are used
+MAX_SPAN = 65536  # when catching up a long gap
+
+
+class Block:
+    """The data path for samples k0 .. k0 + n - 1."""
+
+    __slots__ = ("body", "counts_f", "counts_u", "dps_f", "dps_u", "end", "k0", "n",
+                 "rate_bytes", "x", "y", "zi0")
+    k0: int
+    n: int
+    end: int
+    body: np.ndarray  # true body rate, deg/s
+    x: np.ndarray  # sensor-frame rate before the filter
+    y: np.ndarray  # filtered
+    zi0: np.ndarray  # filter state before the first sample
+    dps_f: np.ndarray  # filtered + noise + offset, deg/s
+    dps_u: np.ndarray  # unfiltered + noise + offset, deg/s
+    counts_f: np.ndarray
+    counts_u: np.ndarray
+    rate_bytes: bytes  # the selected counts, 6 bytes per sample
+
+    def frames(self, lo: int, hi: int, axis: slice, tag: bytes) -> list[bytes]:
+        """FIFO frames of samples lo .. hi - 1: the selected axes, then the tag bytes."""
+        rb, start, stop = self.rate_bytes, axis.start, axis.stop
+        return [rb[i + start:i + stop] + tag for i in range(6 * (lo - self.k0), 6 * (hi - self.k0), 6)]
+
+
+def next_piece(block: Block | None, k: int, want: int, span: tuple[int, int],
+               hint: int) -> tuple[bool, int, tuple[int, int]]:
+    """(starts a span, samples to compute, the span's (start, end)) for the piece from
+    sample k, at least ``want`` samples, after ``block`` (the last piece, None after a
+    change); ``hint``: how many samples of the last span were used before that change.
+
+    A span (SPAN samples, or the gap being caught up) is computed in pieces: after a change,
+    first as many samples as the last span used, then doubling. So a closed loop changing the
+    true rate after each sample recomputes one sample, not a span, while a chip left alone
+    computes whole spans. The filter runs on across the pieces of a span (re-referenced only
+    where a span starts). In a closed loop the one-sample pieces are bit for bit the first
+    samples of the blocks they replace; after a change, the pieces' rates agree with one
+    block's to rounding (~1e-15 of the rate: the low-pass's sub-block products round by where
+    a block starts, lowpass.py), so the counts agree but where a rate lies that close to a
+    rounding boundary (as lowpass.py says of its own blocks)."""
+    natural = block is not None and k == block.end == span[1]
+    if block is None or k != block.end or k >= span[1]:
+        size = SPAN if want <= SPAN else min(want, MAX_SPAN)
+        return True, size if natural else min(max(want, hint), size), (k, k + size)
+    return False, min(max(2 * block.n, want), span[1] - k), span
+
+
+def to_counts(dps: np.ndarray, sensitivity: float) -> np.ndarray:
+    """deg/s to RATE counts: x LSB/(deg/s), round half to even, saturate to int16 (6.1).
+    (minimum/maximum: the values of np.clip for finite input, at a fraction of its cost
+    on the one-sample blocks of a closed loop.)"""
+    return np.minimum(np.maximum(np.rint(dps * sensitivity), -32768.0), 32767.0).astype(np.int16)
+
+
+def to_bytes(counts: np.ndarray) -> bytes:
+    """The RATE register bytes of int16 counts: LSB first (4.2)."""
+    return counts.tobytes() if _NATIVE_LITTLE else counts.astype("<i2").tobytes()
+
+
+_NATIVE_LITTLE = np.little_endian
+
+
+def run_sample_hooks(chip: Any, t_s: float, rate_dps: np.ndarray) -> np.ndarray | None:
+    """The chip's sample hooks in order on one sample's rate (deg/s, before scaling); None
+    when one drops it (a lost sample)."""
+    rate = np.array(rate_dps, dtype=np.float64)
+    for hook in list(chip.sample_hooks):
+        result = hook(chip, t_s, rate)
+        if result is None:
+            return None
+        rate = np.asarray(result, dtype=np.float64)
+        if rate.size != 3:
+            raise ValueError(f"sample hook {hook!r} must return 3 numbers in deg/s or "
+                             f"None, got {rate.size} at t = {t_s:g} s")
+        rate = rate.reshape(3)
+    return rate
+
+
+def sensitivity_table(sensitivity: str | Sequence[float]) -> tuple[float, ...]:
+    """LSB/(deg/s) of RANGE codes 0..4: a table name of spec_choices or 5 figures (5.1)."""
+    if isinstance(sensitivity, str):
+        try:
+            return choice.SENSITIVITY_TABLES[sensitivity]
+        except KeyError:
+            raise ValueError(f"sensitivity must be one of {sorted(choice.SENSITIVITY_TABLES)}"
+                             f" or 5 numbers, not {sensitivity!r}") from None
+    table = tuple(float(s) for s in sensitivity)
+    if len(table) != 5 or not all(math.isfinite(s) and s > 0 for s in table):
+        raise ValueError("sensitivity table needs 5 positive LSB/(deg/s) figures")
+    return table
+
+
+def _as_matrix(value: Any, name: str) -> np.ndarray:
+    m = np.asarray(value, dtype=float)
+    if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+        raise ValueError(f"{name} must be a finite 3x3 matrix")
+    return m
+
+
+def body_to_sensor(mounting: Any, scale_factor: Any, misalignment: Any) -> np.ndarray | None:
+    """The matrix from body rate to sensor-frame rate, None for the identity."""
+    if mounting is None and scale_factor is None and misalignment is None:
+        return None
+    m = np.eye(3)
+    if mounting is not None:
+        r = _as_matrix(mounting, "mounting")
+        if not np.allclose(r @ r.T, np.eye(3), atol=1e-9):
+            raise ValueError("mounting must be a rotation matrix (orthonormal)")
+        m = r
+    if scale_factor is not None:
+        sf = np.asarray(scale_factor, dtype=float)
+        if sf.shape != (3,) or not np.all(np.isfinite(sf)):
+            raise ValueError("scale_factor must be 3 finite fractional errors")
+        m = np.diag(1.0 + sf) @ m
+    if misalignment is not None:
+        mis = _as_matrix(misalignment, "misalignment")
+        m = (np.eye(3) + mis - np.diag(np.diag(mis))) @ m
+    return m
+
+
+def noise_generator(profile: Any, mode: str, seed: int | None, address: int) -> Any:
+    """The chip's noise engine; ``seed`` with the I2C address, so two chips sharing a master
+    seed have independent noise."""
+    from bmg160_emu.noise import NoiseGenerator
+
+    if seed is not None:
+        seed = int(np.random.SeedSequence([int(seed), address]).generate_state(1, np.uint64)[0])
+    return NoiseGenerator(profile=profile, rate_hz=2000.0, seed=seed, mode=mode)
+
+
+class NoiseBuffer:
+    """Noise drawn ahead by sample index, with generator checkpoints to go back to.
+
+    ``marks`` holds (sample index, checkpoint) before each draw: on an ODR change the
+    generator goes back to the first unused sample, so the noise does not depend on how far
+    ahead the data path had computed (i.e. on the driver's polling pattern)."""
+
+    def __init__(self, generator: Any) -> None:
+        self.generator = generator
+        self.buf = np.zeros((0, 3))
+        self.k0 = 0
+        self.marks: list[tuple[int, Any]] = []
+
+    def take(self, k0: int, n: int) -> np.ndarray:
+        """Noise of samples k0 .. k0 + n - 1 (samples before k0 are forgotten)."""
+        if self.generator is None:
+            return np.zeros((n, 3))
+        start = k0 - self.k0
+        if start < 0 or start > len(self.buf):
+            self.buf, self.k0, start = np.zeros((0, 3)), k0, 0
+            self.marks = []
+        elif start > 0:
+            self.buf, self.k0, start = self.buf[start:], k0, 0
+            marks = self.marks
+            first = 0
+            while first + 1 < len(marks) and marks[first + 1][0] <= k0:
+                first += 1
+            del marks[:first]
+        missing = n - len(self.buf)
+        if missing > 0:
+            self.marks.append((self.k0 + len(self.buf), self.generator.checkpoint()))
+            fresh = np.asarray(self.generator.generate(max(missing, NOISE_CHUNK)), dtype=float)
+            self.buf = np.concatenate([self.buf, fresh.reshape(-1, 3)])
+        return self.buf[:n]
+
+    def set_rate(self, odr_hz: float, used_end: int) -> None:
+        """New ODR from sample ``used_end`` on: noise drawn for later samples is redrawn."""
+        keep = max(used_end - self.k0, 0)
+        if self.generator is not None:
+            if self.k0 + len(self.buf) > used_end:
+                self._rewind(used_end)
+            self.marks = []
+            self.generator.set_rate(float(odr_hz))
+        self.buf = self.buf[:keep]
+
+    def _rewind(self, used_end: int) -> None:
+        marks = [m for m in self.marks if m[0] <= used_end]
+        if not marks:
+            return  # no checkpoint before it: continue from where the generator stands
+        index, checkpoint = marks[-1]
+        self.generator.restore(checkpoint)
+        if used_end > index:
+            self.generator.generate(used_end - index)
+
+
+class DataPath:
+    """Transform, filter and noise of one chip; builds blocks, carries state across them."""
+
+    def __init__(self, transform: np.ndarray | None, noise_generator: Any) -> None:
+        self.transform = transform
+        self.noise = NoiseBuffer(noise_generator)
+        self.odr_hz: int | None = None  # no filter before the first set_filter
+        self.filter: LowPass | None = None
+        self.restart_filter = True  # the next block starts the filter at rest at its input
+        self.last_y: np.ndarray | None = None  # filter output of the last sample produced
+
+    def set_filter(self, odr_hz: int, bandwidth_hz: float, used_end: int) -> None:
+        """Filter for a BW code; a new ODR redraws the noise from sample ``used_end`` on."""
+        old = self.odr_hz
+        self.odr_hz = odr_hz
+        self.filter = LowPass(odr_hz, bandwidth_hz)
+        if old != odr_hz:
+            self.noise.set_rate(odr_hz, used_end)
+
+    def change_bandwidth(self, odr_hz: int, bandwidth_hz: float, used_end: int) -> None:
+        """A new BW code while running: the new filter continues from the last output."""
+        self.set_filter(odr_hz, bandwidth_hz, used_end)
+        if self.last_y is not None and not self.restart_filter:
+            assert self.filter is not None
+            self.filter.restart(self.last_y)
+        else:
+            self.restart_filter = True
+
+    def invalidate(self, block: Block | None, k: int) -> None:
+        """Forget ``block`` after sample ``k``: the filter state is the one after ``k``."""
+        if block is None:
+            return
+        assert self.filter is not None
+        j = k - block.k0
+        if j >= block.n - 1:  # all used: the state after the block is the one after k
+            self.last_y = block.y[block.n - 1].copy()
+        elif j >= 0:
+            _, self.filter.state = self.filter.run(block.x[: j + 1], block.zi0)
+            self.last_y = block.y[j].copy()
+        else:
+            self.filter.state = block.zi0
+
+    def build(self, k0: int, body: np.ndarray, offset_dps: np.ndarray, sensitivity: float,
+              high_bw: bool, constant_rate: bool, *, first: bool = True) -> Block:
+        """The block of samples k0 .. k0 + len(body) - 1 for true body rates ``body``;
+        ``first=False`` continues the previous block's span (no re-referencing)."""
+        n = len(body)
+        x = body if self.transform is None else body @ self.transform.T
+        filt = self.filter
+        assert filt is not None
+        if self.restart_filter:
+            filt.restart(x[0])
+            self.restart_filter = False
+        elif constant_rate and first:
+            filt.rebase_if_settled(x[0])
+        b = Block()
+        b.k0, b.n, b.end = k0, n, k0 + n
+        b.body, b.x, b.zi0 = body, x, filt.state
+        b.y, filt.state = filt.run(x)
+        noise = self.noise.take(k0, n)
+        if offset_dps.any():
+            noise = noise + offset_dps
+        if self.noise.generator is None and not offset_dps.any():
+            b.dps_f, b.dps_u = b.y, x
+        else:
+            b.dps_f, b.dps_u = b.y + noise, x + noise
+        b.counts_f = to_counts(b.dps_f, sensitivity)
+        b.counts_u = to_counts(b.dps_u, sensitivity)
+        sel = b.counts_u if high_bw else b.counts_f
+        b.rate_bytes = to_bytes(sel)
+        return b

@@ -1,0 +1,109 @@
+"""The true body rate a chip measures, in deg/s: a constant, a function of time, or samples.
+
+A source answers "the true rate at output samples k0 .. k0 + n - 1" for the data path
+(``datapath.py``); the sample times come from the chip's schedule, asked for only by the
+sources that need them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from bmg160_emu.clock import NS_PER_S
+
+Times = Callable[[int, int], np.ndarray]  # (k0, n) -> sample times in ns
+
+
+class ConstantRate:
+    """One rate for every sample; the filter may re-reference at it (``LowPass``)."""
+
+    constant = True
+    failed = False
+
+    def __init__(self, rate_dps: np.ndarray) -> None:
+        self.rate_dps = rate_dps
+
+    def block(self, k0: int, n: int, times_ns: Times) -> np.ndarray:
+        if n == 1:  # a closed loop's one-sample piece: a view, cheaper than broadcasting
+            return self.rate_dps[None, :]
+        return np.broadcast_to(self.rate_dps, (n, 3))
+
+
+class FunctionRate:
+    """``func(t_s) -> 3 numbers``, called once per output sample in order."""
+
+    constant = False
+
+    def __init__(self, func: Callable[[float], Any]) -> None:
+        self.func = func
+        # True while the function has not served a whole block: set_true_rate may then
+        # replace it although catching up with it raised
+        self.failed = False
+
+    def block(self, k0: int, n: int, times_ns: Times) -> np.ndarray:
+        out = np.empty((n, 3))
+        self.failed = True
+        for i, t in enumerate(times_ns(k0, n) / NS_PER_S):
+            value = self.func(float(t))
+            try:
+                row = np.asarray(value, dtype=float)
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f"the true-rate function must return 3 numbers in deg/s: "
+                                 f"at t = {float(t):g} s {exc}") from None
+            if row.size != 3:
+                raise ValueError(f"the true-rate function must return 3 numbers in deg/s, "
+                                 f"got {row.size} at t = {float(t):g} s")
+            out[i] = row.reshape(3)
+        if not np.all(np.isfinite(out)):
+            raise ValueError("the true-rate function returned a non-finite value")
+        self.failed = False
+        return out
+
+
+class SampledRate:
+    """(n, 3) rows: one per output sample from sample ``first_k`` on, or at ``rate_hz``
+    from ``first_ns`` on (held between rows); the last row then holds."""
+
+    constant = False
+    failed = False
+
+    def __init__(self, samples: np.ndarray, first_k: int, first_ns: int,
+                 rate_hz: float | None) -> None:
+        self.samples, self.first_k, self.first_ns, self.rate_hz = samples, first_k, first_ns, rate_hz
+
+    def block(self, k0: int, n: int, times_ns: Times) -> np.ndarray:
+        if self.rate_hz is None:
+            rows = np.arange(k0, k0 + n) - self.first_k
+        else:
+            rows = np.floor((times_ns(k0, n) - self.first_ns) / NS_PER_S
+                            * self.rate_hz).astype(np.int64)
+        return self.samples[np.clip(rows, 0, len(self.samples) - 1)]
+
+
+TrueRate = ConstantRate | FunctionRate | SampledRate
+
+
+def true_rate_source(rate: Any, sample_rate_hz: float | None, *, first_k: int,
+                     first_ns: int) -> TrueRate:
+    """The source for ``BMG160.set_true_rate``'s argument; samples start at ``first_k``."""
+    if callable(rate):
+        return FunctionRate(rate)
+    try:
+        arr = np.asarray(rate, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError("true rate must be 3 numbers in deg/s, a callable of t or (n, 3) "
+                         f"samples, not {rate!r}") from None
+    if arr.shape == (3,):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError("true rate must be finite")
+        return ConstantRate(arr.copy())
+    if arr.ndim == 2 and arr.shape[1] == 3 and arr.shape[0] >= 1:
+        if not np.all(np.isfinite(arr)):
+            raise ValueError("true rate samples must be finite")
+        if sample_rate_hz is not None and not sample_rate_hz > 0:
+            raise ValueError("sample_rate_hz must be positive")
+        return SampledRate(arr.copy(), first_k, first_ns, sample_rate_hz)
+    raise ValueError("true rate must be 3 numbers, a callable of t or (n, 3) samples")
