@@ -7,10 +7,8 @@ the parts live beside it: ``access`` (one bus transaction), ``regmap`` (what eac
 does, by name), ``datapath`` and ``true_rate`` (true rate to counts, in blocks), ``engines``,
 ``interrupts`` and ``fifo``. Section numbers refer to the register specification.
 
-Speed: the data path is computed ahead in blocks; the per-sample engines (FIFO storage,
-any-motion, high-rate, fast offset) run only when enabled. Time is integer nanoseconds:
-sample k of a run is at ``anchor + k * period``.
-"""
+Speed: the data path is computed ahead in blocks; the per-sample engines run only when
+enabled. Time is integer nanoseconds: sample k of a run is at ``anchor + k * period``."""
 
 from __future__ import annotations
 
@@ -22,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.clock import NS_PER_S, RealTimeClock, VirtualClock, seconds_to_ns
-from bmg160_emu.device import access, contract, datapath, engines, regmap
+from bmg160_emu.device import access, contract, datapath, engines, environment, regmap
 from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import spec_choices as choice
 from bmg160_emu.device.engines import NEVER, power_mode
@@ -41,7 +39,7 @@ _RATE_HBW, _BGW_SOFTRESET = address_of("RATE_HBW"), address_of("BGW_SOFTRESET")
 _DATA_HIGH_BW = field_of("RATE_HBW", "data_high_bw").mask
 
 
-class BMG160:
+class BMG160(environment.EnvironmentInputs):
     """A BMG160 gyroscope at register level.
 
     ``seed`` with ``address`` (0x68/0x69) seeds the noise, so two chips sharing a master
@@ -51,7 +49,7 @@ class BMG160:
     LSB/(deg/s) figures for RANGE codes 0..4. ``hold_data_int=True`` holds data_int until
     the rate registers are read (an emulator convenience, not chip behaviour). ``strict``
     logs questionable driver behaviour to ``strict_log`` and the ``bmg160_emu.device.chip`` logger.
-    """
+    ``errors``, ``unit``, ``acceleration_g``: the unit's error budget (device.environment)."""
 
     # state kept by reset and regmap.update_engine_flags
     _msb_latch: list[int | None]
@@ -81,6 +79,9 @@ class BMG160:
         misalignment: Any = None,
         nvm_image: bytes | None = None,
         nvm_remain: int = choice.NVM_DEFAULT_REMAIN,
+        errors: Any = None,
+        unit: int | None = None,
+        acceleration_g: Any = (0.0, 0.0, 0.0),
     ) -> None:
         contract.check_chip_options(address, noise_mode, seed)
         self.address = address
@@ -98,9 +99,10 @@ class BMG160:
         transform = datapath.body_to_sensor(mounting, scale_factor, misalignment)
         self.seed = seed
         generator = datapath.noise_generator(profile, noise_mode, seed, address) if noise else None
-        self._path = datapath.DataPath(transform, generator)
         engines.Thermometer.check(temperature_c)
         self._thermometer = engines.Thermometer(temperature_c)
+        self._budget = environment.ErrorBudget.of(self, errors, unit, acceleration_g, generator or profile)
+        self._path = datapath.DataPath(transform, generator, self._budget)
         image = choice.NVM_DEFAULT_IMAGE if nvm_image is None else nvm_image
         self._nvm = engines.Nvm(image, nvm_remain)
         self._bist = engines.SelfTest()
@@ -269,12 +271,7 @@ class BMG160:
 
     def advance(self, seconds: float) -> None:
         """Advance the clock; the chip produces exactly one sample per output period."""
-        try:
-            ns = round(seconds * 1e9)
-        except (TypeError, ValueError, OverflowError):
-            ns = seconds_to_ns(seconds)  # raises the clear error
-        if ns < 0:
-            ns = seconds_to_ns(seconds)
+        ns = contract.duration_ns(seconds)
         with self.lock:
             now = self.clock.advance_ns(ns)
             if now >= self._next_ns:
@@ -330,6 +327,7 @@ class BMG160:
         self._irq = Interrupts()
         self._bist.start_ns = None
         self._foc: engines.FastOffset | None = None
+        self._budget.power_cycle()
         self._set_filter()
         self._path.restart_filter = True
         regmap.update_engine_flags(self)

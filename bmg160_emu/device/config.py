@@ -42,6 +42,9 @@ class ChipConfig:
     misalignment: Any = None
     nvm_image: bytes | None = None
     nvm_remain: int = choice.NVM_DEFAULT_REMAIN
+    errors: Any = None  # a SensorErrors or its table (traces carry the table)
+    unit: int | None = None  # unit k of the lot given by the seed (device.unit_population)
+    acceleration_g: Any = (0.0, 0.0, 0.0)  # g in the chip's frame, or a function of time
     true_rate_dps: tuple[float, ...] | None = None  # x, y, z deg/s, set after construction
     setup_writes: list[tuple[int, bytes]] = field(default_factory=list)  # written at start
 
@@ -112,6 +115,8 @@ class ChipConfig:
 
 
 def _json_value(value: Any) -> Any:
+    if hasattr(value, "to_dict"):  # SensorErrors
+        return value.to_dict()
     if isinstance(value, (bytes, bytearray)):
         return list(value)
     if hasattr(value, "tolist"):

@@ -9,6 +9,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from bmg160_emu.clock import seconds_to_ns
 from bmg160_emu.device.spec_choices import VALID_ADDRESSES
 
 
@@ -93,3 +94,13 @@ def check_chip_options(address: Any, noise_mode: Any, seed: Any) -> None:
 def check_clock(clock: Any) -> None:
     if not hasattr(clock, "now_ns"):
         raise TypeError("clock must be a VirtualClock or RealTimeClock")
+
+
+def duration_ns(seconds: float) -> int:
+    """``advance``'s argument in integer ns: the fast path for a plain number; anything else
+    (a string, NaN, a negative time) gets clock.seconds_to_ns's clear error."""
+    try:
+        ns = round(seconds * 1e9)
+    except (TypeError, ValueError, OverflowError):
+        ns = -1
+    return ns if ns >= 0 else seconds_to_ns(seconds)

@@ -212,8 +212,10 @@ class NoiseBuffer:
 class DataPath:
     """Transform, filter and noise of one chip; builds blocks, carries state across them."""
 
-    def __init__(self, transform: np.ndarray | None, noise_generator: Any) -> None:
+    def __init__(self, transform: np.ndarray | None, noise_generator: Any,
+                 budget: Any = None) -> None:
         self.transform = transform
+        self.budget = budget  # environment.ErrorBudget: the unit's errors, before the filter
         self.noise = NoiseBuffer(noise_generator)
         self.odr_hz: int | None = None  # no filter before the first set_filter
         self.filter: LowPass | None = None
@@ -257,6 +259,10 @@ class DataPath:
         ``first=False`` continues the previous block's span (no re-referencing)."""
         n = len(body)
         x = body if self.transform is None else body @ self.transform.T
+        budget = self.budget
+        if budget is not None and budget.active:
+            x = budget.apply(x, k0, sensitivity)
+            constant_rate = constant_rate and not budget.time_varying
         filt = self.filter
         assert filt is not None
         if self.restart_filter:
