@@ -113,3 +113,49 @@ def test_a_trace_header_carries_the_errors_so_replay_builds_the_same_unit():
     b.advance(0.05)
     assert a.read(0x02, 6) == b.read(0x02, 6)
     assert a.sensor_errors == b.sensor_errors
+
+
+SCENARIO = """
+duration_s = 10.0
+[thermal]
+kind = "orbit"
+sunlit_c = 60.0
+eclipse_c = -20.0
+[[gyro]]
+unit = "per-run"
+lot = 77
+[[gyro]]
+address = 0x69
+unit = 3
+lot = 77
+"""
+
+
+def test_a_rig_flies_units_of_a_lot_in_its_thermal_environment(tmp_path):
+    from bmg160_emu.adcs.rig import GyroRig
+    from bmg160_emu.adcs.scenarios import load_scenario
+
+    path = tmp_path / "s.toml"
+    path.write_text(SCENARIO)
+    scenario = load_scenario(path)
+    a, b, again = GyroRig(scenario, seed=1), GyroRig(scenario, seed=2), GyroRig(scenario, seed=1)
+    # "per-run": each Monte Carlo run (rig seed) flies another unit of the lot, reproducibly
+    assert a.gyros[0].chip.sensor_errors == draw_unit(77, 1)
+    assert b.gyros[0].chip.sensor_errors == draw_unit(77, 2)
+    assert again.gyros[0].chip.sensor_errors == a.gyros[0].chip.sensor_errors
+    # a fixed unit is the same in every run
+    assert a.gyros[1].chip.sensor_errors == b.gyros[1].chip.sensor_errors == draw_unit(77, 3)
+    a.advance(1.0)
+    raw = a.gyros[0].chip.peek(0x08)
+    reported = choice.TEMP_ZERO_C + (raw - 256 if raw > 127 else raw) * choice.TEMP_LSB_K
+    assert reported == pytest.approx(scenario.thermal(a.gyros[0].chip.time), abs=0.26)
+
+
+def test_a_gyro_table_refuses_errors_and_a_unit_together(tmp_path):
+    from bmg160_emu.adcs.rig import GyroRig
+    from bmg160_emu.adcs.scenarios import ScenarioError, load_scenario
+
+    path = tmp_path / "s.toml"
+    path.write_text('duration_s = 1.0\n[[gyro]]\nunit = 1\nerrors = {zero_rate_offset_dps = 1}\n')
+    with pytest.raises(ScenarioError, match="give errors or unit, not both"):
+        GyroRig(load_scenario(path), seed=1)

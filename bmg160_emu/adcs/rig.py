@@ -77,6 +77,10 @@ class GyroSpec:
     noise: bool = True
     noise_mode: str = "physical"
     temperature_c: float = 23.0
+    errors: Any = None  # the unit's error table (bmg160_emu.device.sensor_errors.SensorErrors)
+    unit: Any = None  # k: unit k of lot ``lot``; "per-run": a new unit of the lot every run
+    lot: int = 0  # the production lot's seed (device.unit_population.draw_unit)
+    acceleration_g: Any = (0.0, 0.0, 0.0)  # g in the sensor frame (g-sensitivity)
 
     def __post_init__(self) -> None:
         if not _is_whole(self.address) or self.address not in VALID_ADDRESSES:
@@ -101,6 +105,24 @@ class GyroSpec:
         self.misalignment_rad = _finite_array(
             self.misalignment_rad, (3, 3), f"{self.name}: misalignment_rad must be a 3x3 matrix "
             "of finite angles in radians")
+        if self.unit is not None and self.unit != "per-run" and not (
+                _is_whole(self.unit) and self.unit >= 0):
+            raise ScenarioError(f"{self.name}: unit must be a unit number >= 0 or \"per-run\", "
+                                f"not {self.unit!r}")
+        if not _is_whole(self.lot) or self.lot < 0:
+            raise ScenarioError(f"{self.name}: lot must be a whole number >= 0, not {self.lot!r}")
+        if self.errors is not None and self.unit is not None:
+            raise ScenarioError(f"{self.name}: give errors or unit, not both")
+        if self.errors is not None:
+            from bmg160_emu.device.sensor_errors import SensorErrors
+
+            try:
+                self.errors = SensorErrors.from_dict(self.errors, where=f"{self.name}: errors") \
+                    if not isinstance(self.errors, SensorErrors) else self.errors
+            except ValueError as exc:
+                raise ScenarioError(str(exc)) from None
+        self.acceleration_g = _finite_array(
+            self.acceleration_g, (3,), f"{self.name}: acceleration_g must be 3 finite numbers (g)")
 
 
 def _is_whole(value: Any) -> bool:
@@ -204,10 +226,12 @@ class GyroRig:
         for index, (spec, child) in enumerate(zip(self.specs, children)):
             chip_seed = int(child.generate_state(1, dtype=np.uint64)[0])
             try:
-                chip = make_chip(spec, chip_seed, self.clock)
+                chip = make_chip(spec, chip_seed, self.clock, self.seed)
             except ValueError as exc:  # the profile, as the noise engine judges it
                 raise ScenarioError(f"{spec.name}: {exc}") from None
             chip.set_true_rate(scenario.rate_dps)
+            if scenario.thermal is not None:  # the mission's thermal profile drives every gyro
+                chip.set_temperature(scenario.thermal)
             bus = self.buses.get(spec.bus)
             if bus is None:
                 bus = self.buses[spec.bus] = I2CBus(spec.bus)
@@ -298,9 +322,16 @@ class GyroRig:
         return integrate_attitude(self.scenario.rate_dps, np.array([t]), self.q0, t0=0.0)[0]
 
 
-def chip_config(spec: GyroSpec) -> ChipConfig:
+def chip_config(spec: GyroSpec, rig_seed: int = 0) -> ChipConfig:
     """The chip options of one gyro spec (error terms only when they are not zero)."""
+    errors = spec.errors
+    if spec.unit is not None:
+        from bmg160_emu.device.unit_population import draw_unit
+
+        errors = draw_unit(spec.lot, rig_seed if spec.unit == "per-run" else spec.unit)
     return ChipConfig(
+        errors=errors,
+        acceleration_g=tuple(spec.acceleration_g),
         address=spec.address,
         profile=spec.profile,
         noise=spec.noise,
@@ -312,6 +343,6 @@ def chip_config(spec: GyroSpec) -> ChipConfig:
     )
 
 
-def make_chip(spec: GyroSpec, seed: int, clock: Any) -> Any:
+def make_chip(spec: GyroSpec, seed: int, clock: Any, rig_seed: int = 0) -> Any:
     """The chip model for one gyro spec, built through its :class:`ChipConfig`."""
-    return chip_config(spec).build(seed, clock)
+    return chip_config(spec, rig_seed).build(seed, clock)

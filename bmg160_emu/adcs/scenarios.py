@@ -288,6 +288,7 @@ class Scenario:
     faults: list[dict[str, Any]] = field(default_factory=list)
     readout: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
+    thermal: Any = None  # die temperature of every gyro: deg C or t -> deg C (adcs.thermal)
 
     def rate_dps(self, t: float | np.ndarray) -> np.ndarray:
         """True body rate in deg/s: shape (3,) for a scalar time, (n, 3) for n times."""
@@ -522,7 +523,8 @@ def motion_from_dict(
     )
 
 
-_TOP_KEYS = {"name", "description", "duration_s", "motion", "gyro", "fault", "readout"}
+_TOP_KEYS = {"name", "description", "duration_s", "motion", "gyro", "fault", "readout",
+             "thermal"}
 
 
 def scenario_from_dict(data: dict[str, Any], base: Path | None = None) -> Scenario:
@@ -544,6 +546,14 @@ def scenario_from_dict(data: dict[str, Any], base: Path | None = None) -> Scenar
         motion_from_dict(entry, duration, where=f"motion {i + 1}", base=base)
         for i, entry in enumerate(entries)
     ]
+    thermal = None
+    if "thermal" in data:
+        from bmg160_emu.adcs.thermal import ThermalError, thermal_from_dict
+
+        try:
+            thermal = thermal_from_dict(data["thermal"])
+        except ThermalError as exc:
+            raise ScenarioError(str(exc)) from None
     return Scenario(
         duration_s=duration,
         motions=motions,
@@ -551,6 +561,7 @@ def scenario_from_dict(data: dict[str, Any], base: Path | None = None) -> Scenar
         gyros=list(data.get("gyro", [])),
         faults=list(data.get("fault", [])),
         readout=dict(data.get("readout", {})),
+        thermal=thermal,
     )
 
 

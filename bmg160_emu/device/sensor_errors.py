@@ -143,7 +143,7 @@ class SensorErrors:
         temperature_c: np.ndarray | float,
         full_scale_dps: float,
         acceleration_g: np.ndarray | None = None,
-        turn_on_bias_dps: Sequence[float] = _ZERO3,
+        turn_on_bias_dps: Sequence[float] | np.ndarray = _ZERO3,
     ) -> np.ndarray:
         """The sensor-frame rates ``rate_dps`` (n, 3) as this unit senses them."""
         w = np.asarray(rate_dps, dtype=float).reshape(-1, 3)
