@@ -145,3 +145,35 @@ def test_a_record_at_one_temperature_is_refused():
     rate = np.zeros((200_000, 3))
     with pytest.raises(ThermalFitError, match="spans only 0.00 K"):
         fit_bias_temperature(rate, np.full(200_000, 25.0), RATE_HZ)
+
+
+def test_the_thermal_command_fits_a_chamber_log_and_exports(tmp_path, capsys):
+    import tomllib
+
+    from bmg160_emu.cli import main
+    from bmg160_emu.device.sensor_errors import SensorErrors
+
+    rate, temps = _thermal_record(seed=5, hours=3.0)
+    t = np.arange(len(temps)) / RATE_HZ
+    log = tmp_path / "chamber.csv"
+    np.savetxt(log, np.column_stack([t, rate, temps]), delimiter=",", fmt="%.9g",
+               header="t_s,x_dps,y_dps,z_dps,temp_c", comments="")
+    params, errors = tmp_path / "tc.params", tmp_path / "unit.toml"
+    assert main(["thermal", str(log), "--reference", "20", "--noise-profile", "paper",
+                 "--px4-params", str(params), "--errors-out", str(errors)]) == 0
+    out = capsys.readouterr().out
+    assert "x  c1 = " in out and "reduced chi-square" in out
+    assert "\tTC_G0_X1_0\t" in params.read_text()
+    table = tomllib.loads(errors.read_text())["errors"]
+    unit = SensorErrors.from_dict(table)
+    # the fitted c1 of x, within 4 of its standard errors (3 h record) of the truth
+    assert abs(unit.bias_tc_dps_per_k[0][0] - TRUE_TC[0, 1]) < 0.003
+
+
+def test_the_thermal_command_names_what_a_log_lacks(tmp_path, capsys):
+    from bmg160_emu.cli import main
+
+    log = tmp_path / "no-temp.csv"
+    log.write_text("t_s,x_dps,y_dps,z_dps\n0,1,2,3\n0.01,1,2,3\n")
+    assert main(["thermal", str(log)]) == 2
+    assert "no temperature column" in capsys.readouterr().err

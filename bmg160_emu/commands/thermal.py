@@ -1,0 +1,180 @@
+"""``bmg160-emu thermal``: each axis's bias as a polynomial of temperature, from a thermal log."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from bmg160_emu.commands._common import add_command_parser
+
+EPILOG = """\
+examples:
+  bmg160-emu thermal chamber.csv --px4-params tc_gyro.params
+  bmg160-emu thermal orbit-log.csv --temperature-column temp_c --order 2 --errors-out unit.toml
+  bmg160-emu thermal log.csv --noise-profile my-gyro.toml --reference 25 --json
+
+Input: a CSV of a unit at rest through a temperature change (a thermal chamber ramp, an
+orbit's cycles): a time column (t, t_s, time, time_s), the rate of each axis in deg/s
+(x_dps, y_dps, z_dps or x, y, z) and the die temperature in deg C (temp_c, temperature_c,
+temp or --temperature-column). The fit is generalised least squares on block means with the
+covariance the gyro's noise model implies (--noise-profile, or identified from the residuals),
+so its intervals hold at their level (docs/error-budget.md). Outputs: the coefficients with
+95 % intervals, PX4's TC_G* parameters (rad/s, a QGroundControl .params file) and the
+[errors] table of a noise profile (zero_rate_offset_dps, bias_tc_dps_per_k).
+"""
+
+TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp", "temperature", "t_die_c")
+AXIS_COLUMNS = (("x_dps", "y_dps", "z_dps"), ("x", "y", "z"), ("gx", "gy", "gz"))
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = add_command_parser(
+        subparsers,
+        "thermal",
+        "fit each axis's bias as a polynomial of temperature (PX4 TC_G*, profile errors)",
+        "Fit the bias of each axis as a polynomial of the die temperature from a record of a "
+        "unit at rest through a temperature change, with intervals that allow for the gyro's "
+        "correlated noise.",
+        EPILOG,
+    )
+    parser.add_argument("file", type=Path, help="CSV with time, x, y, z (deg/s) and temperature")
+    parser.add_argument("--temperature-column", default=None, metavar="NAME",
+                        help=f"the temperature column (default: one of {', '.join(TEMPERATURE_COLUMNS)})")
+    parser.add_argument("--order", type=int, default=3, choices=(0, 1, 2, 3),
+                        help="polynomial order (default 3, as PX4)")
+    parser.add_argument("--reference", type=float, default=None, metavar="DEGC",
+                        help="reference temperature of the polynomial (default: mid-range)")
+    parser.add_argument("--block", default="60s", metavar="DURATION",
+                        help="block length the fit averages over (default 60s)")
+    parser.add_argument("--noise-profile", default=None, metavar="PROFILE",
+                        help="the unit's noise profile (default: identified from the residuals)")
+    parser.add_argument("--px4-params", type=Path, default=None, metavar="FILE",
+                        help="write PX4's TC_G0_* parameters as a QGroundControl .params file")
+    parser.add_argument("--px4-instance", type=int, default=0, metavar="N",
+                        help="the gyro instance N of TC_G<N>_* (default 0)")
+    parser.add_argument("--errors-out", type=Path, default=None, metavar="FILE.toml",
+                        help="write the [errors] table of a noise profile")
+    parser.add_argument("--json", action="store_true", help="print the fit as JSON")
+    parser.set_defaults(func=run)
+
+
+def _choose(temperature_column: str | None):
+    def choose(header: list[str] | None, width: int, where: str) -> tuple[int, list[int]]:
+        from bmg160_emu.commands._common import CommandError
+
+        if header is None:
+            raise CommandError(f"{where}: a thermal log needs a header row naming its columns")
+        names = [h.lower() for h in header]
+        time = next((names.index(n) for n in ("t_s", "t", "time_s", "time") if n in names), None)
+        if time is None:
+            raise CommandError(f"{where}: no time column (t, t_s, time, time_s)")
+        axes = next((cols for cols in AXIS_COLUMNS if all(c in names for c in cols)), None)
+        if axes is None:
+            raise CommandError(f"{where}: no rate columns (x_dps, y_dps, z_dps or x, y, z)")
+        wanted = [temperature_column.lower()] if temperature_column else list(TEMPERATURE_COLUMNS)
+        temp = next((names.index(n) for n in wanted if n in names), None)
+        if temp is None:
+            raise CommandError(f"{where}: no temperature column ({', '.join(wanted)}; "
+                               "--temperature-column names another)")
+        return time, [names.index(c) for c in axes] + [temp]
+
+    return choose
+
+
+def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.durations import parse_duration
+    from bmg160_emu.io.atomic import OutputError, atomic_open, check_writable
+    from bmg160_emu.io.rates import RateFileError, read_csv_table
+    from bmg160_emu.noise.thermal_fit import ThermalFitError, fit_bias_temperature
+
+    for out in (args.px4_params, args.errors_out):
+        if out is not None:
+            try:
+                check_writable(out)
+            except OutputError as exc:
+                raise CommandError(str(exc)) from None
+    try:
+        block_s = parse_duration(args.block)
+        table = read_csv_table(args.file, _choose(args.temperature_column))
+    except (ValueError, RateFileError) as exc:
+        raise CommandError(str(exc)) from None
+    t = table.t_s
+    assert t is not None
+    if len(t) < 3 or not np.all(np.isfinite(table.values)) or not np.all(np.isfinite(t)):
+        raise CommandError(f"{args.file}: needs finite times, rates and temperatures")
+    step = float(np.median(np.diff(t)))
+    if not step > 0:
+        raise CommandError(f"{args.file}: the time column must increase")
+    rate_hz = 1.0 / step
+    noise = None
+    if args.noise_profile is not None:
+        from bmg160_emu.noise import load_profile
+
+        try:
+            noise = load_profile(args.noise_profile).axes
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
+    try:
+        fit = fit_bias_temperature(table.values[:, :3], table.values[:, 3], rate_hz,
+                                   order=args.order, reference_c=args.reference,
+                                   block_s=block_s, noise=noise)
+    except ThermalFitError as exc:
+        raise CommandError(f"{args.file}: {exc}") from None
+    try:
+        if args.px4_params is not None:
+            with atomic_open(args.px4_params, encoding="utf-8") as f:
+                f.write(fit.px4_params_file(instance=args.px4_instance))
+        if args.errors_out is not None:
+            with atomic_open(args.errors_out, encoding="utf-8") as f:
+                f.write(_errors_toml(fit.to_errors(), args.file))
+    except OSError as exc:
+        raise CommandError(f"cannot write: {exc.strerror or exc}") from None
+    print(json.dumps(_as_dict(fit), indent=1) if args.json else _summary(fit, args.file))
+    return 0
+
+
+def _as_dict(fit: Any) -> dict[str, Any]:
+    return {
+        "reference_c": fit.reference_c, "order": fit.order, "block_s": fit.block_s,
+        "temperature_range_c": list(fit.temperature_range_c),
+        "axes": {name: {"coefficients": a.coefficients.tolist(),
+                        "intervals_95": a.intervals.tolist(),
+                        "reduced_chi2": a.reduced_chi2,
+                        "noise": {"N": a.noise.N, "poles": [list(p) for p in a.noise.poles],
+                                  "K": a.noise.K}}
+                 for name, a in zip(fit.axis_names, fit.axes)},
+        "px4": fit.px4_parameters(),
+    }
+
+
+def _summary(fit: Any, source: Path) -> str:
+    lines = [(f"{source}: bias = c0 + c1 dT + c2 dT^2 + c3 dT^3, dT = T - {fit.reference_c:.2f} C, "
+             f"over {fit.temperature_range_c[0]:.1f}..{fit.temperature_range_c[1]:.1f} C "
+             f"(blocks of {fit.block_s:g} s; 95 % intervals)")]
+    units = ("deg/s", "deg/s/K", "deg/s/K^2", "deg/s/K^3")
+    for name, a in zip(fit.axis_names, fit.axes):
+        for k in range(fit.order + 1):
+            lo, hi = a.intervals[k]
+            lines.append(f"  {name}  c{k} = {a.coefficients[k]: .6g} {units[k]}  "
+                         f"[{lo:.6g}, {hi:.6g}]")
+        lines.append(f"  {name}  reduced chi-square {a.reduced_chi2:.2f}")
+    return "\n".join(lines)
+
+
+def _errors_toml(errors: dict[str, Any], source: Path) -> str:
+    def number(v: float) -> str:
+        return repr(float(v)) if math.isfinite(v) else "0.0"
+
+    rows = ", ".join("[" + ", ".join(number(v) for v in row) + "]"
+                     for row in errors["bias_tc_dps_per_k"])
+    return (f"# bmg160-emu thermal fit of {source}\n[errors]\n"
+            f"reference_temperature_c = {number(errors['reference_temperature_c'])}\n"
+            f"zero_rate_offset_dps = [{', '.join(number(v) for v in errors['zero_rate_offset_dps'])}]\n"
+            f"bias_tc_dps_per_k = [{rows}]\n"
+            f"source = {json.dumps(errors['source'])}\n")
