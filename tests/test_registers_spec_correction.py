@@ -1,5 +1,6 @@
-"""A spec correction is one edit of the register table: the model, the decoder, the dump
-formats, the docs table and the firmware's generated register header all follow.
+"""A spec correction is one edit of the register table: the model, the decoder, the SPI
+framing, the dump formats, the docs table and the firmware's generated register header all
+follow.
 
 The corrected table is a copy, installed in a fresh interpreter before anything else is
 imported (the model evaluates addresses and masks once, at import), so this process's table
@@ -44,6 +45,15 @@ PROBE = textwrap.dedent('''
         chip.advance(0.02)
         return chip.read(0x03, 1)[0] == lsb_time_msb, chip.peek(0x13)
 
+    def spi_reads():
+        # the SPI framing over the corrected chip: a burst from RANGE and a write of RATE_HBW
+        from bmg160_emu.bus.spi import FakeSpiDev
+
+        spi = FakeSpiDev(BMG160(noise=False))
+        burst = spi.xfer2([0x80 | 0x0F, 0, 0])[1:]
+        spi.xfer2([0x13, 0x60])
+        return burst + spi.xfer2([0x80 | 0x13, 0])[1:]
+
     chip = BMG160(seed=1)
     snapshot = dump_io.RegisterDump.from_chip(chip)
     header = render_registers_header()
@@ -60,6 +70,7 @@ PROBE = textwrap.dedent('''
         "header": header,
         "firmware_reset": firmware_registers()[0x0F].reset,
         "firmware_mask": firmware_registers()[0x13].write_mask,
+        "spi": spi_reads(),
     }
     print(json.dumps(out))
 ''')
@@ -92,6 +103,12 @@ def test_the_model_takes_shadow_dis_from_the_corrected_bit(spec, corrected):
     assert spec["latched_0x40"] == [False, 0x40] and spec["latched_0x20"] == [True, 0x00]
     assert corrected["latched_0x20"] == [False, 0x20]
     assert corrected["latched_0x40"] == [True, 0x00]  # bit 6 is now reserved
+
+
+def test_the_spi_framing_follows(spec, corrected):
+    # RANGE, BW read in one SPI burst, then RATE_HBW after writing 0x60 (bits 6 and 5)
+    assert spec["spi"] == [0x00, 0x80, 0x40]
+    assert corrected["spi"] == [0x03, 0x80, 0x20]  # only the corrected bit 5 is stored
 
 
 def test_the_decoder_and_the_dump_formats_follow(spec, corrected):
