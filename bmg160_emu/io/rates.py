@@ -433,7 +433,7 @@ def load_rate_record(
         )
     bad = first_non_finite(data)
     if bad is not None:
-        raise RateFileError(f"{table.where(bad)}: not a finite rate: "
+        raise RateFileError(f"{table.where(bad)}: NaN or infinite rate: "
                             f"{[float(v) for v in np.ravel(data[bad])]}")
     names = table.header or ("x", "y", "z")[: data.shape[1]]
     rate = _resolve_rate(table, rate_hz, data.shape[0])

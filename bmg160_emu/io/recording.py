@@ -137,7 +137,7 @@ def read_recording(path: str | Path) -> Recording:
     )
 
 
-def _lsb_per_dps(meta: dict, path: Path, place: int | None) -> float:
+def _lsb_per_dps(meta: dict, path: Path, place: int | str | None) -> float:
     value = meta.pop("lsb_per_dps", None)
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
             or not (0 < value < 1e6 and math.isfinite(value)):
