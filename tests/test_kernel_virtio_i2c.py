@@ -151,8 +151,9 @@ def test_i2cdump_shows_the_reset_map(session):
 def test_guest_program_drains_the_fifo_and_reads_leave_a_latched_status(session):
     checks = json.loads(text(session, "i2c_checks.json"))
     assert checks["count_full"] == 100
-    # 60 frames popped; at 100 Hz at most one new frame can arrive in the ~1 ms between
-    assert checks["count_after_60"] in (40, 41), checks
+    # 60 frames popped; new ones arrive at 100 Hz in the two transfers between the reads
+    # (under TCG on a loaded host up to ~50 ms: 5 frames)
+    assert 40 <= checks["count_after_60"] <= 45, checks
     assert checks["distinct_frames"] >= 55  # real samples, not one repeated frame
     fifo_int = 0x10  # INT_STATUS_1 bit 4
     assert checks["status_full"] & fifo_int and checks["line_full"] == 1
@@ -168,13 +169,20 @@ def test_guest_program_drains_the_fifo_and_reads_leave_a_latched_status(session)
 def test_the_trace_shows_the_guest_drivers_reads(session):
     from bmg160_emu.io.trace import read_trace
 
-    trace = read_trace(session["work"] / "trace.jsonl")
-    kinds = [(t.address, t.kind, t.register) for t in trace.transactions]
-    # the kernel driver's rate burst (write 0x02, read 6) and its probe (soft reset)
-    assert (0x68, "i2c_write", 0x02) in kinds
-    assert any(t.kind == "i2c_write" and t.register == 0x14 and t.written == b"\xb6"
-               for t in trace.transactions)
-    assert any(t.kind == "i2c_read" and len(t.read) == 6 for t in trace.transactions)
+    _, records = read_trace(session["work"] / "trace.jsonl")
+    # the driver's probe soft-resets each chip (0x14 = 0xB6), then reads the rates as
+    # 6-byte bursts from 0x02 (register write + read in one transfer: an I2C block read)
+    probes = {r["address"]: r["time"] for r in records
+              if r["kind"] == "i2c_write" and r["register"] == 0x14 and r["written"] == [0xB6]}
+    assert set(probes) >= {0x68, 0x69}
+    for address, capture in ((0x68, "capture_100.bin"), (0x69, "capture_200.bin")):
+        bursts = [r for r in records if r["address"] == address and r["time"] > probes[address]
+                  and r["kind"] == "read_i2c_block_data" and r["register"] == 0x02
+                  and len(r["read"]) == 6]
+        frames = _frames(session, capture)
+        # every frame in the guest's buffer came from one of these reads
+        assert frames and len(bursts) >= len(frames), (address, len(bursts), len(frames))
+        assert {f[:3] for f in frames} <= {struct.unpack("<3h", bytes(r["read"])) for r in bursts}
 
 
 def _frames(session, name: str) -> list[tuple[int, int, int, int]]:
@@ -232,8 +240,8 @@ def test_triggered_buffer_with_the_drivers_data_ready_trigger(session, odr_hz, n
 def test_any_motion_event_reaches_user_space(session):
     events = [line for line in text(session, "events.txt").splitlines() if line.startswith("id=")]
     assert events, text(session, "events.txt")
-    # IIO_EV_TYPE_ROC = 2 on IIO_ANGL_VEL = 3 (linux/iio/types.h)
-    assert all("type=2" in e and "chan_type=3" in e for e in events), events
+    # IIO_EV_TYPE_ROC = 2 on IIO_ANGL_VEL = 4 (uapi/linux/iio/types.h)
+    assert all("type=2" in e and "chan_type=4" in e for e in events), events
     changes = stats(session)["true_rate_changes"]
     assert [c["true_rate_dps"] for c in changes][:2] == [[200.0, 0.0, 0.0], list(TRUE_RATE_DPS)]
 

@@ -168,10 +168,8 @@ class Server:
                     except BlockingIOError:
                         pass
                     self._kick(device, index)
-                    deadlines.clear()  # a transfer can change what the pollers wait for
                 elif kind == "message":
                     self._message(target)
-                    deadlines.clear()
                 elif kind == "listen":
                     self._accept(key.fileobj, target)  # type: ignore[arg-type]
                 else:

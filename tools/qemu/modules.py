@@ -8,7 +8,9 @@ packages are fetched with ``apt-get download`` and unpacked with ``dpkg -x`` int
 
 Built (into ``$CACHE/kmod-<kernel version>/``):
 
-- ``i2c-virtio`` (drivers/i2c/busses), unchanged;
+- ``i2c-virtio`` (drivers/i2c/busses) with ``kmod/i2c-virtio-wait.patch``: the 6.1 driver
+  waits for its requests interruptibly, and a signal then frees requests the device still
+  owns (the device writes into freed memory: slab corruption);
 - ``gpio-virtio`` (drivers/gpio) with ``kmod/gpio-virtio-force-irq.patch`` applied: QEMU
   7.2's vhost-user-gpio-pci never offers VIRTIO_GPIO_F_IRQ, and the stock driver then sets
   up no interrupts; the patch adds a ``force_irq`` parameter (docs/virtio-i2c.md);
@@ -33,7 +35,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 KMOD = HERE / "kmod"
-PATCH = KMOD / "gpio-virtio-force-irq.patch"
+PATCHES = (KMOD / "gpio-virtio-force-irq.patch", KMOD / "i2c-virtio-wait.patch")
 BOARD = KMOD / "bmg160-board.c"
 
 # source file in linux-source-6.1 -> module name
@@ -108,7 +110,7 @@ def _extract(root: Path, major: str, target: Path) -> None:
 
 def _fingerprint(kernel_version: str) -> str:
     digest = hashlib.sha256(kernel_version.encode())
-    for path in (PATCH, BOARD, Path(__file__)):
+    for path in (*PATCHES, BOARD, Path(__file__)):
         digest.update(path.read_bytes())
     return digest.hexdigest()[:12]
 
@@ -146,7 +148,10 @@ def build_modules(cache: Path | None = None) -> Path:
     with tempfile.TemporaryDirectory() as tmp:
         build = Path(tmp)
         _extract(root, major, build)
-        subprocess.run(["patch", "-s", "-p3", "-i", str(PATCH)], cwd=build, check=True)
+        for patch in PATCHES:  # a/drivers/<dir>/<file>: the sources sit flat in build/
+            strip = len(Path(patch.read_text().split("\n--- ", 1)[1].split()[0]).parts) - 1
+            subprocess.run(["patch", "-s", f"-p{strip}", "-i", str(patch)], cwd=build,
+                           check=True)
         shutil.copy2(BOARD, build / BOARD.name)
         (build / "Kbuild").write_text(
             "".join(f"obj-m += {name}.o\n" for name in MODULES))
