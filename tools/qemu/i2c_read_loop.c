@@ -1,12 +1,14 @@
 /* SPDX-License-Identifier: MIT
  * Register reads in a loop through /dev/i2c-N (I2C_RDWR: write the register, read LEN
- * bytes), timed one by one: how fast a guest program reaches the model (bmg160-emu,
+ * bytes; or with a 6th argument "smbus", the SMBus I2C block read that SMBus-only adapters
+ * such as i2c-stub take), timed one by one: how fast a guest program reaches the model (bmg160-emu,
  * tools/bench_virtio_i2c.py and tests/test_kernel_virtio_i2c.py). Prints one line:
  * reads=N seconds=S per_s=R p50_us=P p99_us=Q max_us=M
  */
 #include <fcntl.h>
 #include <linux/i2c-dev.h>
 #include <linux/i2c.h>
+#include <string.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <sys/ioctl.h>
@@ -34,11 +36,13 @@ int main(int argc, char **argv)
 	unsigned char reg, buf[64];
 	struct i2c_msg msgs[2];
 	struct i2c_rdwr_ioctl_data rdwr = { msgs, 2 };
-	int fd, i, n, len, addr;
+	union i2c_smbus_data block;
+	struct i2c_smbus_ioctl_data smbus = { I2C_SMBUS_READ, 0, I2C_SMBUS_I2C_BLOCK_DATA, &block };
+	int fd, i, n, len, addr, use_smbus;
 	double *lat, start, t0;
 
-	if (argc != 6) {
-		fprintf(stderr, "usage: %s BUS ADDR REG LEN COUNT\n", argv[0]);
+	if (argc != 6 && argc != 7) {
+		fprintf(stderr, "usage: %s BUS ADDR REG LEN COUNT [smbus]\n", argv[0]);
 		return 2;
 	}
 	snprintf(path, sizeof(path), "/dev/i2c-%s", argv[1]);
@@ -46,7 +50,8 @@ int main(int argc, char **argv)
 	reg = (unsigned char)strtol(argv[3], NULL, 0);
 	len = atoi(argv[4]);
 	n = atoi(argv[5]);
-	if (len < 1 || len > (int)sizeof(buf) || n < 1) {
+	use_smbus = argc == 7 && !strcmp(argv[6], "smbus");
+	if (len < 1 || len > (use_smbus ? 32 : (int)sizeof(buf)) || n < 1) {
 		fprintf(stderr, "bad LEN or COUNT\n");
 		return 2;
 	}
@@ -55,13 +60,24 @@ int main(int argc, char **argv)
 		perror(path);
 		return 1;
 	}
+	if (use_smbus && ioctl(fd, I2C_SLAVE_FORCE, addr) < 0) {
+		perror("I2C_SLAVE_FORCE");
+		return 1;
+	}
+	smbus.command = reg;
 	lat = malloc(sizeof(double) * n);
 	msgs[0] = (struct i2c_msg){ .addr = addr, .flags = 0, .len = 1, .buf = &reg };
 	msgs[1] = (struct i2c_msg){ .addr = addr, .flags = I2C_M_RD, .len = len, .buf = buf };
 	start = now_s();
 	for (i = 0; i < n; i++) {
 		t0 = now_s();
-		if (ioctl(fd, I2C_RDWR, &rdwr) != 2) {
+		if (use_smbus) {
+			block.block[0] = len;
+			if (ioctl(fd, I2C_SMBUS, &smbus) < 0) {
+				perror("I2C_SMBUS");
+				return 1;
+			}
+		} else if (ioctl(fd, I2C_RDWR, &rdwr) != 2) {
 			perror("I2C_RDWR");
 			return 1;
 		}
