@@ -1,6 +1,7 @@
 """Runs INSIDE the QEMU guest: print the IIO events of a device for some seconds.
 
-Usage: python guest_iio_events.py /dev/iio:deviceN SECONDS. One line per event:
+Usage: python guest_iio_events.py /dev/iio:deviceN SECONDS [READY_FILE]. READY_FILE is
+created once the event file descriptor is open (step the rate after it). One line per event:
 ``id=0x... timestamp_ns=... type=... dir=...`` (struct iio_event_data, linux/iio/events.h).
 """
 
@@ -23,6 +24,9 @@ def main() -> int:
     holder = array.array("i", [0])
     fcntl.ioctl(fd, IIO_GET_EVENT_FD_IOCTL, holder, True)
     events = holder[0]
+    if len(sys.argv) > 3:
+        with open(sys.argv[3], "w") as ready:
+            ready.write("ready\n")
     end = time.monotonic() + seconds
     while (left := end - time.monotonic()) > 0:
         ready, _, _ = select.select([events], [], [], left)

@@ -99,9 +99,10 @@ step "7. any-motion event through the driver's IIO events on 0x68 (true rate ste
 kw "" "$D68/trigger/current_trigger" 2>/dev/null
 kw 2 "$D68/events/in_anglvel_roc_either_value"
 kw 1 "$D68/events/in_anglvel_roc_either_en"
-"$PY" "$TOOLS/guest_iio_events.py" "/dev/${D68##*/}" 4 > "$OUT/events.txt" 2>&1 &
+"$PY" "$TOOLS/guest_iio_events.py" "/dev/${D68##*/}" 4 /run/events.ready > "$OUT/events.txt" 2>&1 &
 EV=$!
-sleep 1.5
+i=0; while [ ! -e /run/events.ready ] && [ $i -lt 600 ]; do sleep 0.1; i=$((i + 1)); done
+sleep 0.5
 echo "200 0 0" > "$OUT/true_rate.txt"   # the back end watches this file
 sleep 1
 echo "20 -10 5" > "$OUT/true_rate.txt"
