@@ -124,7 +124,8 @@ def run(args: argparse.Namespace) -> int:
     gpio = VirtioGPIODevice(chips) if args.gpio_socket is not None else None
     writer = None
     if args.trace is not None:
-        from bmg160_emu.io.trace import TraceWriter, header_from_chip_args
+        from bmg160_emu.commands.trace import header_from_chip_args
+        from bmg160_emu.io.trace import TraceWriter
 
         try:
             writer = TraceWriter(args.trace, header_from_chip_args(args))
