@@ -234,3 +234,23 @@ def test_server_serves_a_front_end_over_its_socket(tmp_path):
         fe.close()
         server.close()
     assert not path.exists()
+
+
+def test_an_edge_whose_sample_the_driver_already_read_is_dropped(gpio):
+    fe, device, chips = gpio
+    chip = chips[0x68]
+    chip.write(0x10, b"\x07")  # ODR 100 Hz
+    chip.write(0x18, b"\x01")
+    chip.write(0x15, b"\x80")
+    request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING)
+    head = queue_event(fe, device, 0)
+    chip.advance(0.010)
+    # the driver read the rates (the I2C device records when) before this look saw the
+    # sample: on the chip its pulse came while the handler ran, and IIO dropped it
+    chip.read(0x02, 6)
+    device.rate_reads[0x68] = chip.time
+    device.poll(0.0)
+    assert fe.used(1) == [] and device.stale_edges == 1
+    chip.advance(0.010)  # the next sample, not read yet: its edge fires
+    device.poll(0.0)
+    assert fe.used(1) == [(head, 1)]

@@ -71,8 +71,10 @@ def test_rate_burst_is_the_models_current_sample(rig):
     fe, device, chip, _ = rig
     chip.advance(0.05)
     expected = chip.dump()[0x02:0x08]
+    assert 0x68 not in device.rate_reads
     *_, status, data = register_read(fe, device, 0x68, 0x02, 6)
     assert status == 0 and data == expected
+    assert device.rate_reads[0x68] == chip.time  # when the driver last read the rates
     counts = struct.unpack("<3h", data)
     # 20 deg/s at the reset range 2000 deg/s is 327.7 counts; noise ~13 counts rms
     assert abs(counts[0] - 327.7) < 70

@@ -112,9 +112,12 @@ class VirtioGPIODevice(VhostUserDevice):
     device_features = 1 << VIRTIO_GPIO_F_IRQ
     name = "virtio-gpio"
 
-    def __init__(self, chips: dict[int, Any]) -> None:
+    def __init__(self, chips: dict[int, Any], rate_reads: dict[int, float] | None = None) -> None:
         super().__init__()
         self.lines: list[GpioLine] = []
+        # {address: chip time of the last rate read} (VirtioI2CDevice.rate_reads)
+        self.rate_reads: dict[int, float] = rate_reads if rate_reads is not None else {}
+        self.stale_edges = 0  # data-ready edges dropped: the driver had read their sample
         for address in sorted(chips):
             chip = chips[address]
             counter = _SampleCounter()  # hooked in while a line of the chip has a trigger
@@ -235,15 +238,27 @@ class VirtioGPIODevice(VhostUserDevice):
         data_bit = INT1_DATA if line.pin == 1 else INT2_DATA
         pulses = bool(new_samples and chip.peek(INT_EN_0) & DATA_EN
                       and chip.peek(INT_MAP_1) & data_bit)
+        read_t = self.rate_reads.get(chip.address)
+        last_t = line.counter.last_t_s
+        stale = bool(pulses and read_t is not None and last_t is not None and last_t <= read_t)
+        if stale:
+            # The model makes a sample when it is touched: a driver reading late (after the
+            # next sample was due) made it, and only then does this look see its pulse. On
+            # the chip that pulse came while the driver's handler still ran, and IIO drops
+            # a trigger that fires then; delivering it now would read the sample twice.
+            self.stale_edges += 1
         # the logical (active = asserted) transitions since the last poll, in order
         edges: list[bool] = []  # True = became active
-        if not line.last_active:
+        if stale:
+            pass
+        elif not line.last_active:
             if active:
                 edges = [True]
             elif pulses:
                 edges = [True, False]  # a whole data-ready pulse fell between two polls
         elif not active:
-            edges = [False]
+            # the pulse seen last time ended (and maybe a whole new one came and went)
+            edges = [False, True, False] if pulses and line.last_was_pulse else [False]
         elif pulses and line.last_was_pulse:
             edges = [False, True]  # the last pulse ended, a new one is under way
         line.last_active = active

@@ -72,6 +72,9 @@ class VirtioI2CDevice(VhostUserDevice):
         self.bus = bus
         self.stats = I2CStats()
         self.after_transfer: list[Callable[[], None]] = []  # e.g. the GPIO lines' update
+        # {address: chip time of the last read of the rate registers}: the GPIO device drops
+        # a data-ready edge whose sample the driver has already read (see virtio_gpio)
+        self.rate_reads: dict[int, float] = {}
         self._group: list[_Request] = []
 
     def reset(self) -> None:
@@ -134,6 +137,8 @@ class VirtioI2CDevice(VhostUserDevice):
             # read_i2c_block_data, as the same transfer from i2c-dev is)
             r.data = bus.read_i2c_block_data(w.address, w.data[0], r.length)
             ok = [True, True]
+            if w.data[0] <= 0x07 and w.data[0] + r.length > 0x02:  # RATE_X_LSB..RATE_Z_MSB
+                self.rate_reads[w.address] = bus.devices[w.address].time
         elif not bus.transaction_hooks and all(m.address in bus.devices for m in messages):
             try:  # the common case: every address answers and no fault is armed
                 bus.i2c_transfer(messages)

@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     chips = chips_from_args(args)
     bus = I2CBus(args.bus, chips)
     i2c = VirtioI2CDevice(bus)
-    gpio = VirtioGPIODevice(chips) if args.gpio_socket is not None else None
+    gpio = VirtioGPIODevice(chips, i2c.rate_reads) if args.gpio_socket is not None else None
     writer = None
     if args.trace is not None:
         from bmg160_emu.commands.trace import header_from_chip_args
@@ -169,6 +169,7 @@ def run(args: argparse.Namespace) -> int:
     if "stats" in outputs:
         report = {"elapsed_s": round(elapsed, 3), "i2c": i2c.stats.as_dict(),
                   "gpio": gpio.line_summary() if gpio is not None else [],
+                  "stale_data_ready_edges": gpio.stale_edges if gpio is not None else 0,
                   "true_rate_changes": rate_file.changes if rate_file else [],
                   "final": {f"0x{a:02x}": {"odr_hz": c.odr_hz, "power_mode": c.power_mode,
                                            "registers": c.dump().hex()}
