@@ -277,22 +277,28 @@ def test_adapter_stops_cleanly_on_sigterm(guest):
 
 def test_buffered_capture_with_the_hrtimer_trigger(guest):
     """The driver's triggered buffer, paced by the hrtimer software trigger at 100 Hz while
-    the adapter refreshes at the 100 Hz output data rate."""
+    the adapter refreshes at the 200 Hz output data rate left by step 3e."""
     out, _ = guest
     path = out / "hrtimer_capture.bin"
     if not path.exists():
         pytest.skip("the IIO software-trigger modules could not be built")
     data = path.read_bytes()
     frames = [struct.unpack_from("<hhhxxq", data, i) for i in range(0, len(data) - 15, 16)]
+    assert len(frames) > 10, f"{len(frames)} frames captured"
     stamps = [f[3] for f in frames]
     assert all(b > a for a, b in itertools.pairwise(stamps))
     span_s = (stamps[-1] - stamps[0]) * 1e-9
-    # the hrtimer fires at 100 Hz exactly; a loaded TCG guest may miss a few periods
-    assert len(frames) >= 0.9 * (100 * span_s + 1), (len(frames), span_s)
-    # 500 deg/s range (the driver default): 65.536 LSB per deg/s
+    # The hrtimer fires at 100 Hz; IIO drops a trigger that fires while the driver's read
+    # of the previous one is still in flight, which a loaded TCG guest does often (74 % of
+    # the periods kept at a host load average of 9): half is the floor asserted here.
+    assert len(frames) >= 0.5 * (100 * span_s + 1), (len(frames), span_s)
+    # 250 deg/s range (step 3e's scale 0.000133): 131.072 LSB per deg/s
+    assert (out / "hrtimer_scale.txt").read_text().strip() == "0.000133"
     for axis in range(3):
-        mean = statistics.fmean(f[axis] for f in frames) / 65.536
+        mean = statistics.fmean(f[axis] for f in frames) / 131.072
         assert math.isclose(mean, TRUE_RATE_DPS[axis], abs_tol=1.0), (axis, mean)
     fresh = sum(a[:3] != b[:3] for a, b in itertools.pairwise(frames)) / (len(frames) - 1)
     print(f"hrtimer capture: {len(frames)} frames in {span_s:.2f} s, {fresh:.1%} fresh")
-    assert fresh > 0.3  # two unsynchronised 100 Hz clocks: most reads see a new sample
+    # reads at 100 Hz of samples made at 200 Hz: each read sees a new sample unless the
+    # adapter's refresh (its own schedule, late under load) did not run between two reads
+    assert fresh > 0.3

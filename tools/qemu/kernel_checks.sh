@@ -101,17 +101,16 @@ for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_250_$a
 sleep 2  # a stretch of refreshes at 200 Hz for the period and jitter figures
 
 if [ -n "${KMOD:-}" ] && [ -e "$KMOD/iio-trig-hrtimer.ko" ]; then
-    step "3f. buffered capture with the hrtimer trigger (modules built by tools/qemu/modules.py)"
+    step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz (tools/qemu/modules.py)"
     modprobe -d "$GUEST_ROOT" configfs
     mount -t configfs none /sys/kernel/config 2>/dev/null
-    for m in industrialio-sw-trigger industrialio-configfs iio-trig-hrtimer; do
+    for m in industrialio-configfs industrialio-sw-trigger iio-trig-hrtimer; do  # dependency order
         insmod "$KMOD/$m.ko" || echo "insmod $m failed"
     done
     mkdir /sys/kernel/config/iio/triggers/hrtimer/t0
     for t in /sys/bus/iio/devices/trigger*; do
         [ "$(cat "$t/name")" = t0 ] && echo 100 > "$t/sampling_frequency"
     done
-    echo 100 > "$IIO/in_anglvel_sampling_frequency"
     echo monotonic > "$IIO/current_timestamp_clock"
     for e in "$IIO"/scan_elements/*_en; do echo 1 > "$e"; done
     echo t0 > "$IIO/trigger/current_trigger"
