@@ -13,6 +13,7 @@ packages=(
     libgirepository1.0-dev libcairo2-dev pkg-config # A: building PyGObject in a venv
     qemu-system-x86 busybox-static cpio kmod        # B: the guest
     util-linux                                      # B: setpriv for the permission check
+    make patch xz-utils                             # C: out-of-tree guest modules (virtio)
 )
 missing=()
 for package in "${packages[@]}"; do
@@ -33,3 +34,8 @@ python3 -c "import gi; gi.require_version('UMockdev', '1.0'); from gi.repository
 
 # The guest: Debian's kernel package unpacked into the cache, and the busybox initramfs.
 python3 tools/qemu/guest.py prepare
+
+# C: i2c-virtio, gpio-virtio (patched), the IIO software triggers and bmg160-board, built
+# against the guest kernel's linux-headers with sources from linux-source-6.1 of the same
+# version (apt-get download + dpkg -x into the cache; rebuilt only when a patch changes).
+python3 tools/qemu/modules.py build

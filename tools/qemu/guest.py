@@ -30,6 +30,7 @@ import stat
 import subprocess
 import sys
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -219,8 +220,10 @@ def run_guest(
     memory_mb: int = 1024,
     cpus: int = 2,
     cache: Path | None = None,
+    qemu_args: Sequence[str] = (),
 ) -> GuestRun:
-    """Boot the guest, run `script` in it, always end QEMU; return its console text."""
+    """Boot the guest, run `script` in it, always end QEMU; return its console text.
+    ``qemu_args`` are added to QEMU's command line (e.g. :func:`vhost_user_args`)."""
     kernel = prepare_kernel(cache)
     initrd = build_initramfs(kernel, cache)
     out_dir = out_dir.resolve()
@@ -242,6 +245,7 @@ def run_guest(
         "-virtfs",
         "local,path=/,mount_tag=host,security_model=none,readonly=on,multidevs=remap",
         "-virtfs", f"local,path={out_dir},mount_tag=out,security_model=none,multidevs=remap",
+        *qemu_args,
     ]
     proc = subprocess.Popen(
         cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT
@@ -261,6 +265,26 @@ def run_guest(
     if console_log is not None:
         console_log.write_text(console)
     return GuestRun(proc.returncode, console, timed_out)
+
+
+def vhost_user_args(
+    i2c_socket: Path, gpio_socket: Path | None = None, memory_mb: int = 1024
+) -> list[str]:
+    """QEMU options for the vhost-user virtio-i2c (and virtio-gpio) devices of
+    ``bmg160-emu vhost-user-i2c``: guest RAM must be a shared memfd so the back end can map
+    it (without share=on QEMU boots but every transfer hangs; linux-kernel-notes.md)."""
+    args = [
+        "-object", f"memory-backend-memfd,id=mem,size={memory_mb}M,share=on",
+        "-machine", "memory-backend=mem",
+        "-chardev", f"socket,id=vi2c,path={i2c_socket}",
+        "-device", "vhost-user-i2c-pci,chardev=vi2c",
+    ]
+    if gpio_socket is not None:
+        args += [
+            "-chardev", f"socket,id=vgpio,path={gpio_socket}",
+            "-device", "vhost-user-gpio-pci,chardev=vgpio",
+        ]
+    return args
 
 
 def main(argv: list[str] | None = None) -> int:

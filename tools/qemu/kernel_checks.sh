@@ -4,7 +4,8 @@
 # results to $GUEST_OUT as small text files the host-side tests assert on.
 #
 # Environment: PY (the host's Python, with bmg160_emu importable), GUEST_OUT, GUEST_ROOT
-# (the unpacked kernel package), STUB_ARGS (chip options for `bmg160-emu stub`).
+# (the unpacked kernel package), STUB_ARGS (chip options for `bmg160-emu stub`); KMOD and
+# TOOLS (optional: modules of tools/qemu/modules.py, this folder) add the hrtimer capture.
 set -u
 OUT=${GUEST_OUT:?}
 : "${PY:?}" "${GUEST_ROOT:?}"
@@ -98,6 +99,27 @@ sleep 0.2
 cat "$IIO/in_anglvel_scale" > "$OUT/scale_250.txt"
 for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_250_$axis.txt"; done
 sleep 2  # a stretch of refreshes at 200 Hz for the period and jitter figures
+
+if [ -n "${KMOD:-}" ] && [ -e "$KMOD/iio-trig-hrtimer.ko" ]; then
+    step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz (tools/qemu/modules.py)"
+    modprobe -d "$GUEST_ROOT" configfs
+    mount -t configfs none /sys/kernel/config 2>/dev/null
+    for m in industrialio-configfs industrialio-sw-trigger iio-trig-hrtimer; do  # dependency order
+        insmod "$KMOD/$m.ko" || echo "insmod $m failed"
+    done
+    mkdir /sys/kernel/config/iio/triggers/hrtimer/t0
+    for t in /sys/bus/iio/devices/trigger*; do
+        [ "$(cat "$t/name")" = t0 ] && echo 100 > "$t/sampling_frequency"
+    done
+    echo monotonic > "$IIO/current_timestamp_clock"
+    for e in "$IIO"/scan_elements/*_en; do echo 1 > "$e"; done
+    echo t0 > "$IIO/trigger/current_trigger"
+    echo 1024 > "$IIO/buffer/length"
+    echo 1 > "$IIO/buffer/enable"
+    "$PY" "$TOOLS/guest_iio_capture.py" 3 /dev/iio:device0 "$OUT/hrtimer_capture.bin"
+    echo 0 > "$IIO/buffer/enable"
+    cat "$IIO/in_anglvel_scale" > "$OUT/hrtimer_scale.txt"
+fi
 
 step "4. stop the adapter"
 kill -TERM $STUB 2>/dev/null

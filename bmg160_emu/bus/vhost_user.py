@@ -1,0 +1,581 @@
+"""The vhost-user protocol (back-end side): a virtio device served from this process to QEMU.
+
+Why: a virtio device whose queues are processed here lets a real guest kernel's drivers
+(virtio-i2c, virtio-gpio) reach the model at the moment they make each transfer. QEMU
+connects to a UNIX socket, shares the guest's RAM as file descriptors (a memfd memory
+backend with share=on), and hands over one eventfd per queue for each direction: the guest
+"kicks" when it adds buffers, the back end "calls" when it has used them.
+
+Written from the vhost-user specification (QEMU docs/interop/vhost-user.rst) and the split
+virtqueue layout of the virtio 1.x specification (section 2.7). Only what the two devices
+need is offered: protocol features REPLY_ACK and CONFIG, ring features INDIRECT_DESC and
+EVENT_IDX (QEMU negotiates both with the guest whatever the back end offers; see
+linux-kernel-notes.md). Ring memory is read and written in place through ``mmap``; the
+stores rely on x86-TSO ordering (the used element is stored before the used index), which
+holds for the x86-64 hosts QEMU runs this on.
+"""
+
+from __future__ import annotations
+
+import errno
+import logging
+import mmap
+import os
+import socket
+import struct
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+log = logging.getLogger(__name__)
+
+# Message types (vhost-user spec, "Front-end message types").
+GET_FEATURES = 1
+SET_FEATURES = 2
+SET_OWNER = 3
+RESET_OWNER = 4
+SET_MEM_TABLE = 5
+SET_LOG_BASE = 6
+SET_LOG_FD = 7
+SET_VRING_NUM = 8
+SET_VRING_ADDR = 9
+SET_VRING_BASE = 10
+GET_VRING_BASE = 11
+SET_VRING_KICK = 12
+SET_VRING_CALL = 13
+SET_VRING_ERR = 14
+GET_PROTOCOL_FEATURES = 15
+SET_PROTOCOL_FEATURES = 16
+GET_QUEUE_NUM = 17
+SET_VRING_ENABLE = 18
+SET_VRING_ENDIAN = 23
+GET_CONFIG = 24
+SET_CONFIG = 25
+RESET_DEVICE = 34
+
+MESSAGE_NAMES = {
+    value: name for name, value in list(globals().items())
+    if name.isupper() and isinstance(value, int) and name.startswith(("GET_", "SET_", "RESET_"))
+}
+
+# Header flags: version 1 in bits 0-1, bit 2 reply, bit 3 need-reply.
+VERSION = 0x1
+FLAG_REPLY = 0x4
+FLAG_NEED_REPLY = 0x8
+HEADER = struct.Struct("<III")
+MAX_PAYLOAD = 4096  # the largest message we accept (a full memory table is 8 * 32 + 8 bytes)
+MAX_FDS = 8  # VHOST_MEMORY_BASELINE_NREGIONS: at most one fd per region
+
+# Protocol feature bits.
+PROTOCOL_F_REPLY_ACK = 3
+PROTOCOL_F_CONFIG = 9
+
+# Virtio feature bits (virtio 1.x, 6 "Reserved Feature Bits") and vhost-user's own bit 30.
+VIRTIO_RING_F_INDIRECT_DESC = 28
+VIRTIO_RING_F_EVENT_IDX = 29
+VHOST_USER_F_PROTOCOL_FEATURES = 30
+VIRTIO_F_VERSION_1 = 32
+
+# Split virtqueue descriptor flags (virtio 1.x, 2.7.5).
+VRING_DESC_F_NEXT = 1
+VRING_DESC_F_WRITE = 2
+VRING_DESC_F_INDIRECT = 4
+VRING_AVAIL_F_NO_INTERRUPT = 1
+VRING_FD_INVALID = 0x100  # bit 8 of the u64 of SET_VRING_KICK/CALL/ERR: no fd passed
+
+_U64 = struct.Struct("<Q")
+_STATE = struct.Struct("<II")  # vring index, number
+_ADDR = struct.Struct("<IIQQQQ")  # index, flags, descriptor, used, available, log addresses
+_REGION = struct.Struct("<QQQQ")  # guest address, size, user (QEMU) address, mmap offset
+_CONFIG_HEAD = struct.Struct("<III")  # offset, size, flags
+_DESC = struct.Struct("<QIHH")  # address, length, flags, next
+_U16 = struct.Struct("<H")
+_USED_ELEM = struct.Struct("<II")
+
+
+class VhostUserError(Exception):
+    """The front end sent something the protocol does not allow; the connection ends."""
+
+
+@dataclass
+class MemoryRegion:
+    guest_addr: int
+    size: int
+    user_addr: int
+    mapping: mmap.mmap
+    offset: int  # where the region starts inside the mapping (the message's mmap offset)
+
+
+class GuestMemory:
+    """The guest's RAM as QEMU shared it: guest-physical and QEMU-virtual address lookups."""
+
+    def __init__(self) -> None:
+        self.regions: list[MemoryRegion] = []
+
+    def set_table(self, payload: bytes, fds: list[int]) -> None:
+        """Map the regions of a SET_MEM_TABLE message (each fd once; it is closed after)."""
+        if len(payload) < 8:
+            raise VhostUserError("SET_MEM_TABLE payload too short")
+        count = struct.unpack_from("<I", payload)[0]
+        if count != len(fds) or count > MAX_FDS or len(payload) < 8 + count * _REGION.size:
+            raise VhostUserError(f"SET_MEM_TABLE with {count} regions and {len(fds)} fds")
+        self.close()
+        try:
+            for i in range(count):
+                gpa, size, uva, offset = _REGION.unpack_from(payload, 8 + i * _REGION.size)
+                mapping = mmap.mmap(fds[i], size + offset, mmap.MAP_SHARED,
+                                    mmap.PROT_READ | mmap.PROT_WRITE)
+                self.regions.append(MemoryRegion(gpa, size, uva, mapping, offset))
+        finally:
+            for fd in fds:
+                os.close(fd)
+
+    def close(self) -> None:
+        for region in self.regions:
+            region.mapping.close()
+        self.regions = []
+
+    def _find(self, address: int, length: int, user: bool) -> tuple[mmap.mmap, int]:
+        for region in self.regions:
+            base = region.user_addr if user else region.guest_addr
+            if base <= address and address + length <= base + region.size:
+                return region.mapping, region.offset + address - base
+        kind = "QEMU address" if user else "guest address"
+        raise VhostUserError(f"{kind} 0x{address:x}+{length} is outside the memory table")
+
+    def guest(self, address: int, length: int) -> tuple[mmap.mmap, int]:
+        """(mapping, offset) of a guest-physical range (descriptor buffers)."""
+        return self._find(address, length, user=False)
+
+    def user(self, address: int, length: int) -> tuple[mmap.mmap, int]:
+        """(mapping, offset) of a QEMU-virtual range (the ring addresses of SET_VRING_ADDR)."""
+        return self._find(address, length, user=True)
+
+    def read(self, address: int, length: int) -> bytes:
+        mapping, offset = self.guest(address, length)
+        return mapping[offset:offset + length]
+
+    def write(self, address: int, data: bytes) -> None:
+        mapping, offset = self.guest(address, len(data))
+        mapping[offset:offset + len(data)] = data
+
+
+@dataclass
+class Chain:
+    """One descriptor chain taken from the available ring: its head and its buffers as
+    (guest address, length) lists, device-readable first, then device-writable."""
+
+    head: int
+    readable: list[tuple[int, int]]
+    writable: list[tuple[int, int]]
+
+
+@dataclass
+class Vring:
+    """A split virtqueue as the back end sees it."""
+
+    index: int
+    num: int = 0
+    desc: tuple[mmap.mmap, int] | None = None
+    avail: tuple[mmap.mmap, int] | None = None
+    used: tuple[mmap.mmap, int] | None = None
+    last_avail: int = 0
+    used_idx: int = 0
+    kick_fd: int | None = None
+    call_fd: int | None = None
+    err_fd: int | None = None
+    enabled: bool = False
+    started: bool = False
+    signalled_used: int = 0  # used index at the last call (EVENT_IDX suppression)
+    signalled_valid: bool = False
+    notifications: int = 0
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def ready(self) -> bool:
+        return self.started and self.enabled and self.desc is not None
+
+    def close_fds(self) -> None:
+        for name in ("kick_fd", "call_fd", "err_fd"):
+            fd = getattr(self, name)
+            if fd is not None:
+                os.close(fd)
+                setattr(self, name, None)
+
+
+class VirtQueue:
+    """Operations on one ring in guest memory: pop chains, push used elements, notify."""
+
+    def __init__(self, ring: Vring, memory: GuestMemory, event_idx: bool, indirect: bool) -> None:
+        self.ring = ring
+        self.memory = memory
+        self.event_idx = event_idx
+        self.indirect = indirect
+
+    def _avail_idx(self) -> int:
+        mapping, base = self.ring.avail  # type: ignore[misc]
+        return _U16.unpack_from(mapping, base + 2)[0]
+
+    def pending(self) -> bool:
+        return self._avail_idx() != self.ring.last_avail
+
+    def pop(self) -> Chain | None:
+        """The next available chain, or None when the driver has added nothing new."""
+        ring = self.ring
+        mapping, base = ring.avail  # type: ignore[misc]
+        if _U16.unpack_from(mapping, base + 2)[0] == ring.last_avail:
+            return None
+        head = _U16.unpack_from(mapping, base + 4 + 2 * (ring.last_avail % ring.num))[0]
+        ring.last_avail = (ring.last_avail + 1) & 0xFFFF
+        if head >= ring.num:
+            raise VhostUserError(f"queue {ring.index}: descriptor head {head} >= size {ring.num}")
+        return Chain(head, *self._walk(head))
+
+    def _walk(self, head: int) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
+        readable: list[tuple[int, int]] = []
+        writable: list[tuple[int, int]] = []
+        table, table_base = self.ring.desc  # type: ignore[misc]
+        size = self.ring.num
+        index = head
+        seen = 0
+        indirect_done = False
+        while True:
+            addr, length, flags, nxt = _DESC.unpack_from(table, table_base + 16 * index)
+            if flags & VRING_DESC_F_INDIRECT:
+                # 2.7.5.3: an indirect table replaces the chain; it cannot nest or chain on
+                if indirect_done or flags & VRING_DESC_F_NEXT or length % 16 or not length:
+                    raise VhostUserError(f"queue {self.ring.index}: bad indirect descriptor")
+                table, table_base = self.memory.guest(addr, length)
+                size = length // 16
+                index, seen, indirect_done = 0, 0, True
+                continue
+            if flags & VRING_DESC_F_WRITE:
+                writable.append((addr, length))
+            elif writable:
+                raise VhostUserError(f"queue {self.ring.index}: readable after writable")
+            else:
+                readable.append((addr, length))
+            seen += 1
+            if not flags & VRING_DESC_F_NEXT:
+                return readable, writable
+            if nxt >= size or seen >= size:
+                raise VhostUserError(f"queue {self.ring.index}: descriptor chain loops or ends")
+            index = nxt
+
+    def push(self, head: int, written: int) -> None:
+        """Put a used element (chain head, bytes written) on the used ring."""
+        ring = self.ring
+        mapping, base = ring.used  # type: ignore[misc]
+        _USED_ELEM.pack_into(mapping, base + 4 + 8 * (ring.used_idx % ring.num), head, written)
+        ring.used_idx = (ring.used_idx + 1) & 0xFFFF
+        _U16.pack_into(mapping, base + 2, ring.used_idx)
+
+    def publish_avail_event(self) -> None:
+        """EVENT_IDX: ask the driver to kick when it adds the entry after those we took."""
+        if self.event_idx:
+            ring = self.ring
+            mapping, base = ring.used  # type: ignore[misc]
+            _U16.pack_into(mapping, base + 4 + 8 * ring.num, ring.last_avail)
+
+    def notify(self, old_used: int) -> None:
+        """Call the driver if it wants an interrupt for the entries used since ``old_used``."""
+        ring = self.ring
+        if ring.call_fd is None or ring.used_idx == old_used:
+            return
+        mapping, base = ring.avail  # type: ignore[misc]
+        if self.event_idx:
+            used_event = _U16.unpack_from(mapping, base + 4 + 2 * ring.num)[0]
+            # vring_need_event (2.7.10): did new_idx pass used_event since old_idx?
+            if (ring.used_idx - used_event - 1) & 0xFFFF >= (ring.used_idx - old_used) & 0xFFFF:
+                return
+        elif _U16.unpack_from(mapping, base)[0] & VRING_AVAIL_F_NO_INTERRUPT:
+            return
+        os.eventfd_write(ring.call_fd, 1)
+        ring.notifications += 1
+
+
+class VhostUserDevice:
+    """A virtio device type served over vhost-user. Subclasses set ``num_queues``,
+    ``device_features`` and ``config``, and implement :meth:`process` for a kicked queue."""
+
+    num_queues = 1
+    device_features = 0
+    config = b""
+    name = "vhost-user"
+
+    def __init__(self) -> None:
+        self.memory = GuestMemory()
+        self.rings = [Vring(i) for i in range(self.num_queues)]
+        self.queues: list[VirtQueue | None] = [None] * self.num_queues
+        self.features = 0
+        self.protocol_features = 0
+        self.owner = False
+        self.on_fds_changed: Callable[[], None] | None = None  # the server re-reads kick fds
+
+    # ---------------------------------------------------------------- feature words
+
+    @property
+    def offered_features(self) -> int:
+        return (self.device_features | 1 << VIRTIO_F_VERSION_1
+                | 1 << VHOST_USER_F_PROTOCOL_FEATURES
+                | 1 << VIRTIO_RING_F_INDIRECT_DESC | 1 << VIRTIO_RING_F_EVENT_IDX)
+
+    @property
+    def offered_protocol_features(self) -> int:
+        features = 1 << PROTOCOL_F_REPLY_ACK
+        if self.config:
+            features |= 1 << PROTOCOL_F_CONFIG
+        return features
+
+    # ---------------------------------------------------------------- to override
+
+    def process(self, queue: VirtQueue) -> None:
+        """Take every available chain of ``queue``, answer it, push it used."""
+        raise NotImplementedError
+
+    def ring_started(self, index: int) -> None:
+        """A ring became ready (kick fd received and enabled)."""
+
+    def ring_stopped(self, index: int) -> None:
+        """A ring was stopped (GET_VRING_BASE, reset or disconnect)."""
+
+    # ---------------------------------------------------------------- ring service
+
+    def kick(self, index: int) -> None:
+        """The driver kicked ``index`` (or the server polls it): serve the queue."""
+        queue = self.queues[index]
+        if queue is None or not self.rings[index].ready:
+            return
+        old_used = queue.ring.used_idx
+        while True:
+            self.process(queue)
+            queue.publish_avail_event()
+            if not queue.pending():  # re-check after avail_event: no kick can be lost
+                break
+        queue.notify(old_used)
+
+    def kick_fds(self) -> dict[int, int]:
+        """{kick fd: ring index} of the rings that are started."""
+        return {r.kick_fd: r.index for r in self.rings if r.kick_fd is not None and r.started}
+
+    def reset(self) -> None:
+        for ring in self.rings:
+            if ring.started:
+                self.ring_stopped(ring.index)
+            ring.close_fds()
+        self.rings = [Vring(i) for i in range(self.num_queues)]
+        self.queues = [None] * self.num_queues
+        self.memory.close()
+        self.features = 0
+        self.protocol_features = 0
+        self.owner = False
+
+    # ---------------------------------------------------------------- messages
+
+    def _ring(self, index: int) -> Vring:
+        if not 0 <= index < self.num_queues:
+            raise VhostUserError(f"{self.name}: no queue {index} (it has {self.num_queues})")
+        return self.rings[index]
+
+    def _setup_queue(self, ring: Vring) -> None:
+        self.queues[ring.index] = VirtQueue(
+            ring, self.memory,
+            event_idx=bool(self.features >> VIRTIO_RING_F_EVENT_IDX & 1),
+            indirect=bool(self.features >> VIRTIO_RING_F_INDIRECT_DESC & 1),
+        )
+
+    def handle(self, request: int, payload: bytes, fds: list[int]) -> bytes | None:
+        """Answer one message: its reply payload, or None when it has none. An int result
+        for REPLY_ACK is given by raising OSError (non-zero) or returning normally (zero)."""
+        if request == GET_FEATURES:
+            return _U64.pack(self.offered_features)
+        if request == SET_FEATURES:
+            self.features = _u64(payload)
+            for ring in self.rings:
+                if self.queues[ring.index] is not None:
+                    self._setup_queue(ring)
+            return None
+        if request == GET_PROTOCOL_FEATURES:
+            return _U64.pack(self.offered_protocol_features)
+        if request == SET_PROTOCOL_FEATURES:
+            self.protocol_features = _u64(payload) & self.offered_protocol_features
+            return None
+        if request == SET_OWNER:
+            self.owner = True
+            return None
+        if request in (RESET_OWNER, RESET_DEVICE):
+            self.reset()
+            return None
+        if request == SET_MEM_TABLE:
+            self.memory.set_table(payload, fds)
+            # the ring addresses keep their QEMU addresses: translate them again
+            for ring in self.rings:
+                if "addr" in ring.extra:
+                    self._map_ring(ring, *ring.extra["addr"])
+            return None
+        if request == SET_VRING_NUM:
+            index, num = _STATE.unpack_from(payload)
+            if num == 0 or num > 32768 or num & (num - 1):
+                raise VhostUserError(f"queue size {num} is not a power of 2 up to 32768")
+            self._ring(index).num = num
+            return None
+        if request == SET_VRING_ADDR:
+            index, _flags, desc, used, avail, _log = _ADDR.unpack_from(payload)
+            ring = self._ring(index)
+            ring.extra["addr"] = (desc, used, avail)
+            self._map_ring(ring, desc, used, avail)
+            return None
+        if request == SET_VRING_BASE:
+            index, base = _STATE.unpack_from(payload)
+            ring = self._ring(index)
+            ring.last_avail = ring.used_idx = base & 0xFFFF
+            return None
+        if request == GET_VRING_BASE:
+            index, _ = _STATE.unpack_from(payload)
+            ring = self._ring(index)
+            if ring.started:
+                self.ring_stopped(index)
+            ring.started = False
+            if ring.kick_fd is not None:
+                os.close(ring.kick_fd)
+                ring.kick_fd = None
+            self._fds_changed()
+            return _STATE.pack(index, ring.last_avail)
+        if request in (SET_VRING_KICK, SET_VRING_CALL, SET_VRING_ERR):
+            self._set_vring_fd(request, payload, fds)
+            return None
+        if request == SET_VRING_ENABLE:
+            index, enable = _STATE.unpack_from(payload)
+            ring = self._ring(index)
+            ring.enabled = bool(enable)
+            if ring.ready:
+                self.ring_started(index)
+                self.kick(index)  # entries added before the ring was enabled
+            return None
+        if request == GET_QUEUE_NUM:
+            return _U64.pack(self.num_queues)
+        if request == GET_CONFIG:
+            offset, size, flags = _CONFIG_HEAD.unpack_from(payload)
+            data = self.config[offset:offset + size].ljust(size, b"\0")
+            return _CONFIG_HEAD.pack(offset, size, flags) + data
+        if request in (SET_CONFIG, SET_VRING_ENDIAN):
+            return None  # read-only configuration; little-endian rings only
+        raise OSError(errno.ENOSYS, f"message {MESSAGE_NAMES.get(request, request)} unsupported")
+
+    def _map_ring(self, ring: Vring, desc: int, used: int, avail: int) -> None:
+        if not ring.num:
+            raise VhostUserError(f"SET_VRING_ADDR for queue {ring.index} before SET_VRING_NUM")
+        if not self.memory.regions:
+            return  # mapped when the memory table arrives
+        ring.desc = self.memory.user(desc, 16 * ring.num)
+        ring.avail = self.memory.user(avail, 6 + 2 * ring.num)
+        ring.used = self.memory.user(used, 6 + 8 * ring.num)
+        self._setup_queue(ring)
+
+    def _set_vring_fd(self, request: int, payload: bytes, fds: list[int]) -> None:
+        value = _u64(payload)
+        ring = self._ring(value & 0xFF)
+        fd = None
+        if not value & VRING_FD_INVALID:
+            if len(fds) != 1:
+                raise VhostUserError(f"{MESSAGE_NAMES[request]} without its file descriptor")
+            fd = fds[0]
+        name = {SET_VRING_KICK: "kick_fd", SET_VRING_CALL: "call_fd", SET_VRING_ERR: "err_fd"}
+        old = getattr(ring, name[request])
+        if old is not None:
+            os.close(old)
+        setattr(ring, name[request], fd)  # the latest call fd is the one the guest listens on
+        if request == SET_VRING_KICK:
+            if fd is None:
+                raise VhostUserError("polling rings (no kick fd) are not supported")
+            os.set_blocking(fd, False)
+            ring.started = True
+            if not self.features >> VHOST_USER_F_PROTOCOL_FEATURES & 1:
+                ring.enabled = True  # without PROTOCOL_FEATURES a ring starts enabled
+            self._fds_changed()
+            if ring.ready:
+                self.ring_started(ring.index)
+                self.kick(ring.index)
+
+    def _fds_changed(self) -> None:
+        if self.on_fds_changed is not None:
+            self.on_fds_changed()
+
+
+def _u64(payload: bytes) -> int:
+    if len(payload) < 8:
+        raise VhostUserError("message payload shorter than its u64")
+    return _U64.unpack_from(payload)[0]
+
+
+class Connection:
+    """One front end (QEMU) on a connected socket, for one device."""
+
+    def __init__(self, sock: socket.socket, device: VhostUserDevice) -> None:
+        self.sock = sock
+        self.device = device
+        self.messages = 0
+
+    def receive(self) -> bool:
+        """Read and answer one message; False when the front end has gone."""
+        try:
+            head, fds, _flags, _addr = socket.recv_fds(self.sock, HEADER.size, MAX_FDS)
+        except ConnectionResetError:
+            return False
+        if not head:
+            return False
+        try:
+            if len(head) < HEADER.size:
+                head += self._exactly(HEADER.size - len(head))
+            request, flags, size = HEADER.unpack(head)
+            if flags & 0x3 != VERSION:
+                raise VhostUserError(f"vhost-user version {flags & 3}, expected {VERSION}")
+            if size > MAX_PAYLOAD:
+                raise VhostUserError(f"message {request} of {size} bytes is too long")
+            payload = self._exactly(size) if size else b""
+        except BaseException:
+            for fd in fds:
+                os.close(fd)
+            raise
+        self.messages += 1
+        self.answer(request, flags, payload, fds)
+        return True
+
+    def _exactly(self, size: int) -> bytes:
+        data = b""
+        while len(data) < size:
+            chunk = self.sock.recv(size - len(data))
+            if not chunk:
+                raise VhostUserError("front end closed the socket inside a message")
+            data += chunk
+        return data
+
+    def answer(self, request: int, flags: int, payload: bytes, fds: list[int]) -> None:
+        device = self.device
+        name = MESSAGE_NAMES.get(request, str(request))
+        log.debug("%s: %s (%d bytes, %d fds)", device.name, name, len(payload), len(fds))
+        status = 0
+        reply: bytes | None = None
+        try:
+            reply = device.handle(request, payload, fds)
+        except OSError as exc:
+            for fd in fds:  # fds the handler did not take
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+            log.warning("%s: %s failed: %s", device.name, name, exc)
+            status = exc.errno or errno.EIO
+        except struct.error as exc:
+            raise VhostUserError(f"{name}: malformed payload ({exc})") from None
+        if reply is not None:
+            self._send(request, reply)
+        elif flags & FLAG_NEED_REPLY and device.protocol_features >> PROTOCOL_F_REPLY_ACK & 1:
+            self._send(request, _U64.pack(status))
+
+    def _send(self, request: int, payload: bytes) -> None:
+        self.sock.sendall(HEADER.pack(request, VERSION | FLAG_REPLY, len(payload)) + payload)
+
+    def close(self) -> None:
+        self.device.reset()
+        self.sock.close()
+

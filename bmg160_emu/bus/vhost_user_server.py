@@ -1,0 +1,216 @@
+"""Serving vhost-user devices: private sockets, one event loop for messages, kicks and timers.
+
+Why one thread: the model is not re-entrant across devices (a GPIO line follows the same
+chip the I2C requests reach), and a single ``selectors`` loop keeps every guest transfer
+ordered with the interrupt lines' updates without locks on the hot path.
+
+Sockets live in a directory of the user's own, closed to others (created 0700 when
+missing); the back end refuses a directory or socket another user owns, and a socket some
+back end still listens on.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import selectors
+import socket
+import stat
+import time
+from collections.abc import Callable
+
+from bmg160_emu.bus.vhost_user import Connection, VhostUserDevice, VhostUserError
+
+log = logging.getLogger(__name__)
+
+class SocketPathError(Exception):
+    """A socket path the back end will not serve on (one line, for the command line)."""
+
+
+def check_socket_path(path: str) -> None:
+    """Make sure ``path`` can be served privately: its directory is ours and closed to
+    others (created 0700 if missing); an existing file there is a stale socket of ours."""
+    directory = os.path.dirname(os.path.abspath(path))
+    uid = os.getuid()
+    if not os.path.exists(directory):
+        try:
+            os.makedirs(directory, mode=0o700)
+        except OSError as exc:
+            raise SocketPathError(f"cannot create {directory}: {exc.strerror}") from None
+    info = os.stat(directory)
+    if info.st_uid != uid:
+        raise SocketPathError(
+            f"{directory} belongs to user {info.st_uid}, not to you ({uid}): "
+            "the socket must live in a directory of your own"
+        )
+    if info.st_mode & 0o077:
+        raise SocketPathError(
+            f"{directory} is open to other users (mode {info.st_mode & 0o777:o}): "
+            "use a private directory (chmod 700)"
+        )
+    try:
+        existing = os.lstat(path)
+    except FileNotFoundError:
+        return
+
+
+    if existing.st_uid != uid:
+        raise SocketPathError(f"{path} belongs to user {existing.st_uid}, not to you ({uid})")
+    if not stat.S_ISSOCK(existing.st_mode):
+        raise SocketPathError(f"{path} exists and is not a socket")
+    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        probe.connect(path)
+    except OSError:
+        os.unlink(path)  # nobody listens: a stale socket of an earlier run
+    else:
+        raise SocketPathError(f"{path}: another back end is already serving on it")
+    finally:
+        probe.close()
+
+
+def listen(path: str) -> socket.socket:
+    """A listening UNIX socket at ``path`` (checked with :func:`check_socket_path`), mode 0600."""
+    check_socket_path(path)
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    old = os.umask(0o177)
+    try:
+        sock.bind(path)
+    finally:
+        os.umask(old)
+    sock.listen(1)
+    return sock
+
+
+Poller = Callable[[float], "float | None"]  # poll(now_s) -> next deadline (monotonic s) or None
+
+
+class Server:
+    """Listen on one socket per device; serve messages, kicks and pollers until stopped."""
+
+    def __init__(self) -> None:
+        self.selector = selectors.DefaultSelector()
+        self.pollers: list[Poller] = []
+        self._stop = False
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+        self.selector.register(self._wake_r, selectors.EVENT_READ, ("wake", None))
+        self.listeners: list[tuple[socket.socket, str]] = []
+        self.connections: dict[VhostUserDevice, Connection] = {}
+        self._kicks: dict[VhostUserDevice, dict[int, int]] = {}
+
+    def add(self, path: str, device: VhostUserDevice) -> None:
+        sock = listen(path)
+        self.listeners.append((sock, path))
+        self.selector.register(sock, selectors.EVENT_READ, ("listen", device))
+        device.on_fds_changed = lambda d=device: self._update_kicks(d)
+
+    def stop(self) -> None:
+        """Safe from a signal handler: ends :meth:`run` at its next turn."""
+        self._stop = True
+        try:
+            os.write(self._wake_w, b"x")
+        except OSError:
+            pass
+
+    def _update_kicks(self, device: VhostUserDevice) -> None:
+        for fd in self._kicks.pop(device, {}):
+            try:
+                self.selector.unregister(fd)
+            except (KeyError, ValueError):
+                pass
+        kicks = device.kick_fds()
+        for fd, index in kicks.items():
+            self.selector.register(fd, selectors.EVENT_READ, ("kick", (device, index)))
+        self._kicks[device] = kicks
+
+    def _accept(self, listener: socket.socket, device: VhostUserDevice) -> None:
+        sock, _ = listener.accept()
+        if device in self.connections:  # one front end at a time per device
+            log.warning("%s: a second front end connected; refused", device.name)
+            sock.close()
+            return
+        connection = Connection(sock, device)
+        self.connections[device] = connection
+        self.selector.register(sock, selectors.EVENT_READ, ("message", connection))
+        log.info("%s: front end connected", device.name)
+
+    def _drop(self, connection: Connection) -> None:
+        device = connection.device
+        self.selector.unregister(connection.sock)
+        self.connections.pop(device, None)
+        connection.close()
+        self._update_kicks(device)
+        log.info("%s: front end disconnected", device.name)
+
+    def run(self, duration_s: float | None = None) -> None:
+        end = None if duration_s is None else time.monotonic() + duration_s
+        deadlines: dict[int, float | None] = {}
+        while not self._stop:
+            now = time.monotonic()
+            for i, poller in enumerate(self.pollers):
+                deadline = deadlines.get(i)
+                if deadline is None or deadline <= now:
+                    deadlines[i] = poller(now)
+            pending = [d for d in deadlines.values() if d is not None]
+            if end is not None:
+                if now >= end:
+                    break
+                pending.append(end)
+            timeout = max(min(pending) - now, 0.0) if pending else None
+            for key, _ in self.selector.select(timeout):
+                kind, target = key.data
+                if kind == "kick":
+                    device, index = target
+                    try:
+                        os.eventfd_read(key.fd)
+                    except BlockingIOError:
+                        pass
+                    self._kick(device, index)
+                elif kind == "message":
+                    self._message(target)
+                elif kind == "listen":
+                    self._accept(key.fileobj, target)  # type: ignore[arg-type]
+                else:
+                    try:
+                        os.read(self._wake_r, 64)
+                    except BlockingIOError:
+                        pass
+
+    def _kick(self, device: VhostUserDevice, index: int) -> None:
+        try:
+            device.kick(index)
+        except VhostUserError as exc:  # the guest broke the ring: stop serving this one
+            log.error("%s: queue %d: %s; closing the connection", device.name, index, exc)
+            connection = self.connections.get(device)
+            if connection is not None:
+                self._drop(connection)
+
+    def _message(self, connection: Connection) -> None:
+        try:
+            alive = connection.receive()
+        except VhostUserError as exc:
+            log.error("%s: %s; closing the connection", connection.device.name, exc)
+            alive = False
+        except OSError as exc:
+            log.error("%s: socket error %s; closing the connection", connection.device.name, exc)
+            alive = False
+        if not alive:
+            self._drop(connection)
+
+    def close(self) -> None:
+        for connection in list(self.connections.values()):
+            self._drop(connection)
+        for sock, path in self.listeners:
+            self.selector.unregister(sock)
+            sock.close()
+            try:
+                os.unlink(path)
+            except FileNotFoundError:
+                pass
+        self.listeners = []
+        self.selector.unregister(self._wake_r)
+        os.close(self._wake_r)
+        os.close(self._wake_w)
+        self.selector.close()

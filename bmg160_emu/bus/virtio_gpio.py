@@ -1,0 +1,309 @@
+"""A virtio-gpio device (virtio 1.2, 5.18) whose input lines are the chips' INT1/INT2 pins.
+
+Why: the kernel's bmg160 driver registers its own data-ready trigger, and reports
+any-motion events, only with an interrupt line. Served through QEMU's
+``vhost-user-gpio-pci``, each line's level follows the model: data-ready pulses, FIFO
+watermark/full, any-motion, high-rate and the offset engines, latched or not, routed by
+INT_MAP_0..2 and enabled by INT_EN_0, with the polarity of INT_EN_1 (spec 4.14-4.19).
+
+Lines: two per chip, in address order: line 2i is INT1 of chip i, line 2i+1 its INT2
+(named ``bmg160-0x68-INT1`` ...). They are inputs: setting a direction other than input,
+or a value, fails with the error status.
+
+Interrupts (5.18.6.2): the driver sets a line's trigger type (IRQ_TYPE) and queues one
+buffer per line on the event queue; the device answers the buffer when the trigger fires.
+An edge that comes while no buffer is queued is held and reported when the next buffer
+comes (edges are not lost while the guest handles the previous one; several edges in that
+time coalesce into one, as a real edge-triggered input does); a level trigger fires
+whenever a buffer is queued and the level is active. Setting the type to NONE returns the
+queued buffer with status INVALID.
+
+How the level is followed: the model computes samples when it is touched, so the device
+polls every chip just after each expected sample (the server's pollers) and after every I2C
+transfer (a read can clear a latched status). A data-ready pulse (300 us, spec_choices)
+between two polls is known from the chip's per-sample hook, so no pulse is missed however
+late the poll runs.
+"""
+
+from __future__ import annotations
+
+import struct
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from bmg160_emu.bus.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
+from bmg160_emu.device.registers import address_of
+
+VIRTIO_GPIO_F_IRQ = 0
+MSG_GET_NAMES = 0x0001
+MSG_GET_DIRECTION = 0x0002
+MSG_SET_DIRECTION = 0x0003
+MSG_GET_VALUE = 0x0004
+MSG_SET_VALUE = 0x0005
+MSG_IRQ_TYPE = 0x0006
+STATUS_OK = 0
+STATUS_ERR = 1
+DIRECTION_NONE = 0
+DIRECTION_OUT = 1
+DIRECTION_IN = 2
+IRQ_TYPE_NONE = 0x00
+IRQ_TYPE_EDGE_RISING = 0x01
+IRQ_TYPE_EDGE_FALLING = 0x02
+IRQ_TYPE_EDGE_BOTH = 0x03
+IRQ_TYPE_LEVEL_HIGH = 0x04
+IRQ_TYPE_LEVEL_LOW = 0x08
+IRQ_TYPES = (IRQ_TYPE_NONE, IRQ_TYPE_EDGE_RISING, IRQ_TYPE_EDGE_FALLING, IRQ_TYPE_EDGE_BOTH,
+             IRQ_TYPE_LEVEL_HIGH, IRQ_TYPE_LEVEL_LOW)
+IRQ_STATUS_INVALID = 0
+IRQ_STATUS_VALID = 1
+
+REQUEST_QUEUE = 0
+EVENT_QUEUE = 1
+_REQUEST = struct.Struct("<HHI")
+_IRQ_REQUEST = struct.Struct("<H")
+
+INT_EN_0 = address_of("INT_EN_0")
+INT_EN_1 = address_of("INT_EN_1")
+INT_MAP_1 = address_of("INT_MAP_1")
+DATA_EN = 0x80  # INT_EN_0 bit 7: data_en (4.14)
+INT1_DATA, INT2_DATA = 0x01, 0x80  # INT_MAP_1 bits 0 and 7 (4.16)
+POLL_IDLE_S = 0.005  # no sample expected (suspend, no ODR): look again this often
+POLL_MARGIN_S = 50e-6  # wake just after the sample is due
+
+
+class _SampleCounter:
+    """A truth hook counting the chip's samples (one call per output sample)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.last_t_s: float | None = None
+
+    def __call__(self, _chip: Any, t_s: float, _rate: Any) -> None:
+        self.count += 1
+        self.last_t_s = t_s
+
+
+@dataclass
+class GpioLine:
+    """One input line: a pin of a chip and its interrupt state."""
+
+    chip: Any
+    pin: int  # 1 or 2
+    name: str
+    counter: _SampleCounter
+    irq_type: int = IRQ_TYPE_NONE
+    buffer: Chain | None = None
+    pending: bool = False  # an edge seen while no buffer was queued
+    last_active: bool = False
+    last_was_pulse: bool = False
+    seen_samples: int = 0
+    interrupts: int = 0  # buffers answered with VALID
+
+    @property
+    def level(self) -> int:
+        return self.chip.int_pin_level(self.pin)
+
+
+class VirtioGPIODevice(VhostUserDevice):
+    """The INT1/INT2 lines of ``chips`` ({address: chip}) as a virtio-gpio controller."""
+
+    num_queues = 2
+    device_features = 1 << VIRTIO_GPIO_F_IRQ
+    name = "virtio-gpio"
+
+    def __init__(self, chips: dict[int, Any], rate_reads: dict[int, float] | None = None) -> None:
+        super().__init__()
+        self.lines: list[GpioLine] = []
+        # {address: chip time of the last rate read} (VirtioI2CDevice.rate_reads)
+        self.rate_reads: dict[int, float] = rate_reads if rate_reads is not None else {}
+        self.stale_edges = 0  # data-ready edges dropped: the driver had read their sample
+        for address in sorted(chips):
+            chip = chips[address]
+            counter = _SampleCounter()  # hooked in while a line of the chip has a trigger
+            for pin in (1, 2):
+                self.lines.append(GpioLine(chip, pin, f"bmg160-0x{address:02x}-INT{pin}", counter))
+        names = b"".join(line.name.encode() + b"\0" for line in self.lines)
+        self.names = names
+        self.config = struct.pack("<HxxI", len(self.lines), len(names))
+
+    def ring_stopped(self, index: int) -> None:
+        if index == EVENT_QUEUE:
+            for line in self.lines:
+                line.buffer = None  # the front end takes the ring back as it stands
+
+    # ---------------------------------------------------------------- requests
+
+    def process(self, queue: VirtQueue) -> None:
+        if queue.ring.index == EVENT_QUEUE:
+            while (chain := queue.pop()) is not None:
+                self._queue_event_buffer(chain)
+            self.poll(time.monotonic())
+            return
+        while (chain := queue.pop()) is not None:
+            request = b"".join(self.memory.read(a, n) for a, n in chain.readable)
+            if len(request) < _REQUEST.size or not chain.writable:
+                raise VhostUserError("virtio-gpio request without its header or response")
+            kind, gpio, value = _REQUEST.unpack_from(request)
+            response = self._answer(kind, gpio, value)
+            queue.push(chain.head, self._scatter(chain, response))
+
+    def _answer(self, kind: int, gpio: int, value: int) -> bytes:
+        if kind == MSG_GET_NAMES:
+            return bytes([STATUS_OK]) + self.names
+        if gpio >= len(self.lines):
+            return bytes([STATUS_ERR, 0])
+        line = self.lines[gpio]
+        if kind == MSG_GET_DIRECTION:
+            return bytes([STATUS_OK, DIRECTION_IN])
+        if kind == MSG_SET_DIRECTION:
+            ok = value in (DIRECTION_IN, DIRECTION_NONE)  # the chip drives the line
+            return bytes([STATUS_OK if ok else STATUS_ERR, 0])
+        if kind == MSG_GET_VALUE:
+            return bytes([STATUS_OK, line.level])
+        if kind == MSG_IRQ_TYPE:
+            if value not in IRQ_TYPES:
+                return bytes([STATUS_ERR, 0])
+            self._set_irq_type(line, value)
+            return bytes([STATUS_OK, 0])
+        return bytes([STATUS_ERR, 0])  # SET_VALUE on an input, or an unknown request
+
+    def _scatter(self, chain: Chain, response: bytes) -> int:
+        rest = response
+        written = 0
+        for addr, length in chain.writable:
+            if not rest:
+                break
+            self.memory.write(addr, rest[:length])
+            written += min(length, len(rest))
+            rest = rest[length:]
+        return written
+
+    # ---------------------------------------------------------------- interrupts
+
+    def _set_irq_type(self, line: GpioLine, irq_type: int) -> None:
+        line.irq_type = irq_type
+        # The per-sample hook costs the model its block fast path: only while needed.
+        wanted = any(o.irq_type != IRQ_TYPE_NONE for o in self.lines if o.chip is line.chip)
+        hooks = line.chip.truth_hooks
+        if wanted and line.counter not in hooks:
+            _ = line.chip.int1  # produce the samples due first: they were not watched
+            hooks.append(line.counter)
+        elif not wanted and line.counter in hooks:
+            hooks.remove(line.counter)
+        line.pending = False
+        line.last_active = self._active(line)
+        line.last_was_pulse = False
+        line.seen_samples = line.counter.count
+        if irq_type == IRQ_TYPE_NONE and line.buffer is not None:
+            self._answer_event(line, IRQ_STATUS_INVALID)
+
+    def _queue_event_buffer(self, chain: Chain) -> None:
+        request = b"".join(self.memory.read(a, n) for a, n in chain.readable)
+        if len(request) < _IRQ_REQUEST.size or not chain.writable:
+            raise VhostUserError("virtio-gpio event buffer without its line or status")
+        gpio = _IRQ_REQUEST.unpack_from(request)[0]
+        if gpio >= len(self.lines):
+            raise VhostUserError(f"virtio-gpio event buffer for line {gpio} of {len(self.lines)}")
+        line = self.lines[gpio]
+        if line.buffer is not None:
+            raise VhostUserError(f"virtio-gpio line {gpio}: a second event buffer")
+        line.buffer = chain
+        if line.irq_type == IRQ_TYPE_NONE:
+            self._answer_event(line, IRQ_STATUS_INVALID)
+
+    def _answer_event(self, line: GpioLine, status: int) -> None:
+        chain, line.buffer = line.buffer, None
+        queue = self.queues[EVENT_QUEUE]
+        if chain is None or queue is None:
+            return
+        addr, _ = chain.writable[0]
+        self.memory.write(addr, bytes([status]))
+        old = queue.ring.used_idx
+        queue.push(chain.head, 1)
+        queue.notify(old)
+        if status == IRQ_STATUS_VALID:
+            line.interrupts += 1
+
+    @staticmethod
+    def _active(line: GpioLine) -> bool:
+        return bool(line.chip.int1 if line.pin == 1 else line.chip.int2)
+
+    def _update(self, line: GpioLine) -> None:
+        """Follow the line since the last poll; fire its trigger if it should."""
+        chip = line.chip
+        active = self._active(line)  # first: this makes the chip produce the samples due
+        new_samples = line.counter.count - line.seen_samples
+        line.seen_samples = line.counter.count
+        data_bit = INT1_DATA if line.pin == 1 else INT2_DATA
+        pulses = bool(new_samples and chip.peek(INT_EN_0) & DATA_EN
+                      and chip.peek(INT_MAP_1) & data_bit)
+        read_t = self.rate_reads.get(chip.address)
+        last_t = line.counter.last_t_s
+        stale = bool(pulses and read_t is not None and last_t is not None and last_t <= read_t)
+        if stale:
+            # The model makes a sample when it is touched: a driver reading late (after the
+            # next sample was due) made it, and only then does this look see its pulse. On
+            # the chip that pulse came while the driver's handler still ran, and IIO drops
+            # a trigger that fires then; delivering it now would read the sample twice.
+            self.stale_edges += 1
+        # the logical (active = asserted) transitions since the last poll, in order
+        edges: list[bool] = []  # True = became active
+        if stale:
+            pass
+        elif not line.last_active:
+            if active:
+                edges = [True]
+            elif pulses:
+                edges = [True, False]  # a whole data-ready pulse fell between two polls
+        elif not active:
+            # the pulse seen last time ended (and maybe a whole new one came and went)
+            edges = [False, True, False] if pulses and line.last_was_pulse else [False]
+        elif pulses and line.last_was_pulse:
+            edges = [False, True]  # the last pulse ended, a new one is under way
+        line.last_active = active
+        line.last_was_pulse = active and pulses
+        active_high = chip.peek(INT_EN_1) >> (0 if line.pin == 1 else 2) & 1
+        kind = line.irq_type
+        fire = False
+        if kind & IRQ_TYPE_EDGE_BOTH:
+            for became_active in edges:
+                rising = became_active == bool(active_high)
+                if (rising and kind & IRQ_TYPE_EDGE_RISING) or (
+                        not rising and kind & IRQ_TYPE_EDGE_FALLING):
+                    fire = True
+            if fire:
+                line.pending = True
+        elif kind:
+            want = 1 if kind == IRQ_TYPE_LEVEL_HIGH else 0
+            seen_levels = {int(b == bool(active_high)) for b in edges} | {line.level}
+            line.pending = want in seen_levels
+        if line.pending and line.buffer is not None:
+            line.pending = False
+            self._answer_event(line, IRQ_STATUS_VALID)
+
+    def poll(self, now_s: float) -> float | None:
+        """Update every line with a trigger set; the monotonic time of the next look."""
+        deadline: float | None = None
+        for line in self.lines:
+            if line.irq_type == IRQ_TYPE_NONE:
+                continue
+            self._update(line)
+            chip = line.chip
+            last = line.counter.last_t_s
+            odr = chip.odr_hz
+            wait = POLL_IDLE_S
+            if last is not None and odr and chip.power_mode == "normal":
+                wait = min(max(last + 1.0 / odr - chip.time, 0.0) + POLL_MARGIN_S, POLL_IDLE_S)
+            candidate = now_s + wait
+            deadline = candidate if deadline is None else min(deadline, candidate)
+        return deadline
+
+    def after_transfer(self) -> None:
+        """Hook for the I2C device: a transfer may have changed a line (clear-on-read...)."""
+        if self.rings[EVENT_QUEUE].ready:
+            self.poll(time.monotonic())
+
+    def line_summary(self) -> list[dict[str, Any]]:
+        return [{"line": i, "name": line.name, "irq_type": line.irq_type,
+                 "interrupts": line.interrupts} for i, line in enumerate(self.lines)]

@@ -1,0 +1,180 @@
+"""A virtio-i2c device (virtio 1.2, 5.19) whose requests reach the emulated chips' I2CBus.
+
+Why: through QEMU's ``vhost-user-i2c-pci`` the guest kernel's own i2c-virtio adapter
+carries every transfer of i2c-tools, i2c-dev programs and kernel drivers (bmg160_i2c) to
+the model the moment it is made, so FIFO pops, clear-on-read and MSB shadowing behave as on
+a real bus. Requests go through the same :class:`~bmg160_emu.bus.i2c.I2CBus` as every other
+front end: NACK for absent addresses, transaction hooks (faults), the transaction log and
+its trace sinks.
+
+Request layout (5.19.6): a device-readable header (le16 address = 7-bit address << 1, le16
+padding, le32 flags: bit 0 FAIL_NEXT, bit 1 M_RD), the message buffer (readable for a
+write, writable for a read; absent for a zero-length message), then one writable status
+byte (0 OK, 1 error). Requests linked by FAIL_NEXT form one I2C transfer (one stop at its
+end): once a request fails, the rest of its group fails too, and the guest sees a short
+message count, as a NACK mid-transfer gives on a real adapter.
+"""
+
+from __future__ import annotations
+
+import logging
+import struct
+import time
+from collections.abc import Callable
+from contextlib import ExitStack
+from dataclasses import dataclass
+
+from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
+from bmg160_emu.bus.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
+
+log = logging.getLogger(__name__)
+
+VIRTIO_I2C_F_ZERO_LENGTH_REQUEST = 0  # 5.19.3; the Linux driver refuses to probe without it
+FLAG_FAIL_NEXT = 1
+FLAG_M_RD = 2
+MSG_OK = 0
+MSG_ERR = 1
+_HEADER = struct.Struct("<HHI")
+
+
+@dataclass
+class _Request:
+    chain: Chain
+    message: I2CMessage | None  # None: malformed, answered with the error status
+    flags: int
+
+
+@dataclass
+class I2CStats:
+    """What the device served: requests, transfers, failed requests, time in the model."""
+
+    requests: int = 0
+    transfers: int = 0
+    failed: int = 0
+    busy_s: float = 0.0
+
+    def as_dict(self) -> dict[str, float]:
+        per = self.busy_s / self.requests * 1e6 if self.requests else 0.0
+        return {"requests": self.requests, "transfers": self.transfers,
+                "failed": self.failed, "busy_s": round(self.busy_s, 6),
+                "us_per_request": round(per, 2)}
+
+
+class VirtioI2CDevice(VhostUserDevice):
+    """The virtio-i2c request queue served from ``bus``."""
+
+    num_queues = 1
+    device_features = 1 << VIRTIO_I2C_F_ZERO_LENGTH_REQUEST
+    name = "virtio-i2c"
+
+    def __init__(self, bus: I2CBus) -> None:
+        super().__init__()
+        self.bus = bus
+        self.stats = I2CStats()
+        self.after_transfer: list[Callable[[], None]] = []  # e.g. the GPIO lines' update
+        # {address: chip time of the last read of the rate registers}: the GPIO device drops
+        # a data-ready edge whose sample the driver has already read (see virtio_gpio)
+        self.rate_reads: dict[int, float] = {}
+        self._group: list[_Request] = []
+
+    def reset(self) -> None:
+        super().reset()
+        self._group = []
+
+    def process(self, queue: VirtQueue) -> None:
+        started = time.perf_counter()
+        served = False
+        while (chain := queue.pop()) is not None:
+            request = self._parse(chain)
+            self._group.append(request)
+            if not request.flags & FLAG_FAIL_NEXT:
+                self._transfer(queue, self._group)
+                self._group = []
+                served = True
+        if served:
+            self.stats.busy_s += time.perf_counter() - started
+            for hook in self.after_transfer:
+                hook()
+
+    def _parse(self, chain: Chain) -> _Request:
+        """The request of a chain; a malformed one (5.19.6.2: a header, then the buffer in
+        the direction M_RD says, then the status) is failed, not executed."""
+        memory = self.memory
+        out = b"".join(memory.read(a, n) for a, n in chain.readable)
+        room = sum(n for _, n in chain.writable)
+        if room < 1:
+            raise VhostUserError("virtio-i2c request without a status byte")
+        if len(out) < _HEADER.size:
+            log.warning("virtio-i2c: request without its header: failed")
+            return _Request(chain, None, 0)
+        raw_address, _, flags = _HEADER.unpack_from(out)
+        address = raw_address >> 1
+        if flags & FLAG_M_RD:
+            if len(out) != _HEADER.size:
+                log.warning("virtio-i2c: read request with a device-readable buffer: failed")
+                return _Request(chain, None, flags)
+            return _Request(chain, I2CMessage.read_message(address, room - 1), flags)
+        if room != 1:
+            log.warning("virtio-i2c: write request with a device-writable buffer: failed")
+            return _Request(chain, None, flags)
+        return _Request(chain, I2CMessage.write(address, out[_HEADER.size:]), flags)
+
+    def _transfer(self, queue: VirtQueue, group: list[_Request]) -> None:
+        """One I2C transfer: the group's messages under the chips' locks, in order."""
+        bus = self.bus
+        self.stats.transfers += 1
+        self.stats.requests += len(group)
+        messages = [r.message for r in group if r.message is not None]
+        ok = [False] * len(group)
+        if len(messages) < len(group):
+            messages = messages[:0]  # a malformed request fails its whole transfer
+        elif (len(messages) == 2 and not bus.transaction_hooks
+              and not (w := messages[0]).read and len(w.data) == 1
+              and (r := messages[1]).read and r.address == w.address
+              and 0 < r.length <= I2C_SMBUS_BLOCK_MAX and w.address in bus.devices):
+            # A register read: write [register], repeated start, read n, stop. On the wire
+            # this is the SMBus I2C block read, and the bus's hot path serves it (logged as
+            # read_i2c_block_data, as the same transfer from i2c-dev is)
+            r.data = bus.read_i2c_block_data(w.address, w.data[0], r.length)
+            ok = [True, True]
+            if w.data[0] <= 0x07 and w.data[0] + r.length > 0x02:  # RATE_X_LSB..RATE_Z_MSB
+                self.rate_reads[w.address] = bus.devices[w.address].time
+        elif not bus.transaction_hooks and all(m.address in bus.devices for m in messages):
+            try:  # the common case: every address answers and no fault is armed
+                bus.i2c_transfer(messages)
+                ok = [True] * len(group)
+            except OSError:
+                pass  # e.g. a message longer than i2c-dev allows: all fail
+        else:
+            chips = {id(c): c for m in messages if (c := bus.devices.get(m.address)) is not None}
+            with ExitStack() as stack:  # no other transfer between this group's messages
+                for key in sorted(chips):
+                    stack.enter_context(chips[key].lock)
+                for i, message in enumerate(messages):
+                    try:
+                        bus.i2c_transfer([message])
+                    except OSError:
+                        break  # FAIL_NEXT: the rest of the group fails unexecuted
+                    ok[i] = True
+        for request, good in zip(group, ok):
+            if not good:
+                self.stats.failed += 1
+            parsed = request.message
+            data = parsed.data if good and parsed is not None and parsed.read else b""
+            written = self._scatter(request.chain, data, MSG_OK if good else MSG_ERR)
+            queue.push(request.chain.head, written)
+
+    def _scatter(self, chain: Chain, data: bytes, status: int) -> int:
+        """Write read data (may be empty) and the status byte; return the bytes written."""
+        memory = self.memory
+        rest = data
+        segments = chain.writable
+        for i, (addr, length) in enumerate(segments):
+            last = i == len(segments) - 1
+            room = length - 1 if last else length
+            if rest and room:
+                memory.write(addr, rest[:room])
+                rest = rest[room:]
+            if last:
+                memory.write(addr + length - 1, bytes([status]))
+        return len(data) + 1

@@ -1,0 +1,181 @@
+"""``bmg160-emu vhost-user-i2c``: serve the emulated chips to a QEMU guest's kernel (virtio)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+from bmg160_emu.commands._common import add_bus_option, add_command_parser, add_file_option
+
+EPILOG = """\
+example (the socket directory is created 0700 if missing):
+  bmg160-emu vhost-user-i2c --socket ~/.cache/bmg160-vu/i2c.sock \\
+      --gpio-socket ~/.cache/bmg160-vu/gpio.sock --seed 7 --true-rate 20 -10 5 &
+  qemu-system-x86_64 ... \\
+      -object memory-backend-memfd,id=mem,size=1024M,share=on -machine memory-backend=mem \\
+      -chardev socket,id=vi2c,path=$HOME/.cache/bmg160-vu/i2c.sock \\
+      -device vhost-user-i2c-pci,chardev=vi2c \\
+      -chardev socket,id=vgpio,path=$HOME/.cache/bmg160-vu/gpio.sock \\
+      -device vhost-user-gpio-pci,chardev=vgpio
+
+In the guest, the i2c-virtio adapter carries every transfer to the model as it is made; the
+GPIO controller's lines 2i and 2i+1 are INT1 and INT2 of the i-th chip (by address).
+The back end runs in real time until interrupted (or --duration has passed) and serves a
+new QEMU after the previous one went away. Docs: docs/virtio-i2c.md.
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = add_command_parser(
+        subparsers,
+        "vhost-user-i2c",
+        "serve the emulated chips to a QEMU guest kernel as virtio-i2c (and virtio-gpio)",
+        (
+            "A vhost-user back end for QEMU's vhost-user-i2c-pci device, and optionally "
+            "vhost-user-gpio-pci for the INT1/INT2 lines: the guest kernel's i2c-virtio "
+            "adapter and drivers (bmg160_i2c) talk to the emulated BMG160 chips."
+        ),
+        EPILOG,
+    )
+    parser.add_argument("--socket", type=Path, required=True, metavar="PATH",
+                        help="UNIX socket QEMU connects to for virtio-i2c")
+    parser.add_argument("--gpio-socket", type=Path, default=None, metavar="PATH",
+                        help="UNIX socket for virtio-gpio: the chips' INT1/INT2 lines")
+    add_bus_option(parser, "bus number recorded in the log and trace (default 0)", default=0)
+    parser.add_argument("--duration", type=float, default=None, metavar="SECONDS",
+                        help="stop after this many seconds (default: run until interrupted)")
+    add_file_option(parser, "--trace", "OUT.jsonl",
+                    "record every transaction as a JSON Lines trace (bmg160-emu trace FILE)")
+    add_file_option(parser, "--log", "FILE", "write the transaction log to FILE at exit")
+    add_file_option(parser, "--stats", "FILE",
+                    "write request counts, time in the model and interrupts as JSON at exit")
+    add_file_option(parser, "--ready-file", "FILE",
+                    "create FILE once the sockets listen (start QEMU after it appears)")
+    add_file_option(parser, "--true-rate-file", "FILE",
+                    "read 'X Y Z' deg/s from FILE whenever it changes and make it the true "
+                    "rate of every chip (drives events from a script)")
+    parser.add_argument("--verbose", action="store_true", help="log vhost-user messages")
+    add_chip_options(parser)
+    parser.set_defaults(func=run)
+
+
+class _RateFile:
+    """A poller that applies the true rate written to a file (checked every 50 ms)."""
+
+    def __init__(self, path: Path, chips: dict[int, Any]) -> None:
+        self.path = path
+        self.chips = chips
+        self.stamp: float | None = None
+        self.changes: list[dict[str, Any]] = []
+
+    def __call__(self, now_s: float) -> float:
+        try:
+            stamp = self.path.stat().st_mtime_ns
+        except OSError:
+            return now_s + 0.05
+        if stamp != self.stamp:
+            self.stamp = stamp
+            try:
+                rate = tuple(float(v) for v in self.path.read_text().split())
+            except (OSError, ValueError):
+                rate = ()
+            if len(rate) == 3:
+                for chip in self.chips.values():
+                    chip.set_true_rate(rate)
+                first = next(iter(self.chips.values()))
+                self.changes.append({"time_s": first.time, "true_rate_dps": list(rate)})
+            else:
+                print(f"bmg160-emu vhost-user-i2c: {self.path}: expected three numbers in "
+                      "deg/s; true rate unchanged", file=sys.stderr)
+        return now_s + 0.05
+
+
+def run(args: argparse.Namespace) -> int:
+    from bmg160_emu.bus.i2c import I2CBus
+    from bmg160_emu.bus.vhost_user_server import Server, SocketPathError
+    from bmg160_emu.bus.virtio_gpio import VirtioGPIODevice
+    from bmg160_emu.bus.virtio_i2c import VirtioI2CDevice
+    from bmg160_emu.cli import CommandError
+
+    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
+                        format="bmg160-emu vhost-user-i2c: %(message)s")
+    if args.duration is not None and args.duration <= 0:
+        raise CommandError("--duration must be > 0")
+    outputs = {}
+    for flag in ("stats", "log"):
+        path = getattr(args, flag)
+        if path is not None:
+            try:  # opened now: a bad path is an error before serving, not at the end
+                outputs[flag] = path.open("w", encoding="utf-8")
+            except OSError as exc:
+                raise CommandError(f"cannot write {path}: {exc.strerror}") from None
+    args.realtime = True  # a guest kernel lives in real time
+    chips = chips_from_args(args)
+    bus = I2CBus(args.bus, chips)
+    i2c = VirtioI2CDevice(bus)
+    gpio = VirtioGPIODevice(chips, i2c.rate_reads) if args.gpio_socket is not None else None
+    writer = None
+    if args.trace is not None:
+        from bmg160_emu.commands.trace import header_from_chip_args
+        from bmg160_emu.io.trace import TraceWriter
+
+        try:
+            writer = TraceWriter(args.trace, header_from_chip_args(args))
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
+        bus.log.sinks.append(writer)
+    server = Server()
+    rate_file = None
+    try:
+        try:
+            server.add(os.fspath(args.socket), i2c)
+            if gpio is not None:
+                server.add(os.fspath(args.gpio_socket), gpio)
+        except SocketPathError as exc:
+            raise CommandError(str(exc)) from None
+        except OSError as exc:
+            raise CommandError(f"cannot listen on {exc.filename or args.socket}: "
+                               f"{exc.strerror}") from None
+        if gpio is not None:
+            server.pollers.append(gpio.poll)
+            i2c.after_transfer.append(gpio.after_transfer)
+        if args.true_rate_file is not None:
+            rate_file = _RateFile(args.true_rate_file, chips)
+            server.pollers.append(rate_file)
+        signal.signal(signal.SIGTERM, lambda *_: server.stop())
+        if args.ready_file is not None:
+            args.ready_file.write_text("ready\n")
+        started = time.monotonic()
+        try:
+            server.run(args.duration)
+        except KeyboardInterrupt:
+            pass
+        elapsed = time.monotonic() - started
+    finally:
+        server.close()
+        if writer is not None:
+            writer.close()
+    if "log" in outputs:
+        with outputs["log"] as handle:
+            handle.write(str(bus.log) + os.linesep)
+    if "stats" in outputs:
+        report = {"elapsed_s": round(elapsed, 3), "i2c": i2c.stats.as_dict(),
+                  "gpio": gpio.line_summary() if gpio is not None else [],
+                  "stale_data_ready_edges": gpio.stale_edges if gpio is not None else 0,
+                  "true_rate_changes": rate_file.changes if rate_file else [],
+                  "final": {f"0x{a:02x}": {"odr_hz": c.odr_hz, "power_mode": c.power_mode,
+                                           "registers": c.dump().hex()}
+                            for a, c in chips.items()}}
+        with outputs["stats"] as handle:
+            handle.write(json.dumps(report, indent=1) + "\n")
+    print(f"bmg160-emu vhost-user-i2c: {i2c.stats.requests} requests in "
+          f"{i2c.stats.transfers} transfers", file=sys.stderr)
+    return 0

@@ -1,0 +1,210 @@
+"""The vhost-user back end and virtio-i2c device, driven by an in-process fake front end.
+
+The front end (tests/_vhost_front_end.py) plays QEMU and the guest's i2c-virtio driver: real
+vhost-user messages over a socketpair, guest RAM in a memfd, split rings with indirect
+descriptors and EVENT_IDX, so every byte the back end handles is laid out as under QEMU.
+"""
+
+from __future__ import annotations
+
+import errno
+import socket
+import struct
+
+import pytest
+from _vhost_front_end import FakeFrontEnd
+
+from bmg160_emu.bus import vhost_user as vu
+from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.bus.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
+from bmg160_emu.device.chip import BMG160
+
+
+@pytest.fixture
+def rig():
+    chip = BMG160(seed=3, true_rate=(20.0, -10.0, 5.0))
+    bus = I2CBus(0, {0x68: chip})
+    device = VirtioI2CDevice(bus)
+    front, back = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    connection = vu.Connection(back, device)
+    fe = FakeFrontEnd(front, connection.receive)
+    fe.handshake()
+    yield fe, device, chip, bus
+    connection.close()
+    fe.close()
+
+
+def header(address: int, flags: int) -> bytes:
+    return struct.pack("<HHI", address << 1, 0, flags)
+
+
+def register_read(fe, device, address: int, register: int, length: int, indirect=True):
+    """write [register] with FAIL_NEXT, then read ``length`` bytes, one kick: the driver's way."""
+    w = fe.add(0, [header(address, FLAG_FAIL_NEXT), bytes([register])], [1], indirect)
+    r = fe.add(0, [header(address, FLAG_M_RD)], [length, 1], indirect)
+    device.kick(0)
+    used = dict(fe.used(0))
+    status_w = fe.read_back(0, w, [1])[0][0]
+    data, status_r = fe.read_back(0, r, [length, 1])
+    return used, (w, r), status_w, status_r[0], data
+
+
+def test_offers_the_features_qemu_and_the_driver_need(rig):
+    _, device, _, _ = rig
+    offered = device.offered_features
+    for bit in (0, vu.VIRTIO_RING_F_INDIRECT_DESC, vu.VIRTIO_RING_F_EVENT_IDX,
+                vu.VHOST_USER_F_PROTOCOL_FEATURES, vu.VIRTIO_F_VERSION_1):
+        assert offered >> bit & 1, bit
+    assert device.offered_protocol_features >> vu.PROTOCOL_F_REPLY_ACK & 1
+    assert device.memory.regions and device.rings[0].ready
+
+
+@pytest.mark.parametrize("indirect", [True, False])
+def test_register_read_returns_the_chip_id(rig, indirect):
+    fe, device, _, _ = rig
+    used, (w, r), status_w, status_r, data = register_read(fe, device, 0x68, 0x00, 1, indirect)
+    assert (status_w, status_r, data) == (0, 0, b"\x0f")
+    assert used == {w: 1, r: 2}  # used length: bytes written (status, or data + status)
+
+
+def test_rate_burst_is_the_models_current_sample(rig):
+    fe, device, chip, _ = rig
+    chip.advance(0.05)
+    expected = chip.dump()[0x02:0x08]
+    assert 0x68 not in device.rate_reads
+    *_, status, data = register_read(fe, device, 0x68, 0x02, 6)
+    assert status == 0 and data == expected
+    assert device.rate_reads[0x68] == chip.time  # when the driver last read the rates
+    counts = struct.unpack("<3h", data)
+    # 20 deg/s at the reset range 2000 deg/s is 327.7 counts; noise ~13 counts rms
+    assert abs(counts[0] - 327.7) < 70
+
+
+def test_write_reaches_the_model(rig):
+    fe, device, chip, _ = rig
+    fe.add(0, [header(0x68, 0), bytes([0x0F, 0x03])], [1])  # RANGE = 250 deg/s
+    device.kick(0)
+    assert fe.used(0) and chip.peek(0x0F) == 0x03
+
+
+def test_absent_address_fails_the_whole_group_and_is_logged(rig):
+    fe, device, _, bus = rig
+    _, _, status_w, status_r, _ = register_read(fe, device, 0x50, 0x00, 1)
+    assert (status_w, status_r) == (1, 1)
+    assert device.stats.failed == 2
+    last = bus.log[-1]
+    assert last.address == 0x50 and last.error == "EREMOTEIO"
+
+
+def test_zero_length_message_probes_the_address(rig):
+    fe, device, _, _ = rig
+    ok = fe.add(0, [header(0x68, 0)], [1])
+    device.kick(0)
+    nack = fe.add(0, [header(0x69, 0)], [1])
+    device.kick(0)
+    assert fe.read_back(0, ok, [1])[0] == b"\x00"
+    assert fe.read_back(0, nack, [1])[0] == b"\x01"
+
+
+def test_a_fault_hook_fails_the_request_through_the_same_bus(rig):
+    fe, device, _, bus = rig
+
+    def nack_third(_bus, index, _address, _kind):
+        if index == 2:
+            raise OSError(errno.EREMOTEIO, "injected")
+
+    bus.transaction_hooks.append(nack_third)
+    first = register_read(fe, device, 0x68, 0x00, 1)
+    second = register_read(fe, device, 0x68, 0x00, 1)
+    assert (first[2], first[3]) == (0, 0)
+    assert (second[2], second[3]) == (1, 1)  # transaction 2 fails, its group with it
+
+
+def test_fifo_read_pops_frames(rig):
+    fe, device, chip, _ = rig
+    fe.add(0, [header(0x68, 0), bytes([0x3E, 0x40])], [1])  # FIFO_CONFIG_1: FIFO mode, XYZ
+    device.kick(0)
+    fe.used(0)
+    chip.advance(0.05)  # 0.05 s at the reset ODR 2000 Hz: the 100-frame FIFO is full
+    count_before = register_read(fe, device, 0x68, 0x0E, 1)[4][0] & 0x7F
+    register_read(fe, device, 0x68, 0x3F, 6 * 10)  # ten frames
+    count_after = register_read(fe, device, 0x68, 0x0E, 1)[4][0] & 0x7F
+    assert count_before == 100 and count_after == 90
+
+
+def test_transaction_log_shows_the_guest_reads(rig):
+    fe, device, _, bus = rig
+    # a register read (write [reg], read n in one transfer) is the I2C block read on the wire
+    *_, data = register_read(fe, device, 0x68, 0x02, 6)
+    last = bus.log[-1]
+    assert (last.kind, last.register, last.read) == ("read_i2c_block_data", 0x02, data)
+    # anything else is logged message by message: a write, then a read from the pointer
+    fe.add(0, [header(0x68, 0), b"\x0f\x02"], [1])
+    fe.add(0, [header(0x68, FLAG_M_RD)], [1, 1])
+    device.kick(0)
+    kinds = [(e.kind, e.register, e.written, e.read) for e in list(bus.log)[-2:]]
+    # the write left the pointer at 0x10 (auto-increment): the read gets BW's reset 0x80
+    assert kinds == [("i2c_write", 0x0F, b"\x02", b""), ("i2c_read", None, b"", b"\x80")]
+
+
+def test_a_fault_hook_sees_each_message_as_its_own_transaction(rig):
+    fe, device, _, bus = rig
+    seen = []
+    bus.transaction_hooks.append(lambda _b, i, a, kind: seen.append(kind))
+    register_read(fe, device, 0x68, 0x02, 6)
+    assert seen == ["i2c_write", "i2c_read"]
+
+
+def test_event_idx_avail_event_and_call_suppression(rig):
+    fe, device, _, _ = rig
+    fe.called(0)
+    fe.set_used_event(0, 0xFFFF)  # the driver wants no interrupt soon
+    register_read(fe, device, 0x68, 0x00, 1)
+    assert fe.avail_event(0) == 2  # kick me when you add entry 2 on
+    assert fe.called(0) == 0
+    fe.set_used_event(0, 2)  # interrupt once used passes index 2
+    register_read(fe, device, 0x68, 0x00, 1)
+    assert fe.avail_event(0) == 4 and fe.called(0) == 1
+
+
+def test_without_event_idx_the_no_interrupt_flag_is_honoured():
+    chip = BMG160(seed=1)
+    device = VirtioI2CDevice(I2CBus(0, {0x68: chip}))
+    front, back = socket.socketpair()
+    connection = vu.Connection(back, device)
+    fe = FakeFrontEnd(front, connection.receive)
+    fe.handshake(features=device.offered_features & ~(1 << vu.VIRTIO_RING_F_EVENT_IDX))
+    try:
+        register_read(fe, device, 0x68, 0x00, 1)
+        assert fe.called(0) == 1
+        fe.ram[fe.queues[0]["avail"]:fe.queues[0]["avail"] + 2] = b"\x01\x00"
+        register_read(fe, device, 0x68, 0x00, 1)
+        assert fe.called(0) == 0
+    finally:
+        connection.close()
+        fe.close()
+
+
+def test_get_vring_base_stops_the_ring_and_reports_its_index(rig):
+    fe, device, _, _ = rig
+    register_read(fe, device, 0x68, 0x00, 1)
+    body = fe.call(vu.GET_VRING_BASE, struct.pack("<II", 0, 0))
+    assert struct.unpack("<II", body) == (0, 2)
+    assert not device.rings[0].ready
+
+
+def test_unknown_message_with_need_reply_gets_a_failure_status(rig):
+    fe, _, _, _ = rig
+    fe.send(99, b"", need_reply=True)
+    request, _, body = fe.reply()
+    assert request == 99 and struct.unpack("<Q", body)[0] != 0
+
+
+def test_request_outside_guest_memory_ends_the_connection(rig):
+    fe, device, _, _ = rig
+    q = fe.queues[0]
+    fe._desc(q, 0, 0x10_0000_0000, 16, vu.VRING_DESC_F_INDIRECT, 0)
+    fe.ram[q["avail"] + 4:q["avail"] + 6] = b"\x00\x00"
+    fe.ram[q["avail"] + 2:q["avail"] + 4] = b"\x01\x00"
+    with pytest.raises(vu.VhostUserError, match="outside the memory table"):
+        device.kick(0)
