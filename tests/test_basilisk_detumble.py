@@ -19,8 +19,8 @@ pytest.importorskip("Basilisk", reason="Basilisk (bsk) is not installed: "
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "basilisk_detumble"
 sys.path.insert(0, str(EXAMPLE))
 
-import report  # noqa: E402
-import scenario  # noqa: E402
+import report
+import scenario
 
 KD_FAST = 0.5  # 1/s: ideal detumble ln(50) / 0.5 = 7.8 s (the example uses 0.05: 78 s)
 FAST_FAULTS = [

@@ -10,14 +10,14 @@ import pytest
 pytest.importorskip("Basilisk", reason="Basilisk (bsk) is not installed: "
                     "pip install 'bmg160-emu[basilisk]'")
 
-from Basilisk.architecture import messaging, sysModel  # noqa: E402
-from Basilisk.fswAlgorithms import rateMsgConverter  # noqa: E402
-from Basilisk.simulation import spacecraft  # noqa: E402
-from Basilisk.utilities import SimulationBaseClass, macros  # noqa: E402
+from Basilisk.architecture import messaging, sysModel
+from Basilisk.fswAlgorithms import rateMsgConverter
+from Basilisk.simulation import spacecraft
+from Basilisk.utilities import SimulationBaseClass, macros
 
-from bmg160_emu.adcs.attitude import angle_between_deg  # noqa: E402
-from bmg160_emu.adcs.basilisk import EmulatedGyro, quaternion_from_mrp  # noqa: E402
-from bmg160_emu.adcs.rig import GyroSpec, rotation_matrix_from_euler_zyx  # noqa: E402
+from bmg160_emu.adcs.attitude import angle_between_deg
+from bmg160_emu.adcs.basilisk import EmulatedGyro, quaternion_from_mrp
+from bmg160_emu.adcs.rig import GyroSpec, rotation_matrix_from_euler_zyx
 
 RANGE, BW = 0x0F, 0x10
 RATE_RAD_S = [0.02, -0.035, 0.05]
