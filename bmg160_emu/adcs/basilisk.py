@@ -61,7 +61,7 @@ class EmulatedGyro(sysModel.SysModel):
     split per chip and for the fault schedule as in :class:`~bmg160_emu.adcs.rig.GyroRig`.
     ``faults``: a schedule or fault list (:mod:`bmg160_emu.adcs.faults`). ``publish``: write
     the IMU messages each step. ``record_truth``: keep the per-sample truth (costs a hook
-    call per sample). ``rate_resolution_dps``: feed a new rate only when it differs from the
+    call per sample, and Basilisk's attitude and rate per step). ``rate_resolution_dps``: feed a new rate only when it differs from the
     held one by more than this on some axis (0: every step). ``set_true_rate`` rebuilds the
     chip's sample blocks at each call; a resolution well under one LSB (1/131 deg/s at
     +-250 deg/s) saves most of that without a visible change in the counts. A chip with a
@@ -97,6 +97,7 @@ class EmulatedGyro(sysModel.SysModel):
         self.imuBodyOutMsgs = [messaging.IMUSensorBodyMsg() for _ in self.specs]
         self.imuOutMsg, self.imuBodyOutMsg = self.imuOutMsgs[0], self.imuBodyOutMsgs[0]
         self.publish = bool(publish)
+        self.record_truth = bool(record_truth)
         if not rate_resolution_dps >= 0.0:
             raise ValueError(f"rate_resolution_dps must be >= 0, not {rate_resolution_dps!r}")
         self.rate_resolution_dps = float(rate_resolution_dps)
@@ -167,8 +168,6 @@ class EmulatedGyro(sysModel.SysModel):
             self.clock.advance_ns(lag)
         state = self.scStateInMsg()
         rate_dps = np.degrees(np.asarray(state.omega_BN_B, dtype=float))
-        self._step_ns.append(int(CurrentSimNanos))
-        self._step_sigma.append(state.sigma_BN)
         held = self._held_dps
         if (held is None or self.rate_resolution_dps == 0.0
                 or np.max(np.abs(rate_dps - held)) > self.rate_resolution_dps):
@@ -178,7 +177,10 @@ class EmulatedGyro(sysModel.SysModel):
                 feed(rate_dps)  # catches up the samples due by now first, with the held rate
         else:
             rate_dps = held
-        self._step_rate_dps.append(rate_dps)  # the rate the chips hold from this step on
+        if self.record_truth:  # the rate the chips hold from this step on, and the attitude
+            self._step_ns.append(int(CurrentSimNanos))
+            self._step_sigma.append(state.sigma_BN)
+            self._step_rate_dps.append(rate_dps)
         if self.publish:
             for i in range(len(self.gyros)):
                 self._publish(i, int(CurrentSimNanos))
@@ -191,6 +193,8 @@ class EmulatedGyro(sysModel.SysModel):
         payload = messaging.IMUSensorMsgPayload()
         payload.AngVelPlatform = sensor_rad_s.tolist()
         self.imuOutMsgs[i].write(payload, now_ns, self.moduleID)
+        # (peek: no side effect on the driver's reads; an MSB latched by a driver that read
+        # only an LSB shows here as on the bus)
         body = messaging.IMUSensorBodyMsgPayload()
         body.AngVelBody = (self._to_body[i] @ sensor_rad_s).tolist()
         self.imuBodyOutMsgs[i].write(body, now_ns, self.moduleID)

@@ -184,6 +184,9 @@ def figures(result: scenario.Result, folder: Path) -> list[Path]:
     span = result.setup.st_period_s
     pred = knowledge_prediction(span_s=span)["total_deg"]
     fig, ax = plt.subplots(figsize=(8, 4))
+    if len(k) > 20:
+        ax.axvspan(len(k) - 19.5, len(k) + 0.5, color="0.92", zorder=0,
+                   label="compared (last 20 fixes)")
     for i, name in enumerate("xyz"):
         ax.plot(np.arange(1, len(k) + 1), k[:, i], "o", ms=4, label=f"axis {name}")
     for sign in (1, -1):
