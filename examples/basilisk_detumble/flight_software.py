@@ -24,6 +24,9 @@ Fault detection (each onset and recovery goes to ``events``):
   + h) dt``, with ``h`` from the wheel tachometers, so wheel friction is included) is
   averaged over 0.1 s; above ``STEP_THRESHOLD_DPS`` for 0.25 s the step is declared, its size
   is the residual's mean over that time, and it is subtracted from then on.
+
+The hot path works on plain Python floats (3-vectors as lists): numpy's per-call overhead
+on 3-element arrays would cost more than the arithmetic, at 200 steps a second.
 """
 
 from __future__ import annotations
@@ -99,8 +102,11 @@ class FlightSoftware(sysModel.SysModel):
         self.starTrackerInMsg = messaging.STAttMsgReader()
         self.rwMotorTorqueOutMsg = messaging.ArrayMotorTorqueMsg()
         self.torque_payload = messaging.ArrayMotorTorqueMsgPayload()
-        self.inv_inertia = np.linalg.inv(config.inertia)
-        self.allocation = -np.linalg.pinv(config.wheel_axes)  # body torque L -> wheel torques
+        self.inertia = _rows(config.inertia)
+        self.inv_inertia = _rows(np.linalg.inv(config.inertia))
+        self.allocation = _rows(-np.linalg.pinv(config.wheel_axes))  # body L -> wheel torques
+        self.momentum = _rows(np.asarray(config.wheel_axes) * config.wheel_js)  # speeds -> h
+        self.n_wheels = int(np.asarray(config.wheel_axes).shape[1])
         self.events: list[Event] = []
         self.log = FlightLog()
         self.log_every = log_every
@@ -113,26 +119,26 @@ class FlightSoftware(sysModel.SysModel):
         self.smbus.write_byte_data(self.address, RANGE, RANGE_250_DPS)
         self.smbus.write_byte_data(self.address, BW, BW_200_HZ)
         self.mode = "detumble"
-        self.omega = np.zeros(3)  # rad/s, the rate used by the controller
-        self.omega_model = None  # rad/s, momentum-model rate
-        self.bias_dps = np.array(self.cfg.bias_cal_dps, dtype=float)
-        self.q = None  # attitude estimate (body -> inertial), set by the first fix
-        self.last_counts = None
+        self.omega = [0.0, 0.0, 0.0]  # rad/s: the gyro's rate (model on bad axes)
+        self.omega_model: list[float] | None = None  # rad/s, momentum-model rate
+        self.bias_dps = [float(b) for b in self.cfg.bias_cal_dps]
+        self.q: list[float] | None = None  # attitude (body -> inertial), from the first fix
+        self.last_counts: tuple[int, int, int] | None = None
         self.same = [0, 0, 0]
-        self.stuck = np.zeros(3, dtype=bool)
-        self.suspect = np.zeros(3, dtype=int)
+        self.stuck = [False, False, False]
+        self.suspect = [0, 0, 0]
         self._clear_residuals()
         self.nack = False
-        self.h_prev = None
+        self.h_prev: list[float] | None = None
         self.last_fix_ns = -1
-        self.last_fix_s = None
+        self.last_fix_s: float | None = None
         self.steps = 0
         self.calm = 0
 
     def _clear_residuals(self) -> None:
-        self.residuals: deque[np.ndarray] = deque(maxlen=STEP_WINDOW)
-        self.residual_sum = np.zeros(3)
-        self.suspect_sum = np.zeros(3)  # residual sums over each axis's suspect run
+        self.residuals: deque[list[float]] = deque(maxlen=STEP_WINDOW)
+        self.residual_sum = [0.0, 0.0, 0.0]
+        self.suspect_sum = [0.0, 0.0, 0.0]  # residual sums over each axis's suspect run
 
     def _event(self, t: float, kind: str, detail: str) -> None:
         self.events.append(Event(t, kind, detail))
@@ -141,44 +147,45 @@ class FlightSoftware(sysModel.SysModel):
 
     def UpdateState(self, CurrentSimNanos: int) -> None:
         t = CurrentSimNanos * 1e-9
-        cfg = self.cfg
-        speeds = np.asarray(self.rwSpeedInMsg().wheelSpeeds[: cfg.wheel_axes.shape[1]])
-        h = cfg.wheel_axes @ (cfg.wheel_js * speeds)  # wheel momentum (spin part), body frame
+        speeds = self.rwSpeedInMsg().wheelSpeeds[: self.n_wheels]
+        h = [sum(r * w for r, w in zip(row, speeds)) for row in self.momentum]  # N m s, body
         if t < STARTUP_S:
-            self._command(np.zeros(3), CurrentSimNanos)
+            self._command([0.0, 0.0, 0.0], CurrentSimNanos)
             self.h_prev = h
             return
         self._propagate_model(h)
         measured = self._read_gyro(t)
-        if self.omega_model is None:
+        model = self.omega_model
+        if model is None:
             if measured is None:
                 return
-            self.omega_model = measured.copy()
+            model = self.omega_model = list(measured)
         if measured is not None and t >= CHECKS_FROM_S:
             self._check(t, measured)
-        omega = self.omega_model.copy()
+        omega = list(model)
         if measured is not None:
-            good = ~self.stuck
-            omega[good] = measured[good]
-            # the model follows the good axes slowly (not while a step is being judged)
-            follow = good & (self.suspect == 0)
             gain = OBSERVER_GAIN if t >= CHECKS_FROM_S else LOCK_GAIN
-            self.omega_model[follow] += gain * (measured[follow] - self.omega_model[follow])
-        self.omega = omega  # the gyro's rate (model on bad axes): attitude propagation
-        self._attitude(t, CurrentSimNanos)
+            for axis in range(3):
+                if self.stuck[axis]:
+                    continue
+                omega[axis] = measured[axis]
+                if not self.suspect[axis]:  # the model follows, not while a step is judged
+                    model[axis] += gain * (measured[axis] - model[axis])
+        self.omega = omega
+        self._attitude(t)
         torque = self._control(h, t)
         self._command(torque, CurrentSimNanos)
         self.h_prev = h
         if self.steps % self.log_every == 0:
             self.log.time_s.append(t)
-            self.log.rate_est_dps.append(np.degrees(omega))
-            self.log.rate_model_dps.append(np.degrees(self.omega_model))
-            self.log.sigma_est.append(_mrp(self.q) if self.q is not None else np.full(3, np.nan))
+            self.log.rate_est_dps.append([math.degrees(w) for w in omega])
+            self.log.rate_model_dps.append([math.degrees(w) for w in model])
+            self.log.sigma_est.append(_mrp(self.q) if self.q is not None else [math.nan] * 3)
             self.log.mode.append(self.mode)
             self.log.torque_cmd.append(torque)
         self.steps += 1
 
-    def _read_gyro(self, t: float) -> np.ndarray | None:
+    def _read_gyro(self, t: float) -> list[float] | None:
         try:
             raw = self.smbus.read_i2c_block_data(self.address, RATE_X_LSB, 6)
         except OSError as exc:
@@ -202,37 +209,45 @@ class FlightSoftware(sysModel.SysModel):
                 elif self.stuck[axis] and self.same[axis] == 0:
                     self.stuck[axis] = False
                     self._event(t, "stuck axis cleared", f"{'xyz'[axis]} moves again")
-        return np.radians(np.array(counts) / LSB_PER_DPS - self.bias_dps)
+        bias = self.bias_dps
+        return [math.radians(c / LSB_PER_DPS - b) for c, b in zip(counts, bias)]
 
-    def _propagate_model(self, h: np.ndarray) -> None:
-        if self.omega_model is None:
-            return
+    def _propagate_model(self, h: list[float]) -> None:
         w = self.omega_model
-        dh = h - self.h_prev
-        inertia = self.cfg.inertia
-        self.omega_model = w + self.inv_inertia @ (-dh - _cross(w, inertia @ w + h) * self.cfg.dt_s)
+        if w is None or self.h_prev is None:
+            return
+        dt = self.cfg.dt_s
+        gyro = _cross(w, [a + b for a, b in zip(_mv(self.inertia, w), h)])
+        change = _mv(self.inv_inertia, [-(a - b) - g * dt for a, b, g in zip(h, self.h_prev, gyro)])
+        self.omega_model = [a + b for a, b in zip(w, change)]
 
-    def _check(self, t: float, measured: np.ndarray) -> None:
+    def _check(self, t: float, measured: list[float]) -> None:
         """Bias-step detection on the gyro-minus-model residual."""
-        residual = np.degrees(measured - self.omega_model)
+        model = self.omega_model
+        assert model is not None
+        residual = [math.degrees(m - w) for m, w in zip(measured, model)]
+        sums = self.residual_sum
         if len(self.residuals) == STEP_WINDOW:
-            self.residual_sum -= self.residuals[0]
+            oldest = self.residuals[0]
+            for axis in range(3):
+                sums[axis] -= oldest[axis]
         self.residuals.append(residual)
-        self.residual_sum += residual
+        for axis in range(3):
+            sums[axis] += residual[axis]
         if len(self.residuals) < STEP_WINDOW:
             return
-        mean = self.residual_sum / STEP_WINDOW
-        if not np.any(np.abs(mean) >= STEP_THRESHOLD_DPS) and not self.suspect.any():
+        limit = STEP_THRESHOLD_DPS * STEP_WINDOW
+        if all(abs(x) < limit for x in sums) and not any(self.suspect):
             return
         for axis in range(3):
-            if self.stuck[axis] or abs(mean[axis]) < STEP_THRESHOLD_DPS:
+            if self.stuck[axis] or abs(sums[axis]) < limit:
                 self.suspect[axis] = 0
                 self.suspect_sum[axis] = 0.0
                 continue
             self.suspect[axis] += 1
             self.suspect_sum[axis] += residual[axis]
             if self.suspect[axis] >= STEP_CONFIRM:
-                step = float(self.suspect_sum[axis] / STEP_CONFIRM)
+                step = self.suspect_sum[axis] / STEP_CONFIRM
                 self.bias_dps[axis] += step
                 self.suspect[axis] = 0
                 self._clear_residuals()
@@ -241,85 +256,104 @@ class FlightSoftware(sysModel.SysModel):
                             f"{onset:.2f} s); subtracted from now on")
                 return
 
-    def _attitude(self, t: float, now_ns: int) -> None:
+    def _attitude(self, t: float) -> None:
+        dt = self.cfg.dt_s
         if self.q is not None:
-            self.q = _quat_mul(self.q, _quat_exp(self.omega * self.cfg.dt_s))
+            self.q = _quat_mul(self.q, _quat_exp([w * dt for w in self.omega]))
         msg = self.starTrackerInMsg
         if not msg.isWritten() or msg.timeWritten() == self.last_fix_ns:
             return
         self.last_fix_ns = msg.timeWritten()
-        if np.degrees(np.linalg.norm(self.omega)) > ST_MAX_RATE_DPS:
+        if math.degrees(math.sqrt(sum(w * w for w in self.omega))) > ST_MAX_RATE_DPS:
             return
-        fix = _quat_from_mrp(np.asarray(msg().MRP_BdyInrtl))
+        fix = _quat_from_mrp(list(msg().MRP_BdyInrtl))
         if self.q is not None and self.last_fix_s is not None:
-            self.st_updates.append((t, self.q.copy()))
+            self.st_updates.append((t, np.array(self.q)))
             delta = _quat_mul(_quat_conj(self.q), fix)  # propagated -> measured, body frame
-            drift = 2.0 * delta[1:] * math.copysign(1.0, delta[0])
+            sign = math.copysign(2.0, delta[0])
             span = t - self.last_fix_s
-            change_dps = -self.cfg.bias_gain * np.degrees(drift) / span
-            self.bias_dps += change_dps
-            # the corrected rate moves by -change: the model (a smoother of it) moves along
-            self.omega_model -= np.radians(change_dps)
+            for axis in range(3):
+                change_dps = -self.cfg.bias_gain * math.degrees(sign * delta[axis + 1]) / span
+                self.bias_dps[axis] += change_dps
+                # the corrected rate moves by -change: the model (a smoother of it) moves along
+                if self.omega_model is not None:
+                    self.omega_model[axis] -= math.radians(change_dps)
             self._clear_residuals()
         self.q = fix
         self.last_fix_s = t
 
-    def _control(self, h: np.ndarray, t: float) -> np.ndarray:
+    def _control(self, h: list[float], t: float) -> list[float]:
         cfg = self.cfg
         w = self.omega_model  # the smoothed rate: control and mode decisions
-        inertia = cfg.inertia
-        rate_dps = math.degrees(math.sqrt(w @ w))
+        assert w is not None
+        rate_dps = math.degrees(math.sqrt(sum(x * x for x in w)))
         if self.mode == "detumble":
             self.calm = self.calm + 1 if rate_dps < cfg.point_rate_dps else 0
             if self.q is not None and self.calm >= POINT_AFTER:
                 self.mode = "point"
                 self._event(t, "mode", f"rate below {cfg.point_rate_dps} deg/s for "
                             f"{POINT_AFTER * cfg.dt_s:g} s: inertial pointing")
-        gyroscopic = _cross(w, inertia @ w + h)
+        iw = _mv(self.inertia, w)
+        gyroscopic = _cross(w, [a + b for a, b in zip(iw, h)])
         if self.mode == "detumble":
-            return -cfg.kd * (inertia @ w) + gyroscopic
+            return [-cfg.kd * a + g for a, g in zip(iw, gyroscopic)]
+        assert self.q is not None
         sigma = _mrp(self.q)
-        return inertia @ (-cfg.k * sigma - cfg.p * w) + gyroscopic
+        inner = [-cfg.k * s - cfg.p * x for s, x in zip(sigma, w)]
+        return [a + g for a, g in zip(_mv(self.inertia, inner), gyroscopic)]
 
-    def _command(self, torque: np.ndarray, now_ns: int) -> None:
+    def _command(self, torque: list[float], now_ns: int) -> None:
         # body torque from the wheels is -G u: least-squares wheel torques for -L
-        u = self.allocation @ torque
-        u = np.clip(u, -self.cfg.wheel_u_max, self.cfg.wheel_u_max)
-        self.torque_payload.motorTorque = u.tolist()
+        u_max = self.cfg.wheel_u_max
+        u = [min(max(x, -u_max), u_max) for x in _mv(self.allocation, torque)]
+        self.torque_payload.motorTorque = u
         self.rwMotorTorqueOutMsg.write(self.torque_payload, now_ns, self.moduleID)
 
 
-# ---------------------------------------------------------------------- quaternions (w first)
+# ---------------------------------------------------------------------- small vector algebra
 
-def _quat_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    pw, pv = p[0], p[1:]
-    qw, qv = q[0], q[1:]
-    return np.concatenate([[pw * qw - pv @ qv], pw * qv + qw * pv + _cross(pv, qv)])
+def _rows(matrix) -> tuple[tuple[float, ...], ...]:
+    return tuple(tuple(float(x) for x in row) for row in np.asarray(matrix, dtype=float))
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """3-vector cross product (numpy's general one costs ~20 us a call)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
+def _mv(m, v) -> list[float]:
+    return [sum(a * b for a, b in zip(row, v)) for row in m]
 
 
-def _quat_conj(q: np.ndarray) -> np.ndarray:
-    return np.array([q[0], -q[1], -q[2], -q[3]])
+def _cross(a, b) -> list[float]:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
 
-def _quat_exp(rotation: np.ndarray) -> np.ndarray:
-    angle = float(np.linalg.norm(rotation))
+# quaternions [w, x, y, z], Hamilton, body -> inertial (as bmg160_emu.adcs.attitude)
+
+def _quat_mul(p, q) -> list[float]:
+    pw, px, py, pz = p
+    qw, qx, qy, qz = q
+    return [pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw]
+
+
+def _quat_conj(q) -> list[float]:
+    return [q[0], -q[1], -q[2], -q[3]]
+
+
+def _quat_exp(rotation) -> list[float]:
+    angle = math.sqrt(sum(r * r for r in rotation))
     if angle < 1e-12:
-        return np.array([1.0, *(0.5 * rotation)])
-    return np.concatenate([[math.cos(angle / 2)], rotation * (math.sin(angle / 2) / angle)])
+        return [1.0, *(0.5 * r for r in rotation)]
+    scale = math.sin(angle / 2) / angle
+    return [math.cos(angle / 2), *(r * scale for r in rotation)]
 
 
-def _quat_from_mrp(sigma: np.ndarray) -> np.ndarray:
-    s2 = float(sigma @ sigma)
-    return np.concatenate([[1.0 - s2], 2.0 * sigma]) / (1.0 + s2)
+def _quat_from_mrp(sigma) -> list[float]:
+    s2 = sum(x * x for x in sigma)
+    return [(1.0 - s2) / (1.0 + s2), *(2.0 * x / (1.0 + s2) for x in sigma)]
 
 
-def _mrp(q: np.ndarray) -> np.ndarray:
-    if q[0] < 0:  # the short rotation (|sigma| <= 1)
-        q = -q
-    return q[1:] / (1.0 + q[0])
+def _mrp(q) -> list[float]:
+    w, x, y, z = q
+    if w < 0:  # the short rotation (|sigma| <= 1)
+        w, x, y, z = -w, -x, -y, -z
+    return [x / (1.0 + w), y / (1.0 + w), z / (1.0 + w)]
