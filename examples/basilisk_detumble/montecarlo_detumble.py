@@ -25,7 +25,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import scenario
 
 from bmg160_emu.adcs.dispersion import NoiseDispersion
-from bmg160_emu.adcs.montecarlo import RunResult, map_runs, reduce_runs
+from bmg160_emu.adcs.montecarlo import map_runs, reduce_runs
+from bmg160_emu.adcs.results import RunResult
 from bmg160_emu.adcs.run_archive import RunArchive, RunRecord
 
 DISPERSION_STREAM = 2  # SeedSequence([seed, 2]): the parameter draws, apart from the noise
