@@ -90,3 +90,12 @@ def test_report_and_figures_are_written(short_run, tmp_path):
     paths = report.figures(short_run, tmp_path)
     assert [p.name for p in paths] == ["closed_loop.png", "knowledge_error.png"]
     assert all(p.stat().st_size > 10_000 for p in paths)
+
+
+def test_the_documented_command_writes_report_summary_and_figures(tmp_path, capsys):
+    import run_example
+
+    assert run_example.main(["--duration", "2", "--out", str(tmp_path)]) == 0
+    assert {p.name for p in tmp_path.iterdir()} == {
+        "report.md", "summary.json", "closed_loop.png", "knowledge_error.png"}
+    assert "## Detumble" in capsys.readouterr().out

@@ -116,3 +116,5 @@ def test_campaign_is_identical_in_process_and_on_dask_and_reruns_by_seed(campaig
                                          setup_overrides=setup)
     again, same = sync.archive.rerun(9, runner.record)
     assert same and again.summary == record.summary
+    # and from the command line, as the docs say
+    assert campaign_module.main([str(tmp_path / "sync"), "--rerun", "9"]) == 0
