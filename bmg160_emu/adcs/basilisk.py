@@ -36,6 +36,7 @@ from bmg160_emu.adcs.faults import Fault, FaultSchedule
 from bmg160_emu.adcs.rig import Gyro, GyroSpec, Truth, make_chip
 from bmg160_emu.adcs.scenarios import ScenarioError
 from bmg160_emu.clock import NS_PER_S, VirtualClock
+from bmg160_emu.device.registers import address_of
 
 try:
     from Basilisk.architecture import messaging, sysModel
@@ -43,7 +44,9 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
     raise ImportError("bmg160_emu.adcs.basilisk needs Basilisk: pip install "
                       "'bmg160-emu[basilisk]' (the bsk wheel)") from exc
 
-RATE_X_LSB = 0x02  # spec 3: RATE_X_LSB .. RATE_Z_MSB, little-endian int16 per axis
+# spec 3: RATE_X_LSB .. RATE_Z_MSB, little-endian int16 per axis; CHIP_ID has no side effect
+_RATE_REGISTERS = tuple(address_of("RATE_X_LSB") + k for k in range(6))
+_CHIP_ID = address_of("CHIP_ID")
 
 
 def quaternion_from_mrp(sigma: Any) -> np.ndarray:
@@ -187,7 +190,7 @@ class EmulatedGyro(sysModel.SysModel):
 
     def _publish(self, i: int, now_ns: int) -> None:
         chip = self.gyros[i].chip
-        raw = bytes(chip.peek(RATE_X_LSB + k) for k in range(6))
+        raw = bytes(chip.peek(reg) for reg in _RATE_REGISTERS)
         counts = np.frombuffer(raw, dtype="<i2").astype(float)
         sensor_rad_s = np.radians(counts / chip.sensitivity)
         payload = messaging.IMUSensorMsgPayload()
@@ -221,7 +224,7 @@ class EmulatedGyro(sysModel.SysModel):
         The attitude of a sample at ``ts`` is Basilisk's attitude at the last step ``t_j <
         ts`` turned on by the held rate over ``ts - t_j`` (exact for the rate the chip saw).
         """
-        self.gyros[gyro].chip.peek(0x00)  # CHIP_ID: no side effect, catches the chip up
+        self.gyros[gyro].chip.peek(_CHIP_ID)  # no side effect; catches the chip up
         times = np.array(self._sample_times[gyro], dtype=float)
         rates = np.array(self._sample_rates[gyro], dtype=float).reshape(-1, 3)
         steps = self.steps()
