@@ -236,12 +236,7 @@ def run_montecarlo(
 
         run = PropagationRun(scenario)
     try:
-        if scheduler == "sync":
-            results = _run_sync(run, seeds, progress)
-        elif scheduler == "local":
-            results = _run_dask(run, seeds, progress, None, workers)
-        else:
-            results = _run_dask(run, seeds, progress, scheduler, workers)
+        results = map_runs(run, seeds, scheduler=scheduler, workers=workers, progress=progress)
     except Interrupted as stop:
         if not stop.results:
             raise
@@ -251,3 +246,15 @@ def run_montecarlo(
         partial.stopped_by = stop.signal_name
         return partial
     return reduce_runs(scenario.name, results, percentiles)
+
+
+def map_runs(run: RunFunction, seeds: Iterable[int], *, scheduler: str = "local",
+             workers: int | None = None, progress: bool | None = None) -> list[RunResult]:
+    """``run(seed)`` for every seed on ``scheduler`` (as :func:`run_montecarlo`), in seed
+    order: for any picklable run (the Basilisk example's closed loop, ...)."""
+    seeds = [int(s) for s in seeds]
+    if not seeds:
+        raise ValueError("no seeds to run")
+    if scheduler == "sync":
+        return _run_sync(run, seeds, progress)
+    return _run_dask(run, seeds, progress, None if scheduler == "local" else scheduler, workers)

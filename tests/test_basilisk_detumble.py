@@ -1,0 +1,104 @@
+"""The worked Basilisk example (examples/basilisk_detumble), short versions for CI.
+
+The full example is ``python examples/basilisk_detumble/run_example.py`` (400 s); here the
+same closed loop runs with a faster detumble gain and compressed fault times.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+try:
+    import Basilisk  # noqa: F401
+except ImportError as exc:  # absent, or a wheel that does not load here
+    pytest.skip(f"Basilisk (bsk) is not importable ({exc}): pip install 'bmg160-emu[basilisk]'",
+                allow_module_level=True)
+
+EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "basilisk_detumble"
+sys.path.insert(0, str(EXAMPLE))
+
+import report
+import scenario
+
+KD_FAST = 0.5  # 1/s: ideal detumble ln(50) / 0.5 = 7.8 s (the example uses 0.05: 78 s)
+FAST_FAULTS = [
+    {"kind": "bias_step", "at_s": 2.0, "axis": 2, "step_dps": 0.3},
+    {"kind": "stuck_axis", "at_s": 3.5, "axis": 0, "duration_s": 1.0},
+    {"kind": "nack", "at_s": 5.0, "duration_s": 0.1},
+]
+
+
+@pytest.fixture(scope="module")
+def short_run():
+    setup = scenario.Setup(duration_s=14.0, seed=3, kd=KD_FAST, st_period_s=2.0,
+                           faults=[dict(f) for f in FAST_FAULTS])
+    return scenario.run(setup)
+
+
+def test_flight_software_detects_each_fault_when_it_happens(short_run):
+    events = {e["kind"]: e for e in short_run.flight_events}
+    assert {"bias step", "stuck axis", "nack", "stuck axis cleared", "nack cleared"} <= set(events)
+    # bias step: the 0.1 s residual mean crosses 0.15 deg/s within a few samples, then 0.25 s
+    step = events["bias step"]
+    assert 2.0 < step["time_s"] < 2.0 + 0.1 + 0.25 + 0.05
+    size = float(step["detail"].split(":")[1].split("deg/s")[0])
+    assert abs(size - 0.3) < 0.06  # the residual's mean over 50 samples (noise ~0.01)
+    # stuck: 8 identical counts, i.e. 7 read periods after the first held sample
+    stuck = events["stuck axis"]
+    assert 3.5 < stuck["time_s"] <= 3.5 + 8 * 0.005 + 1e-9 and stuck["detail"].startswith("x")
+    assert 4.5 <= events["stuck axis cleared"]["time_s"] < 4.5 + 0.011
+    # NACK: the first failed read, and the first good one after the 0.1 s window
+    assert events["nack"]["time_s"] == pytest.approx(5.0, abs=0.0051)
+    assert events["nack cleared"]["time_s"] == pytest.approx(5.1, abs=0.0051)
+    # and the injected onsets are in the run's record
+    kinds = {e["kind"] for e in short_run.injected}
+    assert kinds == {"bias_step", "stuck_axis", "nack"}
+
+
+def test_detumbles_below_0_1_deg_s_within_the_stated_time(short_run):
+    s = short_run.summary
+    ideal = math.log(5.0 / 0.1) / KD_FAST
+    assert s["detumble_limit_s"] == pytest.approx(1.15 * ideal)
+    assert s["detumble_time_s"] is not None and ideal * 0.95 < s["detumble_time_s"] <= s[
+        "detumble_limit_s"]
+    assert s["pointing_mode_at_s"] is not None and s["pointing_mode_at_s"] > s["detumble_time_s"]
+    assert set(s["faults_detected"]) == {"bias step", "stuck axis", "nack"}
+
+
+def test_attitude_error_growth_between_fixes_follows_n_and_b():
+    # start near the target: no slew, the star tracker (1 s) is usable throughout
+    setup = scenario.Setup(duration_s=45.0, seed=5, kd=KD_FAST, st_period_s=1.0, faults=[],
+                           sigma0=[0.002, -0.001, 0.0015], rate0_dps=[0.3, -0.2, 0.25])
+    result = scenario.run(setup)
+    k = result.knowledge_before_fix_deg[-30:]  # after the bias estimate has converged
+    assert k.shape == (30, 3)
+    measured = float(np.sqrt(np.mean(k**2)))
+    predicted = report.knowledge_prediction(span_s=1.0)["total_deg"]
+    # 90 values: the rms has a relative standard error of ~1/sqrt(2 * 90) = 7.5 %; 30 % is 4 sigma
+    assert measured == pytest.approx(predicted, rel=0.30)
+    # the test tells N apart: half or twice the gyro's N would be outside the tolerance
+    for factor in (0.5, 2.0):
+        other = report.knowledge_prediction(n_dps_rt_hz=factor * report.PAPER_N, span_s=1.0)
+        assert measured != pytest.approx(other["total_deg"], rel=0.30)
+
+
+def test_report_and_figures_are_written(short_run, tmp_path):
+    text = report.text(short_run)
+    assert "## Faults: injected and detected" in text and "bias step" in text
+    paths = report.figures(short_run, tmp_path)
+    assert [p.name for p in paths] == ["closed_loop.png", "knowledge_error.png"]
+    assert all(p.stat().st_size > 10_000 for p in paths)
+
+
+def test_the_documented_command_writes_report_summary_and_figures(tmp_path, capsys):
+    import run_example
+
+    assert run_example.main(["--duration", "2", "--out", str(tmp_path)]) == 0
+    assert {p.name for p in tmp_path.iterdir()} == {
+        "report.md", "summary.json", "closed_loop.png", "knowledge_error.png"}
+    assert "## Detumble" in capsys.readouterr().out

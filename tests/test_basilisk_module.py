@@ -1,0 +1,174 @@
+"""The emulated gyro as a Basilisk module: exact time mapping, rate mapping, truth, messages."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+try:
+    import Basilisk  # noqa: F401
+except ImportError as exc:  # absent, or a wheel that does not load here
+    pytest.skip(f"Basilisk (bsk) is not importable ({exc}): pip install 'bmg160-emu[basilisk]'",
+                allow_module_level=True)
+
+from Basilisk.architecture import messaging, sysModel
+from Basilisk.fswAlgorithms import rateMsgConverter
+from Basilisk.simulation import spacecraft
+from Basilisk.utilities import SimulationBaseClass, macros
+
+from bmg160_emu.adcs.attitude import angle_between_deg
+from bmg160_emu.adcs.basilisk import EmulatedGyro, quaternion_from_mrp
+from bmg160_emu.adcs.rig import GyroSpec, rotation_matrix_from_euler_zyx
+
+RANGE, BW = 0x0F, 0x10
+RATE_RAD_S = [0.02, -0.035, 0.05]
+
+
+class ClockProbe(sysModel.SysModel):
+    """Runs after the gyro module: chip clock time against Basilisk time, every step."""
+
+    def __init__(self, gyro):
+        super().__init__()
+        self.gyro = gyro
+        self.mismatches = 0
+        self.steps = 0
+
+    def UpdateState(self, CurrentSimNanos):
+        self.steps += 1
+        if self.gyro.clock.now_ns() != self.gyro.offset_ns + CurrentSimNanos:
+            self.mismatches += 1
+
+
+def _sim(step_s, gyro, *, inertia=(0.05, 0.05, 0.05)):
+    """A spacecraft with spherical inertia (the body rate stays constant), and the gyro."""
+    sim = SimulationBaseClass.SimBaseClass()
+    sim.CreateNewProcess("p").addTask(sim.CreateNewTask("t", macros.sec2nano(step_s)))
+    sc = spacecraft.Spacecraft()
+    sc.ModelTag = "sc"
+    sc.hub.mHub = 4.0
+    sc.hub.IHubPntBc_B = np.diag(inertia).tolist()
+    sc.hub.omega_BN_BInit = [[w] for w in RATE_RAD_S]
+    sim.AddModelToTask("t", sc, 100)
+    gyro.scStateInMsg.subscribeTo(sc.scStateOutMsg)
+    sim.AddModelToTask("t", gyro, 50)
+    return sim, sc
+
+
+def _configure(chip, range_code=3, bw_code=4):
+    chip.write(RANGE, bytes([range_code]))  # +-250 deg/s
+    chip.write(BW, bytes([bw_code]))  # ODR 200 Hz
+
+
+def test_chip_time_is_basilisk_time_to_the_nanosecond_over_an_orbit():
+    # 5400 s (a low orbit) in 10 s steps: the clock matches at every step, and the chip's
+    # sample grid at the end is still on the 5 ms grid it had at the start: no drift, and
+    # exactly 200 samples per second in between (none lost, none extra)
+    gyro = EmulatedGyro([GyroSpec(noise=False)], record_truth=False, publish=False)
+    gyro.clock.advance_ns(250_000_001)  # an odd offset: chip time = Basilisk time + offset
+    _configure(gyro.chips[0])
+    sim, _ = _sim(10.0, gyro)
+    probe = ClockProbe(gyro)
+    sim.AddModelToTask("t", probe, 10)
+    times: list[int] = []
+
+    def hook(chip, t, rate):
+        times.append(round(t * 1e9))
+
+    chip = gyro.chips[0]
+    chip.truth_hooks.append(hook)
+    sim.InitializeSimulation()
+    assert gyro.offset_ns == 250_000_001
+    sim.ConfigureStopTime(macros.sec2nano(10.0))
+    sim.ExecuteSimulation()
+    first, count_start = times[-1], len(times)
+    chip.truth_hooks.remove(hook)
+    sim.ConfigureStopTime(macros.sec2nano(5400.0))
+    sim.ExecuteSimulation()
+    assert probe.steps == 541 and probe.mismatches == 0
+    assert gyro.clock.now_ns() == 5400 * 10**9 + 250_000_001
+    chip.truth_hooks.append(hook)
+    sim.ConfigureStopTime(macros.sec2nano(5410.0))
+    sim.ExecuteSimulation()
+    period = 5_000_000
+    last = times[-1]
+    assert (last - first) % period == 0  # still on the starting grid after 5400 s
+    assert last == max(t for t in range(first, 5410 * 10**9 + 250_000_002, period))
+    assert len(times) - count_start == 10 * 200  # the last 10 s: 200 samples a second
+
+
+def test_counts_follow_the_true_rate_through_mounting_scale_factor_and_misalignment():
+    mounting = rotation_matrix_from_euler_zyx(90.0, 0.0, 30.0)
+    sf = np.array([0.01, -0.02, 0.005])
+    mis = np.array([[0, 1e-3, -2e-3], [5e-4, 0, 1e-3], [0, -1e-3, 0]])
+    spec = GyroSpec(noise=False, mounting=mounting, scale_factor_error=sf, misalignment_rad=mis)
+    gyro = EmulatedGyro([spec, GyroSpec(name="aligned", address=0x69, noise=False)])
+    for chip in gyro.chips:
+        _configure(chip)
+    sim, _ = _sim(0.005, gyro)
+    converter = rateMsgConverter.rateMsgConverter()
+    converter.ModelTag = "rateConverter"
+    converter.imuRateInMsg.subscribeTo(gyro.imuBodyOutMsgs[1])
+    sim.AddModelToTask("t", converter, 40)
+    nav = converter.navRateOutMsg.recorder()
+    sim.AddModelToTask("t", nav)
+    sim.InitializeSimulation()
+    sim.ConfigureStopTime(macros.sec2nano(1.0))  # the 23 Hz filter has long settled
+    sim.ExecuteSimulation()
+    rate_dps = np.degrees(RATE_RAD_S)
+    sens = 32768 / 250  # LSB per deg/s at +-250 deg/s (the model's binary sensitivity)
+    m = (np.eye(3) + mis) @ np.diag(1 + sf) @ mounting  # chip: misalign . scale . mount
+    for chip, matrix in zip(gyro.chips, (m, np.eye(3))):
+        raw = bytes(chip.peek(0x02 + k) for k in range(6))
+        counts = np.frombuffer(raw, dtype="<i2")
+        assert np.all(np.abs(counts - matrix @ rate_dps * sens) <= 0.5 + 1e-6)  # one rounding
+    # the aligned chip reaches a Basilisk FSW module through IMUSensorBodyMsg
+    assert np.allclose(nav.omega_BN_B[-1], RATE_RAD_S, atol=math.radians(0.5 / sens))
+    platform = gyro.imuOutMsgs[0].read().AngVelPlatform
+    assert np.allclose(platform, np.radians(m @ rate_dps), atol=math.radians(0.5 / sens))
+
+
+def test_truth_per_output_sample_matches_basilisk_state():
+    gyro = EmulatedGyro([GyroSpec(noise=False)], publish=False)
+    _configure(gyro.chips[0])
+    sim, sc = _sim(0.005, gyro, inertia=(0.04, 0.03, 0.01))  # tumbling: the rate moves
+    states = sc.scStateOutMsg.recorder()
+    sim.AddModelToTask("t", states)
+    sim.InitializeSimulation()
+    sim.ConfigureStopTime(macros.sec2nano(2.0))
+    sim.ExecuteSimulation()
+    truth = gyro.truth()
+    assert truth.times_s.size >= 395  # 200 Hz from shortly after the BW write
+    assert np.allclose(np.diff(truth.times_s), 0.005)
+    t_state = states.times() * 1e-9
+    sigma = np.asarray(states.sigma_BN)
+    rate = np.degrees(np.asarray(states.omega_BN_B))
+    for i in (10, 200, truth.times_s.size - 1):
+        k = int(np.searchsorted(t_state, truth.times_s[i] - 1e-12)) - 1  # the step before
+        assert np.allclose(truth.rate_dps[i], rate[k])  # the held rate the chip saw
+        q_at = quaternion_from_mrp(sigma[k + 1])  # Basilisk's attitude at the sample time
+        assert angle_between_deg(truth.quaternion[i], q_at) < 1e-4
+
+
+def test_rate_resolution_holds_the_rate_within_the_tolerance_and_feeds_less():
+    exact = EmulatedGyro([GyroSpec(noise=False)], publish=False)
+    coarse = EmulatedGyro([GyroSpec(noise=False)], publish=False, rate_resolution_dps=0.002)
+    results = []
+    for gyro in (exact, coarse):
+        _configure(gyro.chips[0])
+        sim, _ = _sim(0.005, gyro, inertia=(0.04, 0.03, 0.01))
+        sim.InitializeSimulation()
+        sim.ConfigureStopTime(macros.sec2nano(2.0))
+        sim.ExecuteSimulation()
+        results.append(gyro.truth())
+    assert coarse.feeds < exact.feeds / 2
+    assert np.max(np.abs(results[0].rate_dps - results[1].rate_dps)) <= 0.002 + 1e-12
+    with pytest.raises(ValueError, match="rate_resolution_dps"):
+        EmulatedGyro(rate_resolution_dps=-1.0)
+
+
+def test_messages_are_basilisk_types():
+    gyro = EmulatedGyro()
+    assert isinstance(gyro.imuOutMsg, messaging.IMUSensorMsg)
+    assert isinstance(gyro.imuBodyOutMsg, messaging.IMUSensorBodyMsg)
