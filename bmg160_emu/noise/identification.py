@@ -330,14 +330,14 @@ def fit_allan_variance(
     at_edge = math.isfinite(t_est.value) and not (
         t_bounds[0] * 1.05 < t_est.value < t_bounds[1] / 1.05
     )
-    if at_edge:  # the optimum sits on the search bound: the interval runs to the open end
+    if math.isfinite(t_est.value):
+        # the record says nothing about T outside the searched range: the interval is limited
+        # to it (finite and ordered), and runs to the bound when the optimum sits on it
         low_edge = t_est.value <= t_bounds[0] * 1.05
-        estimates["T"] = Estimate(
-            t_est.value,
-            0.0 if low_edge else t_est.ci_low,
-            t_est.ci_high if low_edge else math.inf,
-            "s",
-        )
+        high_edge = t_est.value >= t_bounds[1] / 1.05
+        lo = t_bounds[0] if low_edge else min(max(t_est.ci_low, t_bounds[0]), t_est.value)
+        hi = t_bounds[1] if high_edge else max(min(t_est.ci_high, t_bounds[1]), t_est.value)
+        estimates["T"] = Estimate(float(t_est.value), float(lo), float(hi), "s")
     info = {
         "T_at_search_edge": bool(at_edge),
         "T_search_range_s": (float(t_bounds[0]), float(t_bounds[1])),
@@ -395,7 +395,10 @@ def _estimates(tau, w, fit: _Fit, with_q, with_r, scale: float) -> dict[str, Est
         )
     if has_gm:
         s = sd_of["lnT"]
-        out["T"] = Estimate(fit.T, fit.T * math.exp(-_Z95 * s), fit.T * math.exp(_Z95 * s), "s")
+        # in ln T; capped at a factor 1e6 either way (exp would overflow on an unresolved
+        # term); fit_allan_variance then limits it to the searched range
+        half = min(_Z95 * s, math.log(1e6)) if math.isfinite(s) else math.log(1e6)
+        out["T"] = Estimate(fit.T, fit.T * math.exp(-half), fit.T * math.exp(half), "s")
     else:
         out["T"] = Estimate(math.nan, math.nan, math.nan, "s")
     return out

@@ -197,13 +197,26 @@ def format_profile(profile: Profile, header: str = "") -> str:
             value = getattr(axis, f.name)
             if value is None or (f.name in ("Q", "R") and value == 0.0):
                 continue
-            lines.append(f"{f.name} = {value!r:<24}# {UNITS[f.name]}")
+            lines.append(f"{f.name} = {toml_float(value, f.name):<24}# {UNITS[f.name]}")
     return "\n".join(lines) + "\n"
 
 
 def write_profile(profile: Profile, path: str | Path, header: str = "") -> None:
     """Write a profile file (TOML) that load_profile and NoiseGenerator accept."""
     Path(path).write_text(format_profile(profile, header), encoding="utf-8")
+
+
+def toml_float(value: Any, what: str = "value") -> str:
+    """A TOML float literal for any real number (numpy scalars included), finite only.
+
+    ``repr`` of a numpy scalar is ``np.float64(0.01)``, which TOML rejects: the value is
+    converted to a Python float first, and repr of a float is a valid TOML float
+    (``0.01``, ``1e-05``, ``5.0``) that reads back bit for bit.
+    """
+    number = float(value)
+    if not math.isfinite(number):
+        raise ProfileError(f"{what} must be finite to be written to a profile, got {number}")
+    return repr(number)
 
 
 def _toml_string(text: str) -> str:
