@@ -71,3 +71,11 @@ def test_the_issue_blocker_case_through_the_cli(tmp_path, capsys):
                  "-o", str(out)]) == 0
     assert np.load(out).shape == (2000, 3)
     render_params_header(profile=prof)
+
+
+def test_firmware_build_refuses_several_terms_with_a_clear_message(tmp_path):
+    multi = AxisNoise(N=0.02, B=0.0, T=0.0, K=0.0, bias=0.0, gm=((1e-3, 5.0), (1e-3, 60.0)))
+    path = tmp_path / "multi.toml"
+    write_profile(Profile("multi", multi, multi, multi), path)
+    with pytest.raises(ValueError, match="2 Gauss-Markov terms.*--poles 1"):
+        render_params_header(profile=path)
