@@ -167,8 +167,8 @@ class AxisIdentification:
                 item["unit"] = item["unit"].replace("deg", "rad") if units == "rad/s" else item["unit"]
             readoffs[name] = item
         out.update(
-            mean={"value": self.mean * s, "unit": units},
-            std={"value": self.std * s, "unit": units},
+            mean={"value": _json_float(self.mean * s), "unit": units},
+            std={"value": _json_float(self.std * s), "unit": units},
             ieee_readoffs=readoffs,
             fit={
                 "model": self.model_text(),
@@ -249,8 +249,9 @@ class Identification:
                  "95 % confidence intervals")]
         for a in self.axes:
             lines.append("")
-            lines.append(f"axis {a.axis}: mean {a.mean * s:.6g} {units}, std {a.std * s:.6g} "
-                         f"{units}; model: {a.model_text()} ({a.method})")
+            stats = (f"mean {a.mean * s:.6g} {units}, std {a.std * s:.6g} {units}"
+                     if math.isfinite(a.std) else "from an Allan deviation curve")
+            lines.append(f"axis {a.axis}: {stats}; model: {a.model_text()} ({a.method})")
 
             def row(key: str, est: Estimate, scale: float = s) -> str:
                 return (f"  {key} = {est.value * scale:.4g} {u(key) if key != 'T' else 's'}   "
@@ -514,7 +515,12 @@ def identify(
     if skip < 0:
         raise IdentificationError(f"skip must not be negative, got {skip_s} s")
     if skip:
-        data = check_record(data[skip:] if skip < data.shape[0] else data[:0], rate_hz)
+        if skip + MIN_SAMPLES > data.shape[0]:
+            raise IdentificationError(
+                f"skipping {_duration_text(skip_s)} leaves {max(data.shape[0] - skip, 0)} of "
+                f"the record's {data.shape[0]} samples: too short to identify"
+            )
+        data = check_record(data[skip:], rate_hz)
     names = list(axis_names) if axis_names is not None else list(AXES[: data.shape[1]])
     if len(names) != data.shape[1]:
         raise IdentificationError(f"{len(names)} axis names for {data.shape[1]} columns")

@@ -119,6 +119,9 @@ def builtin_profile_names() -> list[str]:
 def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper") -> Profile:
     """Load a built-in profile by name, a user TOML file by path, or validate a mapping.
 
+    A path ending in .yaml/.yml is read as a Kalibr imu.yaml, one ending in .m as a MATLAB
+    gyroparams(...) block (interop.py has the mappings).
+
     Raises ProfileError (a ValueError) with a message naming what is wrong.
     """
     if isinstance(name_or_path, Profile):
@@ -134,6 +137,16 @@ def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper
     if isinstance(name_or_path, str) and text_name in builtins:
         return _builtin_profile(text_name)
     path = Path(name_or_path)
+    if path.is_file() and path.suffix.lower() in (".yaml", ".yml", ".m"):
+        # another tool's parameters (Kalibr imu.yaml, MATLAB gyroparams): interop.py
+        from bmg160_emu.noise import interop
+
+        try:
+            if path.suffix.lower() == ".m":
+                return interop.profile_from_matlab(path)
+            return interop.profile_from_kalibr(path)
+        except interop.InteropError as exc:
+            raise ProfileError(str(exc)) from None
     if path.is_file():
         try:
             data = path.read_text(encoding="utf-8")
