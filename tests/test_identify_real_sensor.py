@@ -116,3 +116,34 @@ def test_every_interval_is_finite_and_ordered_on_short_and_awkward_records():
             for est in estimates:
                 assert np.isfinite([est.value, est.ci_low, est.ci_high]).all()
                 assert est.ci_low <= est.value <= est.ci_high
+
+
+@pytest.mark.parametrize(
+    "kind", ["random walk only", "quantized", "sine", "ramp", "single step"])
+def test_awkward_records_give_finite_intervals_or_a_clear_error(kind):
+    from bmg160_emu.noise.identification import IdentificationError
+
+    rng = np.random.default_rng(0)
+    n = 20_000
+    x = {
+        "random walk only": np.cumsum(rng.standard_normal(n)) * 1e-3,
+        "quantized": np.round(rng.standard_normal(n) * 0.3 * 16.4) / 16.4,
+        "sine": np.sin(np.arange(n) / 200 * 2 * np.pi * 0.1) + rng.standard_normal(n) * 1e-3,
+        "ramp": np.arange(n) * 1e-3 + rng.standard_normal(n) * 1e-4,
+        "single step": np.r_[np.zeros(n // 2), np.ones(n // 2)],
+    }[kind]
+    for options in ({}, {"poles": 3}, {"flicker": True}, {"with_q": True, "with_r": True}):
+        try:
+            axis = identify(x, 200.0, **options).axes[0]
+        except IdentificationError:
+            continue
+        for est in [axis.N, axis.K] + [e for t in axis.terms for e in (t.B, t.T)]:
+            assert np.isfinite([est.value, est.ci_low, est.ci_high]).all(), (options, est)
+            assert est.ci_low <= est.value <= est.ci_high, (options, est)
+
+
+def test_a_record_below_double_precision_is_a_clear_error():
+    from bmg160_emu.noise.identification import IdentificationError
+
+    with pytest.raises(IdentificationError, match="below double precision"):
+        identify(np.random.default_rng(1).standard_normal(5000) * 1e-200, 200.0)

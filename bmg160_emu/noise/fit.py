@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize, nnls
+from scipy.optimize import lsq_linear, minimize, nnls
 
 from bmg160_emu.noise.allan import (
     FLICKER_ADEV_FACTOR,
@@ -151,7 +151,11 @@ def _solve(design: _Design, avar: np.ndarray, w: np.ndarray, Ts) -> tuple[np.nda
     A = design.matrix(np.asarray(Ts, dtype=float)) * w[:, None]
     scale = np.linalg.norm(A, axis=0)  # columns span ~10 decades: solve on unit columns
     scale[scale == 0] = 1.0
-    theta, rnorm = nnls(A / scale, avar * w, maxiter=50 * A.shape[1])
+    try:
+        theta, rnorm = nnls(A / scale, avar * w, maxiter=50 * A.shape[1])
+    except RuntimeError:  # NNLS did not converge: the bounded least-squares solver instead
+        sol = lsq_linear(A / scale, avar * w, bounds=(0.0, np.inf))
+        theta, rnorm = sol.x, float(np.linalg.norm(sol.fun))
     return theta / scale, float(rnorm**2)
 
 
@@ -170,7 +174,7 @@ def _refine(design, avar, w, Ts, bounds) -> tuple[np.ndarray, np.ndarray, float]
     res = minimize(cost, u0, method="L-BFGS-B", bounds=[(lo, hi)] * Ts.size,
                    options={"maxiter": 200})
     u = res.x if res.fun <= cost(u0) else u0
-    Ts = np.sort(np.exp(u))
+    Ts = np.sort(np.clip(np.exp(u), bounds[0], bounds[1]))  # exp(log(b)) may round past b
     theta, c = _solve(design, avar, w, Ts)
     return Ts, theta, c
 
@@ -319,9 +323,13 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
     norms = np.linalg.norm(J, axis=0)
     sd = np.full(J.shape[1], np.inf)
     usable = norms > 0  # a parameter with no effect on the curve: capped interval below
+    usable &= np.isfinite(norms)
     Jn = J[:, usable] / norms[usable]
-    cov = np.linalg.pinv(Jn.T @ Jn)
-    sd[usable] = np.sqrt(np.clip(np.diag(cov), 0.0, None) * scale) / norms[usable]
+    try:
+        cov = np.linalg.pinv(Jn.T @ Jn)
+        sd[usable] = np.sqrt(np.clip(np.diag(cov), 0.0, None) * scale) / norms[usable]
+    except (np.linalg.LinAlgError, ValueError):
+        pass  # no linearized interval: every one is capped below
     sd = np.array([s * CI_WIDENING[nm] for s, nm in zip(sd, names)])
     # the largest value each term could take alone under the curve's upper bound
     upper = (curve.ci_high[sel] ** 2) * 4.0

@@ -395,6 +395,11 @@ def identify_axis(
     mean = float(x.mean())
     std = float(x.std())
     curve = _curve_from_record(x, rate_hz)
+    if curve.taus.size < 4:
+        raise IdentificationError(
+            f"the Allan deviation of axis {axis} is zero or below double precision at almost "
+            f"every tau (std {std:.3g} deg/s): scale the record to deg/s"
+        )
     if progress is not None:
         progress(f"{axis}: Allan deviation")
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
