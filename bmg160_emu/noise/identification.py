@@ -359,7 +359,8 @@ def _fit_curve_axis(
         lo, reason = found.tau_min_s, found.reason
         if found.filtered:
             notes.append(f"sensor filter: {reason}; its remaining roll-off is fitted as a "
-                         "-c / tau^2 term")
+                         "-c / tau^2 term (the profile has no filter: generate --bandwidth "
+                         "CODE adds the chip's)")
             options = {**options, "roll_off": True}
     else:
         reason = f"fitted from tau = {lo:g} s (--tau-min)"
