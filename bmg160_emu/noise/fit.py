@@ -246,9 +246,14 @@ def fit_curve(
     poles: int | None = None,
     flicker: bool = False,
     roll_off: bool = False,
+    record: np.ndarray | None = None,
 ) -> CurveFit:
     """Fit the curve; poles = None chooses the number of Gauss-Markov terms by AICc;
-    roll_off adds the first-order deficit of a sensor filter (a term -c / tau^2)."""
+    roll_off adds the first-order deficit of a sensor filter (a term -c / tau^2).
+
+    record (the samples, None for a curve input) is part of the signature every method of
+    identification.FIT_METHODS takes, for methods that fit the samples themselves; this
+    one fits the curve only."""
     sel = np.ones(curve.taus.size, dtype=bool)
     if tau_range[0] is not None:
         sel &= curve.taus >= tau_range[0] * (1 - 1e-9)

@@ -9,7 +9,9 @@ numbers the generator takes (noise-model.md, "Two facts"); the IEEE read-offs ar
 beside it, labelled (readoffs.py).
 
 Fit methods are looked up by name in FIT_METHODS ("wls", the default; other modules may
-register theirs, e.g. a GMWM fit, with the same signature).
+register theirs, e.g. a GMWM fit, with fit.fit_curve's signature: the curve, rate, sample
+count, tau_range, with_q, with_r, poles, flicker, roll_off, and record = the samples or None
+for a curve input; returning a fit.CurveFit).
 """
 
 from __future__ import annotations
@@ -335,7 +337,8 @@ def check_record(rate_dps: np.ndarray, rate_hz: float) -> np.ndarray:
     return data
 
 
-def _fit(method: str, curve: AllanCurve, rate_hz: float, n: int, tau_range, options) -> CurveFit:
+def _fit(method: str, curve: AllanCurve, rate_hz: float, n: int, tau_range, options,
+         record: np.ndarray | None = None) -> CurveFit:
     try:
         fitter = FIT_METHODS[method]
     except KeyError:
@@ -343,13 +346,14 @@ def _fit(method: str, curve: AllanCurve, rate_hz: float, n: int, tau_range, opti
             f"unknown fit method {method!r}: use {', '.join(sorted(FIT_METHODS))}"
         ) from None
     try:
-        return fitter(curve, rate_hz, n, tau_range=tau_range, **options)
+        return fitter(curve, rate_hz, n, tau_range=tau_range, record=record, **options)
     except FitError as exc:
         raise IdentificationError(f"{exc} ({RECORD_NEEDS})") from None
 
 
 def _fit_curve_axis(
-    axis: str, curve: AllanCurve, rate_hz: float, n: int, tau_range, options, method: str
+    axis: str, curve: AllanCurve, rate_hz: float, n: int, tau_range, options, method: str,
+    record: np.ndarray | None = None,
 ) -> tuple[CurveFit, str, list[str]]:
     """The fit with the default tau range found from the curve, and its notes."""
     notes: list[str] = []
@@ -364,7 +368,7 @@ def _fit_curve_axis(
             options = {**options, "roll_off": True}
     else:
         reason = f"fitted from tau = {lo:g} s (--tau-min)"
-    fit = _fit(method, curve, rate_hz, n, (lo, hi), options)
+    fit = _fit(method, curve, rate_hz, n, (lo, hi), options, record)
     notes += _fit_notes(fit, n / rate_hz)
     return fit, reason, notes
 
@@ -404,7 +408,8 @@ def identify_axis(
     if progress is not None:
         progress(f"{axis}: Allan deviation")
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
-    fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options, method)
+    fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options, method,
+                                         record=x)
     if progress is not None:
         progress(f"{axis}: fit")
     for check in (diagnostics.warmup_check, diagnostics.step_check):
