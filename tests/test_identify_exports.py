@@ -155,3 +155,12 @@ def test_the_library_filtered_noise_is_chunk_invariant_to_rounding():
     np.testing.assert_allclose(parts, whole, rtol=0, atol=1e-12)
     with pytest.raises(ValueError, match="unknown BW code 8"):
         ChipFilteredNoise("paper", 8)
+
+
+def test_a_curve_in_deg_per_hour_whitespace_separated(tmp_path, capsys):
+    taus = 0.01 * 2.0 ** np.arange(14)
+    path = tmp_path / "pasted.txt"
+    np.savetxt(path, np.column_stack([taus, 0.02 * 3600 / np.sqrt(taus)]), delimiter=" ")
+    out = run_json(capsys, path, "--curve", "--rate", "100", "--samples", "1000000",
+                   "--curve-units", "deg/h")
+    assert out["axes"]["x"]["N"]["value"] == pytest.approx(0.02, rel=1e-3)

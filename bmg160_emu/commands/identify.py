@@ -150,7 +150,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="with --curve: length of the record behind the curve (with --rate)",
     )
     parser.add_argument(
-        "--curve-units", choices=("deg/s", "rad/s"), default="deg/s",
+        "--curve-units", choices=("deg/s", "rad/s", "deg/h"), default="deg/s",
         help="with --curve: units of the curve (allan_variance_ros writes rad/s)",
     )
     parser.set_defaults(func=run)

@@ -18,6 +18,9 @@ Mappings (deg/s internally; d = pi / 180 rad per degree):
 - ADEV curve CSV: first column tau in s, then per axis the Allan deviation, optionally
   followed by its interval (low, high); allan_variance_ros's layout (tau, 3 accelerometer,
   3 gyroscope columns) is recognised by its 7 columns and the gyroscope columns used.
+  Tools that write tau and each axis as separate one-column files (imu_utils) are read
+  after pasting the columns together (``paste -d, tau.txt x.txt y.txt z.txt``); curves in
+  rad/s or deg/h are read with units="rad/s" / "deg/h".
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar_unit
 from bmg160_emu.noise.profile import AxisNoise, Profile
 
 DEG = math.pi / 180.0  # rad per degree
-UNIT_SCALES = {"deg/s": 1.0, "rad/s": DEG}
+UNIT_SCALES = {"deg/s": 1.0, "rad/s": DEG, "deg/h": 3600.0}  # value in the unit per deg/s
 
 
 class InteropError(ValueError):
