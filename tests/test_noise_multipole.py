@@ -156,3 +156,14 @@ def test_paper_mode_takes_the_variance_of_every_term():
     b_total = math.sqrt(paper.B**2 + 1e-6)
     assert c.white_std == paper_sigma_N(paper.sigma_gyro, b_total, paper.K, 0.005, paper.sigma_K)
     assert len(c.poles) == 2
+
+
+def test_the_random_walk_is_the_cumulative_sum_of_its_stream_to_rounding():
+    K, rate = 4e-4, 200.0
+    prof = Profile("rw", *[AxisNoise(N=0.0, B=0.0, T=0.0, K=K, bias=0.0)] * 3)
+    out = NoiseGenerator(prof, rate_hz=rate, seed=5).generate(100_000)
+    stream = np.random.SeedSequence(5).spawn(3)[2].spawn(4)[2]  # axis z, stream "rw"
+    rng = np.random.Generator(np.random.PCG64(stream))
+    ref = np.cumsum(rng.standard_normal(100_000) * K * math.sqrt(1 / rate))
+    # the walk reaches ~K sqrt(500 s) = 0.009 deg/s; the summation orders differ by rounding
+    assert np.max(np.abs(out[:, 2] - ref)) < 1e-13

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from bmg160_emu.noise.gauss_markov import PoleCoefficients, pole_coefficients
+from bmg160_emu.noise.gauss_markov import PoleCoefficients, pole_coefficients, walk_coefficients
 from bmg160_emu.noise.profile import AxisNoise
 
 MODES = ("physical", "paper")
@@ -50,6 +50,7 @@ class AxisCoefficients:
     ramp_slope: float  # R, deg/s per s
     bias: float
     poles: tuple[PoleCoefficients, ...] = ()  # every Gauss-Markov term, B, T first
+    walk: PoleCoefficients | None = None  # the random walk's block tables (rw_step)
 
 
 def check_rate(rate_hz: float) -> float:
@@ -133,4 +134,5 @@ def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoeffic
         ramp_slope=axis.R,
         bias=axis.bias,
         poles=tuple(poles),
+        walk=walk_coefficients(rw_step) if rw_step > 0 else None,
     )

@@ -8,10 +8,10 @@ Interface (used by the device model, see docs/architecture.md):
 
 Why it is chunk invariant: every term of every axis draws from its own numpy Generator
 (children of one SeedSequence), so sample k always consumes the k-th normal of each stream;
-the Gauss-Markov recursions (gauss_markov.py: block-wise scaled cumulative sums, numpy only,
-no scipy on the chip's import path) and the random-walk cumsum carry their state exactly
-(the carried offset is folded into the first increment, not added afterwards), so the
-floating-point operations per sample do not depend on how the stream is cut.
+the Gauss-Markov recursions and the random walk (gauss_markov.py: block-wise scaled
+cumulative sums on super-blocks counted from the start or the last rate change, numpy only,
+no scipy on the chip's import path) carry their state exactly, so the floating-point
+operations per sample do not depend on how the stream is cut.
 
 Streams per axis: white, gm (the first Gauss-Markov term), rw, quant, then gm1, gm2, ...
 for further terms (spawned after the first four, so a one-term profile draws exactly the
@@ -68,11 +68,13 @@ class _AxisStream:
             "rw": axis.K > 0,
             "quant": axis.Q > 0,
         }
-        self._drawn = [name for name in _STREAMS if self.uses[name] and name != "gm"]
+        self._drawn = [name for name in ("white", "quant") if self.uses[name]]
         # each Gauss-Markov term draws its own normals (gauss_markov.Pole), starting in its
         # stationary distribution
         self.poles = [Pole(self.rng[name], B) for name, (B, _) in zip(self.gm_names, terms)]
-        self.rw_prev = 0.0
+        # the random walk is the same recursion with a = 1, starting at 0
+        self.walk = Pole(self.rng["rw"], None) if self.uses["rw"] else None
+        self._all = self.poles + ([self.walk] if self.walk is not None else [])
         self.quant_prev = float(self.rng["quant"].standard_normal()) if self.uses["quant"] else 0.0
         self.coef: AxisCoefficients | None = None
 
@@ -81,23 +83,24 @@ class _AxisStream:
         self.coef = coef
         for pole, pc in zip(self.poles, coef.poles):
             pole.restart(pc)
+        if self.walk is not None:
+            assert coef.walk is not None
+            self.walk.restart(coef.walk)
 
     def draw(self, n: int) -> dict[str, np.ndarray | None]:
-        out: dict[str, np.ndarray | None] = {"white": None, "rw": None, "quant": None}
+        out: dict[str, np.ndarray | None] = {"white": None, "quant": None}
         for name in self._drawn:
             out[name] = self.rng[name].standard_normal(n)
         return out
 
     def state(self) -> tuple[Any, ...]:
-        return (tuple(p.state() for p in self.poles), self.rw_prev, self.quant_prev)
+        return (tuple(p.state() for p in self._all), self.quant_prev)
 
     def compute(
         self, normals: dict[str, np.ndarray | None], t: np.ndarray | None, out: np.ndarray
-    ) -> np.ndarray | None:
-        """Write this axis's samples into out (a possibly strided view); advance the state.
-
-        Returns the random-walk component (kept by the small-request buffer to rewind on a
-        rate change; the Gauss-Markov terms rewind from their saved state).
+    ) -> None:
+        """Write this axis's samples into out (a possibly strided view); advance the state
+        (the Gauss-Markov terms and the walk rewind from their saved state on a rate change).
         """
         c = self.coef
         assert c is not None
@@ -107,15 +110,8 @@ class _AxisStream:
             np.multiply(normals["white"], c.white_std, out=acc)
         else:
             acc.fill(0.0)
-        for pole in self.poles:
+        for pole in self._all:
             acc += pole.take(n)
-        rw = None
-        if normals["rw"] is not None:
-            rw = np.multiply(normals["rw"], c.rw_step)
-            rw[0] += self.rw_prev  # carried offset folded in: same additions as one long cumsum
-            np.cumsum(rw, out=rw)
-            acc += rw
-            self.rw_prev = float(rw[-1])
         wq = normals["quant"]
         if wq is not None:
             diff = np.empty(n)
@@ -127,7 +123,6 @@ class _AxisStream:
         if t is not None and c.ramp_slope > 0:
             acc += c.ramp_slope * t
         np.add(acc, c.bias, out=out)
-        return rw
 
 
 class NoiseGenerator:
@@ -171,7 +166,6 @@ class NoiseGenerator:
         self._buf_start = 0
         self._buf_out = np.empty((0, 3))
         self._buf_normals: list[dict[str, np.ndarray | None]] = []
-        self._buf_parts: list[np.ndarray | None] = []
         self._buf_state_before: list[tuple[Any, ...]] = []
 
     # -- public interface --------------------------------------------------------------------
@@ -232,13 +226,11 @@ class NoiseGenerator:
         if pending > 0:
             # rewind every axis to the state of the last sample handed out
             for i, stream in enumerate(self._axes):
-                poles_before, rw_before, q_before = self._buf_state_before[i]
-                rw = self._buf_parts[i]
+                poles_before, q_before = self._buf_state_before[i]
                 normals = self._buf_normals[i]
-                for pole, before in zip(stream.poles, poles_before):
+                for pole, before in zip(stream._all, poles_before):
                     pole.set_state(before)
                     pole.skip(pos)
-                stream.rw_prev = float(rw[pos - 1]) if (rw is not None and pos > 0) else rw_before
                 wq = normals["quant"]
                 stream.quant_prev = float(wq[pos - 1]) if (wq is not None and pos > 0) else q_before
         self._apply_rate(rate, coefs)
@@ -264,18 +256,18 @@ class NoiseGenerator:
         )
         # the buffer arrays are replaced, never written in place: references are enough
         return (axes, self._rate_hz, self._t_ref, self._k_ref, self._k, self._buf_start,
-                self._buf_out, self._buf_normals, self._buf_parts, self._buf_state_before)
+                self._buf_out, self._buf_normals, self._buf_state_before)
 
     def restore(self, checkpoint: tuple[Any, ...]) -> None:
         """Go back to the state saved by ``checkpoint`` (of this generator)."""
         (axes, self._rate_hz, self._t_ref, self._k_ref, self._k, self._buf_start,
-         self._buf_out, self._buf_normals, self._buf_parts, self._buf_state_before) = checkpoint
-        for stream, (rng_states, (poles, rw, q), coef) in zip(self._axes, axes):
+         self._buf_out, self._buf_normals, self._buf_state_before) = checkpoint
+        for stream, (rng_states, (poles, q), coef) in zip(self._axes, axes):
             for name, state in rng_states.items():
                 stream.rng[name].bit_generator.state = state
-            for pole, pole_state in zip(stream.poles, poles):
+            for pole, pole_state in zip(stream._all, poles):
                 pole.set_state(pole_state)
-            stream.rw_prev, stream.quant_prev, stream.coef = rw, q, coef
+            stream.quant_prev, stream.coef = q, coef
 
     # -- internals ---------------------------------------------------------------------------
 
@@ -313,7 +305,5 @@ class NoiseGenerator:
         self._buf_normals = normals
         self._buf_state_before = [s.state() for s in self._axes]
         t = self._times(k0, m)
-        self._buf_parts = [
+        for i, stream in enumerate(self._axes):
             stream.compute(normals[i], t, self._buf_out[:, i])
-            for i, stream in enumerate(self._axes)
-        ]

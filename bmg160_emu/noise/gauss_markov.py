@@ -21,7 +21,8 @@ sample-by-sample recursion of earlier versions (lfilter) the values differ by ro
 only: the same normals, the same process (a test compares them).
 
 A term with T < dt / 40 has a < 4e-18: to double precision it is white noise g w, and is
-computed as such.
+computed as such. The random walk of the noise model is the same recursion with a = 1
+(walk_coefficients): a 1-D np.cumsum costs about as much as drawing its normals.
 """
 
 from __future__ import annotations
@@ -55,11 +56,19 @@ def pole_coefficients(B: float, dt: float, T: float) -> PoleCoefficients:
     """The tables of the term (B deg/s, T s) at sample period dt s."""
     r = dt / T
     a = math.exp(-r)
-    g = B * math.sqrt(1.0 - a * a)
+    return _tables(a, B * math.sqrt(1.0 - a * a), r)
+
+
+def walk_coefficients(step: float) -> PoleCoefficients:
+    """The tables of a random walk x(k) = x(k-1) + step w(k): the same recursion, a = 1."""
+    return _tables(1.0, step, 0.0)
+
+
+def _tables(a: float, g: float, r: float) -> PoleCoefficients:
     if r > _WHITE_ABOVE:
         return PoleCoefficients(a, g, _BLOCK * _MAX_BLOCKS, None, None, None, None)
-    L = int(min(_BLOCK, _LOG_RANGE // r))
-    nb = int(max(1, min(_MAX_BLOCKS, _LOG_RANGE // (L * r))))
+    L = int(min(_BLOCK, _LOG_RANGE // r)) if r > 0 else _BLOCK
+    nb = int(max(1, min(_MAX_BLOCKS, _LOG_RANGE // (L * r)))) if r > 0 else _MAX_BLOCKS
     j = np.arange(1, L + 1, dtype=float)[:, None]
     c = np.arange(nb - 1, dtype=float)
     return PoleCoefficients(
@@ -100,11 +109,11 @@ class Pole:
 
     __slots__ = ("coef", "last", "normals", "pos", "queue", "rng", "values")
 
-    def __init__(self, rng: np.random.Generator, B: float) -> None:
+    def __init__(self, rng: np.random.Generator, B: float | None) -> None:
         self.rng = rng
         # start in the stationary distribution (std B): a powered sensor has been running
-        # long before the first sample
-        self.last = B * float(rng.standard_normal())
+        # long before the first sample; a random walk (B None) starts at 0
+        self.last = B * float(rng.standard_normal()) if B is not None else 0.0
         self.coef: PoleCoefficients | None = None
         self.queue = np.empty(0)  # normals drawn ahead, not yet in a computed super-block
         self.normals = np.empty(0)  # normals of the current super-block
@@ -135,6 +144,8 @@ class Pole:
 
     def take(self, n: int) -> np.ndarray:
         """The next n values (deg/s)."""
+        if n and self.pos == self.values.size:
+            self._next_superblock()
         if self.pos + n <= self.values.size:  # the common case: a view, no copy
             out = self.values[self.pos : self.pos + n]
             self.pos += n
