@@ -134,5 +134,5 @@ def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoeffic
         ramp_slope=axis.R,
         bias=axis.bias,
         poles=tuple(poles),
-        walk=walk_coefficients(rw_step) if rw_step > 0 else None,
+        walk=walk_coefficients(rw_step) if axis.K > 0 else None,
     )

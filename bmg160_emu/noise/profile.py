@@ -74,6 +74,11 @@ class AxisNoise:
         object.__setattr__(self, "gm", tuple((float(B), float(T)) for B, T in self.gm))
 
     @property
+    def poles(self) -> tuple[tuple[float, float], ...]:
+        """The same as gauss_markov_terms (the name thermal_fit.NoiseTerms looks for)."""
+        return self.gauss_markov_terms
+
+    @property
     def gauss_markov_terms(self) -> tuple[tuple[float, float], ...]:
         """Every Gauss-Markov term (B, T) the generator draws: B, T first, then gm."""
         first = ((self.B, self.T),) if self.B > 0 and self.T > 0 else ()
