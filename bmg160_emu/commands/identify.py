@@ -228,8 +228,8 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _identify_record(args: argparse.Namespace, options: dict):
-    from bmg160_emu.noise.identification import STAGES_PER_AXIS, identify
     from bmg160_emu.io.rates import load_rate_record
+    from bmg160_emu.noise.identification import STAGES_PER_AXIS, identify
 
     columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
     record = load_rate_record(args.file, args.rate, columns)
