@@ -167,7 +167,9 @@ class Pole:
         c = self.coef
         assert c is not None
         s0 = float(self.values[-1]) if self.values.size else self.last
-        if self.queue.size >= c.size:
+        if self.queue.size == 0:  # the common case: no normals left over from a rate change
+            w = self.rng.standard_normal(c.size)
+        elif self.queue.size >= c.size:
             w, self.queue = self.queue[: c.size], self.queue[c.size :]
         else:
             w = np.concatenate([self.queue, self.rng.standard_normal(c.size - self.queue.size)])
