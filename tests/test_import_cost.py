@@ -13,8 +13,6 @@ import subprocess
 import sys
 import textwrap
 
-import pytest
-
 # Packages the chip path must not import: seconds of start-up between them (scipy.signal
 # alone is about 0.6 s on an idle machine), and none of them does anything for a read.
 HEAVY = ("scipy", "matplotlib", "allantools", "tqdm", "pandas", "dask", "unittest")
@@ -73,11 +71,6 @@ def test_a_noise_profile_loads_without_the_generator() -> None:
     assert _heavy(modules) == []
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="noise/engine.py imports scipy.signal.lfilter at module level for the Gauss-Markov "
-    "recursion; remove this mark once the engine computes it without scipy",
-)
 def test_a_chip_read_through_fake_smbus_imports_nothing_heavy() -> None:
     modules = _imported_after(
         """

@@ -3,7 +3,10 @@
 Target (issue 2): 3 axes x 24 h at 200 Hz (51.8 M samples) in no more than 2x the time
 numpy's Generator.standard_normal takes to draw 3 normals per axis and sample (155.5 M),
 measured in the same run. Both sides stream in chunks (nothing holds the whole day).
-Also prints the per-call cost of small requests (the device model's pattern).
+Also prints the per-call cost of small requests (the device model's pattern), and the same
+ratio for a profile with four Gauss-Markov terms per axis (issue 11: at most 1.5x numpy
+drawing the 6 normals per axis and sample that profile consumes, and the one-term ratio not
+worse than the 1.32 measured before the numpy-only recursion).
 
     python tools/bench_noise_generation.py            # the full 24 h
     python tools/bench_noise_generation.py --hours 2  # quicker
@@ -17,6 +20,7 @@ import time
 import numpy as np
 
 from bmg160_emu.noise import NoiseGenerator
+from bmg160_emu.noise.profile import AxisNoise, Profile
 
 CHUNK = 1 << 18  # samples per generate() call, as the generate command streams
 
@@ -33,8 +37,15 @@ def time_reference(total_normals: int) -> float:
     return time.perf_counter() - start
 
 
-def time_generator(samples: int, mode: str) -> float:
-    gen = NoiseGenerator("paper", rate_hz=200.0, seed=0, mode=mode)
+# four terms at T = 5, 60, 900, 16000 s: the shape identify fits on a real unit
+FOUR_POLES = AxisNoise(
+    N=0.04, B=0.0, T=0.0, K=1e-4, bias=0.1,
+    gm=((2e-3, 5.0), (1.5e-3, 60.0), (1e-3, 900.0), (8e-4, 16000.0)),
+)
+
+
+def time_generator(samples: int, mode: str, profile="paper") -> float:
+    gen = NoiseGenerator(profile, rate_hz=200.0, seed=0, mode=mode)
     start = time.perf_counter()
     left = samples
     while left > 0:
@@ -66,19 +77,30 @@ def main() -> None:
     samples = int(args.hours * 3600 * 200)
     normals = 3 * 3 * samples  # white, Gauss-Markov drive, random-walk drive per axis
     # interleaved, best of N: the machine is shared, so load drifts between runs
-    refs, ours_runs, paper_runs = [], [], []
+    four = Profile("four-poles", FOUR_POLES, FOUR_POLES, FOUR_POLES)
+    normals4 = 3 * 6 * samples  # white, four Gauss-Markov drives, random walk per axis
+    refs, ours_runs, paper_runs, refs4, four_runs = [], [], [], [], []
     for _ in range(args.repeat):
         refs.append(time_reference(normals))
         ours_runs.append(time_generator(samples, "physical"))
         paper_runs.append(time_generator(samples, "paper"))
+        refs4.append(time_reference(normals4))
+        four_runs.append(time_generator(samples, "physical", four))
     ref, ours, paper = min(refs), min(ours_runs), min(paper_runs)
+    ref4, ours4 = min(refs4), min(four_runs)
     print(f"record: 3 axes x {args.hours:g} h at 200 Hz = {3 * samples / 1e6:.1f} M samples")
     print(f"reference  numpy standard_normal x {normals / 1e6:.1f} M : {ref:8.2f} s")
     print(f"generator  physical mode                      : {ours:8.2f} s  ratio {ours / ref:.2f}")
     print(
         f"generator  paper mode                         : {paper:8.2f} s  ratio {paper / ref:.2f}"
     )
-    print("target: ratio <= 2.0")
+    print("target: ratio <= 2.0 (issue 11: one term not above 1.32)")
+    print(f"reference  numpy standard_normal x {normals4 / 1e6:.1f} M : {ref4:8.2f} s")
+    print(
+        f"generator  four Gauss-Markov terms            : {ours4:8.2f} s  "
+        f"ratio {ours4 / ref4:.2f}"
+    )
+    print("target: ratio <= 1.5")
     small, small_ref = time_small_calls(100_000)
     print(
         f"small requests: generate(1) {small * 1e6:.2f} us per call "

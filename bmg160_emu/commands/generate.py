@@ -15,14 +15,65 @@ examples:
   bmg160-emu generate --profile paper --rate 200 --duration 2h --seed 1 -o noise.npy
   bmg160-emu generate --profile datasheet --rate 2000 --duration 10min --seed 3 -o noise.csv
   bmg160-emu generate --profile my-gyro.toml --mode physical --duration 1d -o day.npy
+  bmg160-emu generate --profile my-gyro.toml --bandwidth 7 --duration 2h -o filtered.npy
 
 The output holds deg/s per axis, constant bias included: .npy is an (n, 3) float64 array;
 .csv has a header t_s,x_dps,y_dps,z_dps (sample k at t = (k + 1) / rate) after '#' lines
 naming the profile, mode, rate and seed. The record is written in chunks, never held whole
 in memory. Durations: 10s, 5min, 2h, 1d, 250ms or plain seconds.
+
+--bandwidth CODE (BW register 0x10, 0-7) sets the rate to that code's ODR and passes the
+noise through the chip's low-pass for that code (device/lowpass.py: 2nd-order Butterworth
+at the code's bandwidth, starting at steady state): the noise as a real sensor's filter
+shapes it. identify finds that filter and fits above it (docs/identification.md). The
+library equivalent is ChipFilteredNoise below.
 """
 
 CHUNK_SAMPLES = 1 << 18  # samples per generate() call while streaming (6 MB per chunk)
+
+
+class ChipFilteredNoise:
+    """A NoiseGenerator's output through the chip's low-pass of one BW code (0-7).
+
+    ``generate(n)`` returns the next n samples (n, 3) in deg/s, chunk invariant in value to
+    rounding (the filter state is carried between calls). The rate is the code's ODR.
+    """
+
+    def __init__(self, profile="paper", bandwidth_code: int = 7, seed=None,
+                 mode: str = "physical") -> None:
+        from bmg160_emu.device.lowpass import LowPass
+        from bmg160_emu.device.spec_choices import BANDWIDTHS
+        from bmg160_emu.noise import NoiseGenerator
+
+        if isinstance(bandwidth_code, bool) or bandwidth_code not in BANDWIDTHS:
+            codes = ", ".join(f"{c} ({o} Hz ODR, {b:g} Hz)" for c, (o, b) in BANDWIDTHS.items())
+            raise ValueError(f"unknown BW code {bandwidth_code!r}: use one of {codes}")
+        odr, bandwidth = BANDWIDTHS[bandwidth_code]
+        self.bandwidth_code = bandwidth_code
+        self.bandwidth_hz = float(bandwidth)
+        self.generator = NoiseGenerator(profile, rate_hz=float(odr), seed=seed, mode=mode)
+        self._filter = LowPass(float(odr), float(bandwidth))
+
+    @property
+    def rate_hz(self) -> float:
+        return self.generator.rate_hz
+
+    @property
+    def profile(self):
+        return self.generator.profile
+
+    @property
+    def mode(self) -> str:
+        return self.generator.mode
+
+    def generate(self, n: int):
+        block = self.generator.generate(n)
+        if block.shape[0] == 0:
+            return block
+        if not self._filter.started:
+            self._filter.restart(block[0])  # at steady state: a powered sensor
+        out, self._filter.state = self._filter.run(block)
+        return out
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -40,7 +91,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--rate",
         type=float,
-        default=200.0,
+        default=None,
         metavar="HZ",
         help="output data rate: 100, 200, 400, 1000 or 2000 Hz (default 200)",
     )
@@ -58,6 +109,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="physical: N, B, T, K scaled with the sample period (default); "
         "paper: the paper's recursion (docs/noise-engine.md)",
     )
+    parser.add_argument(
+        "--bandwidth",
+        type=int,
+        default=None,
+        metavar="CODE",
+        help="BW code 0-7: the code's ODR, and the noise through the chip's low-pass for it",
+    )
     parser.add_argument("-o", "--output", type=Path, required=True, help="OUT.npy or OUT.csv")
     parser.set_defaults(func=run)
 
@@ -67,6 +125,10 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.io.rates import RateStreamWriter
     from bmg160_emu.noise import NoiseGenerator
 
+    args.rate_given = args.rate is not None
+    if args.rate is None:
+        args.rate = 200.0
+
     suffix = args.output.suffix.lower()
     if suffix not in (".npy", ".csv"):
         raise CommandError(f"output must end in .npy or .csv, not {args.output.name!r}")
@@ -75,9 +137,18 @@ def run(args: argparse.Namespace) -> int:
         args.seed = secrets.randbits(32)  # a record names its seed: a random run can be repeated
     elif args.seed < 0:
         raise CommandError(f"--seed must be a non-negative integer, not {args.seed}")
+    gen: ChipFilteredNoise | NoiseGenerator
     try:
         duration = parse_duration(args.duration)
-        gen = NoiseGenerator(args.profile, rate_hz=args.rate, seed=args.seed, mode=args.mode)
+        if args.bandwidth is not None:
+            gen = ChipFilteredNoise(args.profile, args.bandwidth, seed=args.seed, mode=args.mode)
+            if args.rate_given and args.rate != gen.rate_hz:
+                raise CommandError(
+                    f"--rate {args.rate:g} Hz disagrees with --bandwidth {args.bandwidth} "
+                    f"(ODR {gen.rate_hz:g} Hz): give one of them"
+                )
+        else:
+            gen = NoiseGenerator(args.profile, rate_hz=args.rate, seed=args.seed, mode=args.mode)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
     total = round(duration * gen.rate_hz)
@@ -86,6 +157,7 @@ def run(args: argparse.Namespace) -> int:
     header = (
         f"bmg160-emu generate: profile={gen.profile.name} mode={gen.mode} "
         f"rate_hz={gen.rate_hz:g} seed={args.seed} samples={total}"
+        + (f" bandwidth_code={args.bandwidth}" if args.bandwidth is not None else "")
     )
     if chosen_seed:
         print(f"bmg160-emu generate: seed {args.seed} (random; --seed {args.seed} repeats it)",

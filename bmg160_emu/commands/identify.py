@@ -1,4 +1,5 @@
-"""``bmg160-emu identify``: N, B, T, K of each axis of a static record, with plots and a profile."""
+"""``bmg160-emu identify``: N, K and Gauss-Markov terms of each axis of a static record (or of
+an Allan deviation curve), with plots, a profile and exports for Kalibr and MATLAB."""
 
 from __future__ import annotations
 
@@ -14,15 +15,21 @@ examples:
   bmg160-emu identify noise.npy --rate 200
   bmg160-emu identify static.csv --plot adev.png --json
   bmg160-emu identify static.csv --profile-out my-gyro.toml --figures figs/ --compare
+  bmg160-emu identify static.csv --skip 40min --units rad/s --kalibr-out imu.yaml
+  bmg160-emu identify adev.csv --curve --rate 100 --duration 2.8h --profile-out mine.toml
 
 Inputs: CSV (one column per axis, optional time column t/t_s/time, '#' comments, the layout
-of `bmg160-emu record` and `generate`), .npy (n or n x k array), .npz. The rate comes from
---rate or from the time column. The fit is a weighted least-squares fit of the closed-form
-Allan variance (white + Gauss-Markov + random walk); the IEEE 952 read-offs are printed
-beside it, labelled. PSDs are one-sided (white noise of density N reads 2 N^2).
---figures writes timeseries, histogram, adev and psd figures; with --compare, an emulator
-record of the same length from the identified profile is overlaid (overlay_adev, overlay_psd,
-overlay_time, one set per axis).
+of `bmg160-emu record` and `generate`), .npy (n or n x k array), .npz; with --curve, an Allan
+deviation CSV (tau, then adev [low high] per axis; allan_variance_ros's 7 columns) and the
+record's --samples or --duration. The rate comes from --rate or from the time column.
+
+The fit (docs/identification.md): weighted least squares of the closed-form Allan variance
+of white noise + Gauss-Markov terms (B_i, T_i) + random walk; the number of terms is chosen
+by AICc (or --poles). The shortest tau fitted is where the sensor's own filter ends (the
+white -1/2 slope region), found from the curve (or --tau-min). Warm-up and bias steps are
+reported. The IEEE 952 read-offs are printed beside the fit, labelled. PSDs are one-sided
+(white noise of density N reads 2 N^2). --figures writes timeseries, histogram, adev and psd
+figures; with --compare, an emulator record of the same length is overlaid.
 """
 
 
@@ -97,71 +104,212 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument(
         "--tau-max", type=float, default=None, metavar="S", help="longest tau fitted"
     )
+    parser.add_argument(
+        "--poles",
+        default="auto",
+        metavar="N|auto",
+        help="number of Gauss-Markov terms (default auto: chosen by AICc; 1 for the firmware)",
+    )
+    parser.add_argument(
+        "--flicker", action="store_true", help="also fit a 1/f bias (a fixed bank of poles)"
+    )
+    parser.add_argument(
+        "--method", default="wls", help="fit method (default wls: weighted least squares)"
+    )
+    parser.add_argument(
+        "--skip", default=None, metavar="DURATION", help="drop the start (warm-up), e.g. 40min"
+    )
+    parser.add_argument(
+        "--units",
+        choices=("deg/s", "rad/s"),
+        default="deg/s",
+        help="units of the summary, --json, --adev-out (the profile stays in deg/s)",
+    )
+    parser.add_argument(
+        "--adev-out", type=Path, default=None, metavar="FILE.csv",
+        help="write each axis's Allan deviation with its interval",
+    )
+    parser.add_argument(
+        "--kalibr-out", type=Path, default=None, metavar="imu.yaml",
+        help="write Kalibr's gyroscope noise fields (rad/s units)",
+    )
+    parser.add_argument(
+        "--matlab-out", type=Path, default=None, metavar="FILE.m",
+        help="write a MATLAB gyroparams(...) block (rad/s units)",
+    )
+    parser.add_argument(
+        "--curve", action="store_true",
+        help="the file is an Allan deviation curve (CSV), not samples",
+    )
+    parser.add_argument(
+        "--samples", type=int, default=None, metavar="N",
+        help="with --curve: number of samples of the record behind the curve",
+    )
+    parser.add_argument(
+        "--duration", default=None, metavar="TIME",
+        help="with --curve: length of the record behind the curve (with --rate)",
+    )
+    parser.add_argument(
+        "--curve-units", choices=("deg/s", "rad/s", "deg/h"), default="deg/s",
+        help="with --curve: units of the curve (allan_variance_ros writes rad/s)",
+    )
     parser.set_defaults(func=run)
+
+
+def _options(args: argparse.Namespace) -> dict:
+    """The fit options from the command line, or a CommandError naming the bad one."""
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.durations import parse_duration
+
+    if args.poles == "auto":
+        poles = None
+    else:
+        try:
+            poles = int(args.poles)
+        except ValueError:
+            raise CommandError(f"--poles must be a number of terms or 'auto', not {args.poles!r}")
+        if not 0 <= poles <= 5:
+            raise CommandError(f"--poles must be 0 to 5 (or auto), not {poles}")
+    skip = 0.0
+    if args.skip is not None:
+        try:
+            skip = parse_duration(args.skip, allow_zero=True)
+        except ValueError as exc:
+            raise CommandError(f"--skip: {exc}") from None
+    for name in ("tau_min", "tau_max"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            raise CommandError(f"--{name.replace('_', '-')} must be a positive tau in s")
+    return {"poles": poles, "flicker": args.flicker, "method": args.method, "skip_s": skip,
+            "with_q": args.with_q, "with_r": args.with_r,
+            "tau_range": (args.tau_min, args.tau_max)}
 
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.noise.identification import STAGES_PER_AXIS, IdentificationError, identify
-    from bmg160_emu.noise.rate_record import RecordError, load_rate_record
+    from bmg160_emu.io.rates import RateFileError
+    from bmg160_emu.noise.identification import IdentificationError
+    from bmg160_emu.noise.interop import InteropError
 
     for path in (args.plot,):
         if path is not None and path.suffix.lower() not in (".png", ".svg"):
             raise CommandError(f"--plot must end in .png or .svg, not {path.name!r}")
     if args.compare and args.figures is None:
         raise CommandError("--compare needs --figures DIR")
-    columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
+    if args.curve and (args.figures is not None):
+        raise CommandError("--figures needs samples: not available with --curve")
+    options = _options(args)
     try:
-        record = load_rate_record(args.file, args.rate, columns)
-        bar = _progress(record.rate_dps.shape[1] * STAGES_PER_AXIS)
-        try:
-            result = identify(
-                record.rate_dps,
-                record.rate_hz,
-                axis_names=record.axis_names,
-                with_q=args.with_q,
-                with_r=args.with_r,
-                tau_range=(args.tau_min, args.tau_max),
-                source=str(args.file),
-                progress=(lambda stage: _step(bar, stage)) if bar is not None else None,
-            )
-        finally:
-            if bar is not None:
-                bar.close()
-    except (RecordError, IdentificationError) as exc:
+        if args.curve:
+            record, result = None, _identify_curve(args, options)
+        else:
+            record, result = _identify_record(args, options)
+    except (RateFileError, IdentificationError, InteropError) as exc:
         raise CommandError(str(exc)) from None
 
     written: list[Path] = []
     try:
-        if args.profile_out is not None:
-            from bmg160_emu.noise.profile import write_profile
-
-            write_profile(
-                result.to_profile(args.profile_out.stem),
-                args.profile_out,
-                header=f"identified by bmg160-emu identify from {args.file}\n"
-                "units: N deg/s/sqrt(Hz), B deg/s, T s, K deg/s/sqrt(s), bias deg/s",
-            )
-            written.append(args.profile_out)
-        if args.plot is not None:
-            from bmg160_emu.noise import plots
-
-            written.append(plots.save(plots.adev_figure(result.axes), args.plot))
+        written += _write_outputs(args, result)
         if args.figures is not None:
             written += _write_figures(args, record, result)
     except OSError as exc:
         raise CommandError(f"cannot write output: {exc}") from None
 
     if args.json:
-        out = result.as_dict()
+        out = result.as_dict(args.units)
         out["written"] = [str(p) for p in written]
-        json.dump(out, sys.stdout, indent=2)
+        json.dump(out, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
     else:
-        print(result.summary())
+        print(result.summary(args.units))
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def _identify_record(args: argparse.Namespace, options: dict):
+    from bmg160_emu.io.rates import load_rate_record
+    from bmg160_emu.noise.identification import STAGES_PER_AXIS, identify
+
+    columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
+    record = load_rate_record(args.file, args.rate, columns)
+    bar = _progress(record.rate_dps.shape[1] * STAGES_PER_AXIS)
+    try:
+        result = identify(
+            record.rate_dps,
+            record.rate_hz,
+            axis_names=record.axis_names,
+            source=str(args.file),
+            progress=(lambda stage: _step(bar, stage)) if bar is not None else None,
+            **options,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    return record, result
+
+
+def _identify_curve(args: argparse.Namespace, options: dict):
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.durations import parse_duration
+    from bmg160_emu.noise.identification import Identification, identify_curve
+    from bmg160_emu.noise.interop import read_adev_csv
+
+    if args.rate is None:
+        raise CommandError("--curve needs --rate HZ (the record's sample rate)")
+    if (args.samples is None) == (args.duration is None):
+        raise CommandError("--curve needs the record's length: --samples N or --duration TIME")
+    if args.skip is not None:
+        raise CommandError("--skip applies to samples, not to an Allan deviation curve")
+    try:
+        n = args.samples if args.samples is not None else round(
+            parse_duration(args.duration) * args.rate)
+    except ValueError as exc:
+        raise CommandError(f"--duration: {exc}") from None
+    if n < 2:
+        raise CommandError(f"--samples must be at least 2, not {n}")
+    taus, axes = read_adev_csv(args.file, args.curve_units)
+    if taus[-1] * args.rate > n / 2:
+        raise CommandError(
+            f"{args.file}: the curve reaches tau = {taus[-1]:g} s, more than half the record "
+            f"({n} samples at {args.rate:g} Hz): check --samples/--duration and --rate"
+        )
+    options = {k: v for k, v in options.items() if k != "skip_s"}
+    results = [
+        identify_curve(taus, a["adev"], args.rate, n, axis=a["name"], ci=a["ci"], **options)
+        for a in axes
+    ]
+    return Identification(float(args.rate), n, results, str(args.file))
+
+
+def _write_outputs(args: argparse.Namespace, result) -> list[Path]:
+    from bmg160_emu.noise import interop
+
+    written = []
+    if args.profile_out is not None:
+        from bmg160_emu.noise.profile import write_profile
+
+        write_profile(
+            result.to_profile(args.profile_out.stem),
+            args.profile_out,
+            header=f"identified by bmg160-emu identify from {args.file}\n"
+            "units: N deg/s/sqrt(Hz), B deg/s, T s, K deg/s/sqrt(s), bias deg/s",
+        )
+        written.append(args.profile_out)
+    if args.adev_out is not None:
+        interop.write_adev_csv(args.adev_out, result, args.units)
+        written.append(args.adev_out)
+    if args.kalibr_out is not None:
+        args.kalibr_out.write_text(interop.kalibr_yaml(result, result.rate_hz), encoding="utf-8")
+        written.append(args.kalibr_out)
+    if args.matlab_out is not None:
+        args.matlab_out.write_text(interop.matlab_gyroparams(result), encoding="utf-8")
+        written.append(args.matlab_out)
+    if args.plot is not None:
+        from bmg160_emu.noise import plots
+
+        written.append(plots.save(plots.adev_figure(result.axes), args.plot))
+    return written
 
 
 def _progress(steps: int):

@@ -81,6 +81,12 @@ def render_params_header(
         raise ValueError(f"seed must be an integer in 0..2**32-1, got {seed!r}")
     prof = load_profile(profile)
     for name, axis in zip("xyz", prof.axes):
+        if len(axis.gauss_markov_terms) > 1 or (axis.gm and axis.B == 0):
+            raise ValueError(
+                f"profile {prof.name!r} axis {name} has {len(axis.gauss_markov_terms)} "
+                "Gauss-Markov terms (a gm list): the firmware generates one (B, T); "
+                "identify with --poles 1 for a firmware profile"
+            )
         if axis.Q or axis.R:
             raise ValueError(
                 f"profile {prof.name!r} axis {name} has Q or R: the firmware generates "

@@ -43,13 +43,66 @@ class AllanCurve:
         return self.adev**2
 
 
+_CHUNK = 1 << 16  # samples per step of the octave OADEV (three 512 kB slices stay in cache)
+
+
+def octave_oadev(rate_dps: np.ndarray, rate_hz: float) -> tuple[np.ndarray, ...]:
+    """allantools.oadev(data_type="freq", taus="octave") in numpy, faster and in less memory.
+
+    The same arithmetic as allantools (phase = cumsum(y - mean) dt with a leading 0; each
+    term x(n + 2m) - 2 x(n + m) + x(n)), so the deviations agree to rounding of the final sum
+    (~1e-14; a test checks against allantools); the differences are formed chunk by chunk
+    in cache instead of as whole-record temporaries, and the phase is built from a strided
+    column without copying it. Returns (taus, adev, n_terms) like allantools' first,
+    second and fourth outputs.
+    """
+    y = np.asarray(rate_dps)
+    n = y.shape[0]
+    dt = 1.0 / float(rate_hz)
+    mean = float(np.mean(y))
+    phase = np.empty(n + 1)
+    phase[0] = 0.0
+    carry = 0.0
+    for start in range(0, n, _CHUNK):
+        part = y[start : start + _CHUNK] - mean
+        part[0] += carry  # the same sequential additions as one cumsum over the record
+        np.cumsum(part, out=part)
+        carry = float(part[-1])
+        np.multiply(part, dt, out=phase[1 + start : 1 + start + part.shape[0]])
+    ms = [2**k for k in range(math.floor(math.log2(n)) + 1) if 2**k < n + 1]
+    taus, devs, counts = [], [], []
+    buf = np.empty(_CHUNK)
+    for m in ms:
+        terms = n + 1 - 2 * m
+        if terms <= 1:  # allantools drops points made of a single difference
+            continue
+        total = 0.0
+        for start in range(0, terms, _CHUNK):
+            k = min(_CHUNK, terms - start)
+            b = buf[:k]
+            np.multiply(phase[m + start : m + start + k], 2.0, out=b)
+            np.subtract(phase[2 * m + start : 2 * m + start + k], b, out=b)
+            b += phase[start : start + k]
+            # square and sum, not np.dot: BLAS threads stall on a loaded machine (x100)
+            np.square(b, out=b)
+            total += float(b.sum())
+        taus.append(m * dt)
+        devs.append(math.sqrt(total / (2.0 * terms)) / m * rate_hz)
+        counts.append(terms)
+    return np.array(taus), np.array(devs), np.array(counts)
+
+
 def overlapping_adev(
     rate_dps: np.ndarray, rate_hz: float, taus: str | np.ndarray = "octave", ci: float = 0.683
 ) -> AllanCurve:
-    """Overlapping ADEV of one axis (allantools.oadev on frequency data) with confidence bounds."""
-    taus_out, adev, _err, n_terms = allantools.oadev(
-        rate_dps, rate=rate_hz, data_type="freq", taus=taus
-    )
+    """Overlapping ADEV of one axis (frequency data) with confidence bounds: octave taus by
+    octave_oadev, others by allantools.oadev."""
+    if isinstance(taus, str) and taus == "octave":
+        taus_out, adev, n_terms = octave_oadev(rate_dps, rate_hz)
+    else:
+        taus_out, adev, _err, n_terms = allantools.oadev(
+            rate_dps, rate=rate_hz, data_type="freq", taus=taus
+        )
     taus_out = np.asarray(taus_out, dtype=float)
     adev = np.asarray(adev, dtype=float)
     keep = np.isfinite(adev) & (adev > 0)

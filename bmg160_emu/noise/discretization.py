@@ -3,11 +3,14 @@
 Each axis output is, per sample k (period dt):
 
     white(k) = white_std * w_N(k)
-    gm(k)    = alpha * gm(k-1) + gm_gain * w_B(k)          first-order Gauss-Markov
+    gm(k)    = alpha * gm(k-1) + gm_gain * w_B(k)          first-order Gauss-Markov, per term
     rw(k)    = rw(k-1) + rw_step * w_K(k)                  random walk
     q(k)     = Q (w_Q(k) - w_Q(k-1)) / dt                  angle quantization (optional)
     ramp(k)  = R t_k                                       rate ramp (optional)
-    out(k)   = white + gm + rw [+ q] [+ ramp] + bias
+    out(k)   = white + sum of gm terms + rw [+ q] [+ ramp] + bias
+
+A profile axis holds any number of Gauss-Markov terms (B_i, T_i): its B, T and its ``gm``
+list (profile.py); each is its own recursion with its own normals.
 
 Two discretizations (docs/noise-engine.md):
 
@@ -25,6 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from bmg160_emu.noise.gauss_markov import PoleCoefficients, pole_coefficients, walk_coefficients
 from bmg160_emu.noise.profile import AxisNoise
 
 MODES = ("physical", "paper")
@@ -39,12 +43,14 @@ class AxisCoefficients:
 
     dt: float
     white_std: float
-    alpha: float
+    alpha: float  # of the B, T term (the firmware's single term)
     gm_gain: float
     rw_step: float
     quant_scale: float  # Q / dt
     ramp_slope: float  # R, deg/s per s
     bias: float
+    poles: tuple[PoleCoefficients, ...] = ()  # every Gauss-Markov term, B, T first
+    walk: PoleCoefficients | None = None  # the random walk's block tables (rw_step)
 
 
 def check_rate(rate_hz: float) -> float:
@@ -109,10 +115,15 @@ def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoeffic
                 "(the built-in 'paper' profile has them)"
             )
         rw_step = axis.K * dt * axis.sigma_K
-        white_std = paper_sigma_N(axis.sigma_gyro, axis.B, axis.K, dt, axis.sigma_K)
+        # eq. 16 with the variance of every Gauss-Markov term (one term: the paper's B)
+        b_total = math.sqrt(sum(B * B for B, _ in axis.gauss_markov_terms))
+        white_std = paper_sigma_N(axis.sigma_gyro, b_total, axis.K, dt, axis.sigma_K)
     else:
         check_mode(mode)
         raise AssertionError  # unreachable
+    poles = []
+    for B, T in axis.gauss_markov_terms:
+        poles.append(pole_coefficients(B, dt, T))
     return AxisCoefficients(
         dt=dt,
         white_std=white_std,
@@ -122,4 +133,6 @@ def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoeffic
         quant_scale=axis.Q / dt,
         ramp_slope=axis.R,
         bias=axis.bias,
+        poles=tuple(poles),
+        walk=walk_coefficients(rw_step) if axis.K > 0 else None,
     )

@@ -8,9 +8,14 @@ Interface (used by the device model, see docs/architecture.md):
 
 Why it is chunk invariant: every term of every axis draws from its own numpy Generator
 (children of one SeedSequence), so sample k always consumes the k-th normal of each stream;
-the Gauss-Markov filter (scipy.signal.lfilter) and the random-walk cumsum carry their state
-exactly (the carried offset is folded into the first increment, not added afterwards), so
-the floating-point operations per sample do not depend on how the stream is cut.
+the Gauss-Markov recursions and the random walk (gauss_markov.py: block-wise scaled
+cumulative sums on super-blocks counted from the start or the last rate change, numpy only,
+no scipy on the chip's import path) carry their state exactly, so the floating-point
+operations per sample do not depend on how the stream is cut.
+
+Streams per axis: white, gm (the first Gauss-Markov term), rw, quant, then gm1, gm2, ...
+for further terms (spawned after the first four, so a one-term profile draws exactly the
+normals it drew before multi-term profiles existed).
 
 Small requests are served from a short buffer of computed samples (a few microseconds per
 call); the buffer keeps its normals so that set_rate() can recompute the unserved part at the
@@ -25,7 +30,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.signal import lfilter
 
 from bmg160_emu.noise.discretization import (
     SUPPORTED_RATES_HZ,
@@ -34,6 +38,7 @@ from bmg160_emu.noise.discretization import (
     check_mode,
     check_rate,
 )
+from bmg160_emu.noise.gauss_markov import Pole
 from bmg160_emu.noise.profile import AxisNoise, Profile, load_profile
 
 __all__ = ["NoiseGenerator", "load_profile"]
@@ -48,35 +53,54 @@ class _AxisStream:
 
     def __init__(self, axis: AxisNoise, seed_seq: np.random.SeedSequence, mode: str) -> None:
         self.axis = axis
+        terms = axis.gauss_markov_terms
         children = seed_seq.spawn(len(_STREAMS))
+        if len(terms) > 1:
+            children += seed_seq.spawn(len(terms) - 1)
+        names = list(_STREAMS) + [f"gm{i}" for i in range(1, len(terms))]
         self.rng = {
-            name: np.random.Generator(np.random.PCG64(s)) for name, s in zip(_STREAMS, children)
+            name: np.random.Generator(np.random.PCG64(s)) for name, s in zip(names, children)
         }
+        self.gm_names = (["gm"] + names[len(_STREAMS):]) if terms else []
         self.uses = {
             "white": axis.N > 0 if mode == "physical" else True,
-            "gm": axis.B > 0 and axis.T > 0,
+            "gm": bool(terms),
             "rw": axis.K > 0,
             "quant": axis.Q > 0,
         }
-        # Start the Gauss-Markov term in its stationary distribution (std B): a powered sensor
-        # has been running long before the first sample.
-        self.gm_prev = axis.B * float(self.rng["gm"].standard_normal()) if self.uses["gm"] else 0.0
-        self.rw_prev = 0.0
+        self._drawn = [name for name in ("white", "quant") if self.uses[name]]
+        # each Gauss-Markov term draws its own normals (gauss_markov.Pole), starting in its
+        # stationary distribution
+        self.poles = [Pole(self.rng[name], B) for name, (B, _) in zip(self.gm_names, terms)]
+        # the random walk is the same recursion with a = 1, starting at 0
+        self.walk = Pole(self.rng["rw"], None) if self.uses["rw"] else None
+        self._all = self.poles + ([self.walk] if self.walk is not None else [])
         self.quant_prev = float(self.rng["quant"].standard_normal()) if self.uses["quant"] else 0.0
         self.coef: AxisCoefficients | None = None
 
+    def set_coefficients(self, coef: AxisCoefficients) -> None:
+        """New rate: each Gauss-Markov term continues from its last value."""
+        self.coef = coef
+        for pole, pc in zip(self.poles, coef.poles):
+            pole.restart(pc)
+        if self.walk is not None:
+            assert coef.walk is not None
+            self.walk.restart(coef.walk)
+
     def draw(self, n: int) -> dict[str, np.ndarray | None]:
-        out: dict[str, np.ndarray | None] = {}
-        for name in _STREAMS:
-            out[name] = self.rng[name].standard_normal(n) if self.uses[name] else None
+        out: dict[str, np.ndarray | None] = {"white": None, "quant": None}
+        for name in self._drawn:
+            out[name] = self.rng[name].standard_normal(n)
         return out
+
+    def state(self) -> tuple[Any, ...]:
+        return (tuple(p.state() for p in self._all), self.quant_prev)
 
     def compute(
         self, normals: dict[str, np.ndarray | None], t: np.ndarray | None, out: np.ndarray
-    ) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """Write this axis's samples into out (a possibly strided view); advance the state.
-
-        Returns the Gauss-Markov and random-walk components (kept by the small-request buffer).
+    ) -> None:
+        """Write this axis's samples into out (a possibly strided view); advance the state
+        (the Gauss-Markov terms and the walk rewind from their saved state on a rate change).
         """
         c = self.coef
         assert c is not None
@@ -86,19 +110,8 @@ class _AxisStream:
             np.multiply(normals["white"], c.white_std, out=acc)
         else:
             acc.fill(0.0)
-        gm = rw = None
-        if normals["gm"] is not None:
-            gm, _ = lfilter(
-                [c.gm_gain], [1.0, -c.alpha], normals["gm"], zi=[c.alpha * self.gm_prev]
-            )
-            acc += gm
-            self.gm_prev = float(gm[-1])
-        if normals["rw"] is not None:
-            rw = np.multiply(normals["rw"], c.rw_step)
-            rw[0] += self.rw_prev  # carried offset folded in: same additions as one long cumsum
-            np.cumsum(rw, out=rw)
-            acc += rw
-            self.rw_prev = float(rw[-1])
+        for pole in self._all:
+            acc += pole.take(n)
         wq = normals["quant"]
         if wq is not None:
             diff = np.empty(n)
@@ -110,7 +123,6 @@ class _AxisStream:
         if t is not None and c.ramp_slope > 0:
             acc += c.ramp_slope * t
         np.add(acc, c.bias, out=out)
-        return gm, rw
 
 
 class NoiseGenerator:
@@ -154,8 +166,7 @@ class NoiseGenerator:
         self._buf_start = 0
         self._buf_out = np.empty((0, 3))
         self._buf_normals: list[dict[str, np.ndarray | None]] = []
-        self._buf_parts: list[tuple[np.ndarray | None, np.ndarray | None]] = []
-        self._buf_state_before: list[tuple[float, float, float]] = []
+        self._buf_state_before: list[tuple[Any, ...]] = []
 
     # -- public interface --------------------------------------------------------------------
 
@@ -215,11 +226,11 @@ class NoiseGenerator:
         if pending > 0:
             # rewind every axis to the state of the last sample handed out
             for i, stream in enumerate(self._axes):
-                gm_before, rw_before, q_before = self._buf_state_before[i]
-                gm, rw = self._buf_parts[i]
+                poles_before, q_before = self._buf_state_before[i]
                 normals = self._buf_normals[i]
-                stream.gm_prev = float(gm[pos - 1]) if (gm is not None and pos > 0) else gm_before
-                stream.rw_prev = float(rw[pos - 1]) if (rw is not None and pos > 0) else rw_before
+                for pole, before in zip(stream._all, poles_before):
+                    pole.set_state(before)
+                    pole.skip(pos)
                 wq = normals["quant"]
                 stream.quant_prev = float(wq[pos - 1]) if (wq is not None and pos > 0) else q_before
         self._apply_rate(rate, coefs)
@@ -238,25 +249,25 @@ class NoiseGenerator:
         axes = tuple(
             (
                 {name: rng.bit_generator.state for name, rng in stream.rng.items()},
-                stream.gm_prev,
-                stream.rw_prev,
-                stream.quant_prev,
+                stream.state(),
                 stream.coef,
             )
             for stream in self._axes
         )
         # the buffer arrays are replaced, never written in place: references are enough
         return (axes, self._rate_hz, self._t_ref, self._k_ref, self._k, self._buf_start,
-                self._buf_out, self._buf_normals, self._buf_parts, self._buf_state_before)
+                self._buf_out, self._buf_normals, self._buf_state_before)
 
     def restore(self, checkpoint: tuple[Any, ...]) -> None:
         """Go back to the state saved by ``checkpoint`` (of this generator)."""
         (axes, self._rate_hz, self._t_ref, self._k_ref, self._k, self._buf_start,
-         self._buf_out, self._buf_normals, self._buf_parts, self._buf_state_before) = checkpoint
-        for stream, (rng_states, gm, rw, q, coef) in zip(self._axes, axes):
+         self._buf_out, self._buf_normals, self._buf_state_before) = checkpoint
+        for stream, (rng_states, (poles, q), coef) in zip(self._axes, axes):
             for name, state in rng_states.items():
                 stream.rng[name].bit_generator.state = state
-            stream.gm_prev, stream.rw_prev, stream.quant_prev, stream.coef = gm, rw, q, coef
+            for pole, pole_state in zip(stream._all, poles):
+                pole.set_state(pole_state)
+            stream.quant_prev, stream.coef = q, coef
 
     # -- internals ---------------------------------------------------------------------------
 
@@ -264,7 +275,7 @@ class NoiseGenerator:
         if coefs is None:
             coefs = [axis_coefficients(s.axis, rate, self.mode) for s in self._axes]
         for stream, coef in zip(self._axes, coefs):
-            stream.coef = coef
+            stream.set_coefficients(coef)
         self._rate_hz = rate
 
     def _times(self, k0: int, n: int) -> np.ndarray | None:
@@ -292,9 +303,7 @@ class NoiseGenerator:
         self._buf_start = k0
         self._buf_out = np.empty((m, 3))
         self._buf_normals = normals
-        self._buf_state_before = [(s.gm_prev, s.rw_prev, s.quant_prev) for s in self._axes]
+        self._buf_state_before = [s.state() for s in self._axes]
         t = self._times(k0, m)
-        self._buf_parts = [
+        for i, stream in enumerate(self._axes):
             stream.compute(normals[i], t, self._buf_out[:, i])
-            for i, stream in enumerate(self._axes)
-        ]

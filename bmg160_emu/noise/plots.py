@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, composite_avar
+from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar
 from bmg160_emu.noise.identification import AxisIdentification
 from bmg160_emu.noise.spectrum import (
     PSD_CONVENTION,
@@ -127,11 +127,16 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         label=f"{c.ci * 100:.0f} % confidence band",
     )
     tau = np.geomspace(c.taus[0], c.taus[-1], 300)
-    N, B, T, K = (result.N.value, result.B.value, result.T.value, result.K.value)
-    Q = result.Q.value if result.Q else 0.0
-    R = result.R.value if result.R else 0.0
-    model = np.sqrt(composite_avar(tau, N, B if math.isfinite(T) else 0.0, T, K, Q, R))
-    ax.loglog(tau, model, "-", color="k", lw=1.2, label="fitted model (WLS)")
+    N, K = result.N.value, result.K.value
+    model = np.sqrt(result.fit.model_avar(tau))
+    ax.loglog(tau, model, "-", color="k", lw=1.2, label=f"fitted model ({result.model_text()})")
+    lo, _hi = result.fit_tau_range_s
+    ax.axvspan(c.taus[0] * 0.9, lo, color="0.85", lw=0, zorder=0,
+               label="not fitted (sensor filter)" if lo > c.taus[0] * 1.01 else None)
+    for i, (B, T) in enumerate(result.fit.gauss_markov_terms()):
+        if result.fit.flicker is None or i < len(result.terms):
+            ax.loglog(tau, np.sqrt(gauss_markov_avar(B, T, tau)), ":", lw=0.8, color="0.4",
+                      label="Gauss-Markov terms" if i == 0 else None)
     ax.loglog(tau, N / np.sqrt(tau), "--", color="tab:blue", lw=0.9, label="slope -1/2: N")
     ax.loglog(tau, K * np.sqrt(tau / 3.0), "--", color="tab:red", lw=0.9, label="slope +1/2: K")
     ro = result.readoffs
@@ -163,9 +168,9 @@ def adev_figure(results: Sequence[AxisIdentification]) -> Figure:
     fig, axes = _new(1, len(results), size=(6.0 * len(results) + 0.5, 5.0))
     for ax, r in zip(axes, results):
         draw_adev(ax, r)
+        terms = ", ".join(f"({t.B.value:.2g}, {t.T.value:.3g} s)" for t in r.terms)
         ax.set_title(
-            f"axis {r.axis}: N {r.N.value:.3g}, B {r.B.value:.3g}, "
-            f"T {r.T.value:.3g} s, K {r.K.value:.3g}",
+            f"axis {r.axis}: N {r.N.value:.3g}, K {r.K.value:.3g}, (B, T) {terms or 'none'}",
             fontsize="small",
         )
         ax.legend(fontsize="x-small", loc="lower left")
@@ -194,21 +199,24 @@ def draw_psd(
     asymptotes: bool = True,
 ) -> None:
     """One-sided PSD (log-binned) with the fitted model's one-sided asymptotes."""
+    if result.spectrum is None:  # identified from an Allan curve: no spectrum to draw
+        return
     f, p = _log_binned(result.spectrum)
     name = label or f"axis {result.axis}"
     ax.loglog(f, p, lw=0.9, color=color, label=f"{name}: Welch PSD")
     if not asymptotes:
         return
-    N, B, T, K = (result.N.value, result.B.value, result.T.value, result.K.value)
+    N, K = result.N.value, result.K.value
+    terms = result.fit.gauss_markov_terms()
     ax.loglog(f, white_psd(N, f), "--", color="tab:blue", lw=0.9, label="white 2 N$^2$")
-    if math.isfinite(T) and B > 0:
+    for i, (B, T) in enumerate(terms):
         ax.loglog(
             f,
             gauss_markov_psd(B, T, f),
             "--",
             color="tab:green",
             lw=0.9,
-            label="Gauss-Markov 4 B$^2$ T / (1 + (2 pi f T)$^2$)",
+            label="Gauss-Markov 4 B$^2$ T / (1 + (2 pi f T)$^2$)" if i == 0 else None,
         )
     if K > 0:
         ax.loglog(
@@ -220,7 +228,7 @@ def draw_psd(
             label="random walk 2 (K / 2 pi)$^2$ / f$^2$",
         )
     total = white_psd(N, f) + random_walk_psd(K, f)
-    if math.isfinite(T):
+    for B, T in terms:
         total = total + gauss_markov_psd(B, T, f)
     if result.Q:
         total = total + quantization_psd(result.Q.value, f, rate_hz)

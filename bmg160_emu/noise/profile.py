@@ -7,6 +7,11 @@ path to their own file with the same layout (one table per axis: ``[x]``, ``[y]`
 Units are those of the data sheets and IEEE Std 952: N deg/s/sqrt(Hz), B deg/s (stationary
 standard deviation of the first-order Gauss-Markov term), T s (its correlation time),
 K deg/s/sqrt(s), bias deg/s, Q deg (angle quantization), R deg/s/s (rate ramp).
+
+An axis may hold several Gauss-Markov terms (a real bias bends over more than one decade of
+tau): ``gm = [{ B = 0.002, T = 5.0 }, { B = 0.001, T = 60.0 }]`` beside (or instead of) B and
+T. B, T is one term; every entry of gm is one more, each with its own random stream. A
+profile with B and T only (the paper's) is a one-term profile, as before.
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ else:  # pragma: no cover - Python 3.10
 
 AXES = ("x", "y", "z")
 REQUIRED_FIELDS = ("N", "B", "T", "K", "bias")
-OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K")
+OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K", "gm")
 UNITS = {
     "N": "deg/s/sqrt(Hz)",
     "B": "deg/s",
@@ -39,6 +44,7 @@ UNITS = {
     "sigma_gyro": "deg/s",
     "sigma_K": "1/sqrt(s)",
 }
+GM_KEYS = ("B", "T")  # keys of one entry of an axis's gm list
 
 
 class ProfileError(ValueError):
@@ -60,6 +66,23 @@ class AxisNoise:
     # PSD-fitted random-walk gain.
     sigma_gyro: float | None = None
     sigma_K: float | None = None
+    # further Gauss-Markov terms (B_i deg/s, T_i s) beside B, T
+    gm: tuple[tuple[float, float], ...] = ()
+
+    def __post_init__(self) -> None:
+        # lists from Python callers become tuples: the profile stays hashable and immutable
+        object.__setattr__(self, "gm", tuple((float(B), float(T)) for B, T in self.gm))
+
+    @property
+    def poles(self) -> tuple[tuple[float, float], ...]:
+        """The same as gauss_markov_terms (the name thermal_fit.NoiseTerms looks for)."""
+        return self.gauss_markov_terms
+
+    @property
+    def gauss_markov_terms(self) -> tuple[tuple[float, float], ...]:
+        """Every Gauss-Markov term (B, T) the generator draws: B, T first, then gm."""
+        first = ((self.B, self.T),) if self.B > 0 and self.T > 0 else ()
+        return first + tuple((B, T) for B, T in self.gm if B > 0)
 
 
 @dataclass(frozen=True)
@@ -80,7 +103,10 @@ class Profile:
         """The profile as the mapping a TOML file holds (None fields left out)."""
         out: dict[str, Any] = {"name": self.name, "description": self.description}
         for axis_name, axis in zip(AXES, self.axes):
-            out[axis_name] = {k: v for k, v in asdict(axis).items() if v is not None}
+            table = {k: v for k, v in asdict(axis).items() if v is not None and k != "gm"}
+            if axis.gm:
+                table["gm"] = [{"B": B, "T": T} for B, T in axis.gm]
+            out[axis_name] = table
         return out
 
 
@@ -98,6 +124,9 @@ def builtin_profile_names() -> list[str]:
 def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper") -> Profile:
     """Load a built-in profile by name, a user TOML file by path, or validate a mapping.
 
+    A path ending in .yaml/.yml is read as a Kalibr imu.yaml, one ending in .m as a MATLAB
+    gyroparams(...) block (interop.py has the mappings).
+
     Raises ProfileError (a ValueError) with a message naming what is wrong.
     """
     if isinstance(name_or_path, Profile):
@@ -113,6 +142,16 @@ def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper
     if isinstance(name_or_path, str) and text_name in builtins:
         return _builtin_profile(text_name)
     path = Path(name_or_path)
+    if path.is_file() and path.suffix.lower() in (".yaml", ".yml", ".m"):
+        # another tool's parameters (Kalibr imu.yaml, MATLAB gyroparams): interop.py
+        from bmg160_emu.noise import interop
+
+        try:
+            if path.suffix.lower() == ".m":
+                return interop.profile_from_matlab(path)
+            return interop.profile_from_kalibr(path)
+        except interop.InteropError as exc:
+            raise ProfileError(str(exc)) from None
     if path.is_file():
         try:
             data = path.read_text(encoding="utf-8")
@@ -167,22 +206,51 @@ def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
         raise ProfileError(
             f"{where}: unknown field(s) {sorted(unknown)}; allowed: {', '.join(sorted(allowed))}"
         )
-    missing = [k for k in REQUIRED_FIELDS if k not in table]
+    # with a gm list, B and T may be left out (every term in the list)
+    required = [k for k in REQUIRED_FIELDS if not ("gm" in table and k in GM_KEYS)]
+    missing = [k for k in required if k not in table]
     if missing:
         raise ProfileError(f"{where}: missing field(s) {', '.join(missing)}")
-    values: dict[str, float] = {}
+    values: dict[str, Any] = {"B": 0.0, "T": 0.0}
     for key, raw in table.items():
-        if isinstance(raw, bool) or not isinstance(raw, (int, float)):
-            raise ProfileError(f"{where}: {key} must be a number ({UNITS[key]}), got {raw!r}")
-        value = float(raw)
-        if not math.isfinite(value):
-            raise ProfileError(f"{where}: {key} must be finite, got {value}")
-        if key != "bias" and value < 0:
-            raise ProfileError(f"{where}: {key} must not be negative, got {value} {UNITS[key]}")
-        values[key] = value
+        if key == "gm":
+            values["gm"] = _gm_terms(raw, where)
+            continue
+        values[key] = _number(raw, key, where)
     if values["T"] == 0 and values["B"] > 0:
         raise ProfileError(f"{where}: T must be positive when B > 0 (correlation time in s)")
     return AxisNoise(**values)
+
+
+def _number(raw: Any, key: str, where: str) -> float:
+    if isinstance(raw, bool) or not isinstance(raw, (int, float)):
+        raise ProfileError(f"{where}: {key} must be a number ({UNITS[key]}), got {raw!r}")
+    value = float(raw)
+    if not math.isfinite(value):
+        raise ProfileError(f"{where}: {key} must be finite, got {value}")
+    if key != "bias" and value < 0:
+        raise ProfileError(f"{where}: {key} must not be negative, got {value} {UNITS[key]}")
+    return value
+
+
+def _gm_terms(raw: Any, where: str) -> tuple[tuple[float, float], ...]:
+    if not isinstance(raw, (list, tuple)):
+        raise ProfileError(f"{where}: gm must be a list of {{ B = ..., T = ... }} tables")
+    terms = []
+    for i, entry in enumerate(raw):
+        at = f"{where} gm[{i}]"
+        if isinstance(entry, Mapping):
+            if set(entry) != set(GM_KEYS):
+                raise ProfileError(f"{at}: needs exactly B (deg/s) and T (s), got {sorted(entry)}")
+            B, T = _number(entry["B"], "B", at), _number(entry["T"], "T", at)
+        elif isinstance(entry, (list, tuple)) and len(entry) == 2:  # (B, T) pairs in Python
+            B, T = _number(entry[0], "B", at), _number(entry[1], "T", at)
+        else:
+            raise ProfileError(f"{at}: a term is {{ B = ..., T = ... }}, got {entry!r}")
+        if T == 0:
+            raise ProfileError(f"{at}: T must be positive (correlation time in s)")
+        terms.append((B, T))
+    return tuple(terms)
 
 
 def format_profile(profile: Profile, header: str = "") -> str:
@@ -195,15 +263,42 @@ def format_profile(profile: Profile, header: str = "") -> str:
         lines.append(f"[{axis_name}]")
         for f in fields(AxisNoise):
             value = getattr(axis, f.name)
+            if f.name == "gm":
+                lines += _gm_lines(value)
+                continue
             if value is None or (f.name in ("Q", "R") and value == 0.0):
                 continue
-            lines.append(f"{f.name} = {value!r:<24}# {UNITS[f.name]}")
+            if f.name in GM_KEYS and axis.gm and axis.B == 0.0:
+                continue  # every term is in the gm list
+            lines.append(f"{f.name} = {toml_float(value, f.name):<24}# {UNITS[f.name]}")
     return "\n".join(lines) + "\n"
+
+
+def _gm_lines(terms: tuple[tuple[float, float], ...]) -> list[str]:
+    if not terms:
+        return []
+    lines = ["gm = [                  # Gauss-Markov terms: B deg/s, T s"]
+    for B, T in terms:
+        lines.append(f"  {{ B = {toml_float(B, 'B')}, T = {toml_float(T, 'T')} }},")
+    return lines + ["]"]
 
 
 def write_profile(profile: Profile, path: str | Path, header: str = "") -> None:
     """Write a profile file (TOML) that load_profile and NoiseGenerator accept."""
     Path(path).write_text(format_profile(profile, header), encoding="utf-8")
+
+
+def toml_float(value: Any, what: str = "value") -> str:
+    """A TOML float literal for any real number (numpy scalars included), finite only.
+
+    ``repr`` of a numpy scalar is ``np.float64(0.01)``, which TOML rejects: the value is
+    converted to a Python float first, and repr of a float is a valid TOML float
+    (``0.01``, ``1e-05``, ``5.0``) that reads back bit for bit.
+    """
+    number = float(value)
+    if not math.isfinite(number):
+        raise ProfileError(f"{what} must be finite to be written to a profile, got {number}")
+    return repr(number)
 
 
 def _toml_string(text: str) -> str:

@@ -1,0 +1,149 @@
+"""identify on recordings that look like a real unit: a filtered start, a bias that bends over
+decades of tau, warm-up and bias steps (issue 11)."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from bmg160_emu.device.lowpass import LowPass
+from bmg160_emu.noise import NoiseGenerator
+from bmg160_emu.noise.allan import overlapping_adev
+from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.profile import AxisNoise, Profile, write_profile
+
+RATE = 100.0
+LENGTH = int(2.8 * 3600 * RATE)  # 2.8 h at 100 Hz, as the public recordings of the issue
+# white, three Gauss-Markov poles (T = 5, 60, 900 s), rate random walk: N as the issue's
+# unit (0.038-0.046), the poles large enough to bend the curve over two decades of tau
+TRUTH = AxisNoise(N=0.04, B=0.0, T=0.0, K=2e-4, bias=0.1,
+                  gm=((1.2e-2, 5.0), (8e-3, 60.0), (5e-3, 900.0)))
+
+
+def truth_record(seed: int, n: int = LENGTH) -> np.ndarray:
+    """One axis of the truth through a 2nd-order low-pass at 40 Hz (the chip's filter)."""
+    x = NoiseGenerator(Profile("truth", TRUTH, TRUTH, TRUTH), rate_hz=RATE, seed=seed).generate(n)
+    lp = LowPass(RATE, 40.0)
+    lp.restart(x[0])
+    return lp.run(x)[0][:, 0]
+
+
+@pytest.fixture(scope="module")
+def truth():
+    return truth_record(11)
+
+
+@pytest.mark.slow
+def test_default_identify_profile_generate_holds_the_truths_allan_deviation(truth, tmp_path):
+    result = identify(truth, RATE)
+    axis = result.axes[0]
+    # N: the record's white level is known to ~0.3 % (1 sigma, 1e6 samples); 3 % is the
+    # issue's bound and also covers the filter's remaining roll-off
+    assert axis.N.value == pytest.approx(TRUTH.N, rel=0.03)
+    assert any("sensor filter" in note for note in axis.notes)
+    path = tmp_path / "identified.toml"
+    write_profile(result.to_profile("identified"), path)
+    curve = axis.allan
+    sel = (curve.taus >= 0.2) & (curve.taus <= LENGTH / RATE / 10)  # octave taus 0.2 s .. L/10
+    # the truth record's 95 % band from its equivalent degrees of freedom (Greenhall, noise
+    # types of the fitted model)
+    low = curve.adev * np.sqrt(curve.edf / chi2.ppf(0.975, curve.edf))
+    high = curve.adev * np.sqrt(curve.edf / chi2.ppf(0.025, curve.edf))
+    emulated = np.array([
+        overlapping_adev(NoiseGenerator(path, rate_hz=RATE, seed=100 + s).generate(LENGTH)[:, 0],
+                         RATE).adev[: curve.taus.size]
+        for s in range(20)
+    ])
+    median = np.median(emulated, axis=0)
+    q_low, q_high = np.percentile(emulated, [2.5, 97.5], axis=0)
+    inside = ((median >= low) & (median <= high))[sel]
+    covered = ((curve.adev >= q_low) & (curve.adev <= q_high))[sel]
+    # >= 95 % of the 12 octave taus: all of them
+    assert inside.mean() >= 0.95, (curve.taus[sel], median[sel] / curve.adev[sel])
+    assert covered.mean() >= 0.95, (curve.taus[sel], q_low[sel], q_high[sel], curve.adev[sel])
+
+
+def test_an_unfiltered_record_is_fitted_from_the_first_tau():
+    x = NoiseGenerator("paper", rate_hz=200.0, seed=3).generate(20 * 60 * 200)[:, 0]
+    axis = identify(x, 200.0).axes[0]
+    assert axis.fit_tau_range_s[0] == pytest.approx(0.005)
+    assert "starts on the white -1/2 slope" in axis.tau_range_reason
+    assert not any("warm-up" in n or "jumps" in n for n in axis.notes)
+
+
+def test_a_filtered_start_is_found_and_skipped(truth):
+    axis = identify(truth[: 20 * 60 * 100], RATE).axes[0]  # 20 min
+    assert axis.fit_tau_range_s[0] > 0.01
+    assert "below the white-noise line" in axis.tau_range_reason
+    # 20 min: N to ~1 %; without the filter handling the roll-off pulled N 20 % low
+    assert axis.N.value == pytest.approx(TRUTH.N, rel=0.03)
+
+
+def test_a_warm_up_is_reported_and_skip_drops_it():
+    n = 2 * 3600 * 100
+    x = NoiseGenerator("paper", rate_hz=RATE, seed=4).generate(n)[:, 0]
+    warm = Profile("warm", *[AxisNoise(N=0.0, B=0.03, T=120.0, K=0.0, bias=0.0)] * 3)
+    x[: n // 4] += NoiseGenerator(warm, rate_hz=RATE, seed=5).generate(n // 4)[:, 0]
+    notes = identify(x, RATE).axes[0].notes
+    assert any("non-stationary start" in note and "--skip" in note for note in notes), notes
+    skipped = identify(x, RATE, skip_s=0.5 * 3600)
+    assert skipped.samples == n - 1800 * 100 and skipped.skipped_s == 1800.0
+    assert not any("non-stationary" in note for note in skipped.axes[0].notes)
+
+
+def test_a_step_in_the_bias_is_reported():
+    n = 2 * 3600 * 100
+    x = NoiseGenerator("paper", rate_hz=RATE, seed=6).generate(n)[:, 0]
+    x[n // 2 + 1234 :] += 0.05  # 12 times B of the paper's bias
+    notes = identify(x, RATE).axes[0].notes
+    # the step falls 12 s into a 112.5 s block: the block means see 0.045-0.05 of it
+    assert any(re.search(r"bias jumps by \+0\.0(4[5-9]|50)", note) and "t = 1h" in note
+               for note in notes), notes
+
+
+def test_every_interval_is_finite_and_ordered_on_short_and_awkward_records():
+    cases = [
+        NoiseGenerator("paper", rate_hz=200.0, seed=7).generate(3000),  # 15 s
+        NoiseGenerator("paper", rate_hz=200.0, seed=8).generate(10 * 60 * 200),
+        np.random.default_rng(9).standard_normal((5000, 2)) * 0.3,  # pure white noise
+    ]
+    for data in cases:
+        for axis in identify(data, 200.0).axes:
+            estimates = [axis.N, axis.K] + [e for t in axis.terms for e in (t.B, t.T)]
+            for est in estimates:
+                assert np.isfinite([est.value, est.ci_low, est.ci_high]).all()
+                assert est.ci_low <= est.value <= est.ci_high
+
+
+@pytest.mark.parametrize(
+    "kind", ["random walk only", "quantized", "sine", "ramp", "single step"])
+def test_awkward_records_give_finite_intervals_or_a_clear_error(kind):
+    from bmg160_emu.noise.identification import IdentificationError
+
+    rng = np.random.default_rng(0)
+    n = 20_000
+    x = {
+        "random walk only": np.cumsum(rng.standard_normal(n)) * 1e-3,
+        "quantized": np.round(rng.standard_normal(n) * 0.3 * 16.4) / 16.4,
+        "sine": np.sin(np.arange(n) / 200 * 2 * np.pi * 0.1) + rng.standard_normal(n) * 1e-3,
+        "ramp": np.arange(n) * 1e-3 + rng.standard_normal(n) * 1e-4,
+        "single step": np.r_[np.zeros(n // 2), np.ones(n // 2)],
+    }[kind]
+    for options in ({}, {"poles": 3}, {"flicker": True}, {"with_q": True, "with_r": True}):
+        try:
+            axis = identify(x, 200.0, **options).axes[0]
+        except IdentificationError:
+            continue
+        for est in [axis.N, axis.K] + [e for t in axis.terms for e in (t.B, t.T)]:
+            assert np.isfinite([est.value, est.ci_low, est.ci_high]).all(), (options, est)
+            assert est.ci_low <= est.value <= est.ci_high, (options, est)
+
+
+def test_a_record_below_double_precision_is_a_clear_error():
+    from bmg160_emu.noise.identification import IdentificationError
+
+    with pytest.raises(IdentificationError, match="below double precision"):
+        identify(np.random.default_rng(1).standard_normal(5000) * 1e-200, 200.0)
