@@ -283,32 +283,40 @@ def _identify_curve(args: argparse.Namespace, options: dict):
 
 
 def _write_outputs(args: argparse.Namespace, result) -> list[Path]:
+    """Every output under a temporary name, renamed into place when whole (io.atomic)."""
+    from bmg160_emu.io.atomic import atomic_open, atomic_path
     from bmg160_emu.noise import interop
 
     written = []
     if args.profile_out is not None:
         from bmg160_emu.noise.profile import write_profile
 
-        write_profile(
-            result.to_profile(args.profile_out.stem),
-            args.profile_out,
-            header=f"identified by bmg160-emu identify from {args.file}\n"
-            "units: N deg/s/sqrt(Hz), B deg/s, T s, K deg/s/sqrt(s), bias deg/s",
-        )
+        with atomic_path(args.profile_out) as partial:
+            write_profile(
+                result.to_profile(args.profile_out.stem),
+                partial,
+                header=f"identified by bmg160-emu identify from {args.file}\n"
+                "units: N deg/s/sqrt(Hz), B deg/s, T s, K deg/s/sqrt(s), bias deg/s",
+            )
         written.append(args.profile_out)
     if args.adev_out is not None:
-        interop.write_adev_csv(args.adev_out, result, args.units)
+        with atomic_path(args.adev_out) as partial:
+            interop.write_adev_csv(partial, result, args.units)
         written.append(args.adev_out)
     if args.kalibr_out is not None:
-        args.kalibr_out.write_text(interop.kalibr_yaml(result, result.rate_hz), encoding="utf-8")
+        with atomic_open(args.kalibr_out, encoding="utf-8") as f:
+            f.write(interop.kalibr_yaml(result, result.rate_hz))
         written.append(args.kalibr_out)
     if args.matlab_out is not None:
-        args.matlab_out.write_text(interop.matlab_gyroparams(result), encoding="utf-8")
+        with atomic_open(args.matlab_out, encoding="utf-8") as f:
+            f.write(interop.matlab_gyroparams(result))
         written.append(args.matlab_out)
     if args.plot is not None:
         from bmg160_emu.noise import plots
 
-        written.append(plots.save(plots.adev_figure(result.axes), args.plot))
+        with atomic_path(args.plot) as partial:
+            plots.save(plots.adev_figure(result.axes), partial)
+        written.append(args.plot)
     return written
 
 

@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass
 
 from bmg160_emu.noise.gauss_markov import PoleCoefficients, pole_coefficients, walk_coefficients
-from bmg160_emu.noise.profile import AxisNoise
+from bmg160_emu.noise.profile import AxisNoise, ProfileError
 
 MODES = ("physical", "paper")
 
@@ -93,7 +93,7 @@ def paper_sigma_N(sigma_gyro: float, B: float, K: float, dt: float, sigma_K: flo
     """sigma_N = sqrt(sigma_gyro^2 - B^2 - (K dt sigma_K)^2) (paper eq. 16)."""
     radicand = sigma_gyro**2 - B**2 - (K * dt * sigma_K) ** 2
     if radicand < 0:
-        raise ValueError(
+        raise ProfileError(
             f"paper mode: sigma_gyro = {sigma_gyro} deg/s is smaller than the B and K terms "
             "it must contain (paper eq. 16)"
         )
@@ -110,7 +110,7 @@ def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoeffic
         rw_step = axis.K * math.sqrt(dt)
     elif mode == "paper":
         if axis.sigma_gyro is None or axis.sigma_K is None:
-            raise ValueError(
+            raise ProfileError(
                 "paper mode needs sigma_gyro and sigma_K in every axis of the profile "
                 "(the built-in 'paper' profile has them)"
             )

@@ -45,6 +45,13 @@ UNITS = {
     "sigma_K": "1/sqrt(s)",
 }
 GM_KEYS = ("B", "T")  # keys of one entry of an axis's gm list
+# Largest value of each parameter (smallest T): far beyond any MEMS gyro (the BMG160's N is
+# 0.014 deg/s/sqrt(Hz), its range 2000 deg/s), and small enough that every generated sample
+# is finite at every ODR (N / sqrt(dt) at 2000 Hz stays below 1e4 deg/s; a random walk of
+# K sqrt(t) over ten years stays below 1e7 deg/s). A value beyond is refused by name.
+LIMITS = {"N": 100.0, "B": 1e3, "K": 1.0, "bias": 1e4, "Q": 1e3, "R": 1e3,
+          "sigma_gyro": 1e3, "sigma_K": 1e6}
+T_RANGE_S = (1e-6, 1e9)  # a correlation time: from below any sample period to 30 years
 
 
 class ProfileError(ValueError):
@@ -94,6 +101,9 @@ class Profile:
     y: AxisNoise
     z: AxisNoise
     description: str = ""
+    # the unit's deterministic errors (bmg160_emu.device.sensor_errors.SensorErrors fields),
+    # checked when a chip takes them; None: none
+    errors: Mapping[str, Any] | None = None
 
     @property
     def axes(self) -> tuple[AxisNoise, AxisNoise, AxisNoise]:
@@ -177,13 +187,17 @@ def _parse(text: str, origin: str, default_name: str) -> Profile:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ProfileError(f"{origin} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ProfileError(f"{origin}: TOML nested too deeply") from None
+    except ValueError as exc:  # an integer of more than 4300 digits
+        raise ProfileError(f"{origin}: a number too long to read ({str(exc)[:60]})") from None
     data.setdefault("name", default_name)
     return profile_from_mapping(data, origin=origin)
 
 
 def profile_from_mapping(data: Mapping[str, Any], origin: str = "profile") -> Profile:
     """Validate a mapping with tables x, y, z (the TOML layout) and build a Profile."""
-    unknown = set(data) - {"name", "description", *AXES}
+    unknown = set(data) - {"name", "description", "errors", *AXES}
     if unknown:
         raise ProfileError(f"{origin}: unknown top-level key(s) {sorted(unknown)}")
     axes = []
@@ -196,7 +210,11 @@ def profile_from_mapping(data: Mapping[str, Any], origin: str = "profile") -> Pr
     description = data.get("description", "")
     if not isinstance(name, str) or not isinstance(description, str):
         raise ProfileError(f"{origin}: name and description must be strings")
-    return Profile(name, x=axes[0], y=axes[1], z=axes[2], description=description)
+    errors = data.get("errors")
+    if errors is not None and not isinstance(errors, Mapping):
+        raise ProfileError(f"{origin}: errors must be a table ([errors])")
+    return Profile(name, x=axes[0], y=axes[1], z=axes[2], description=description,
+                   errors=None if errors is None else dict(errors))
 
 
 def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
@@ -225,11 +243,21 @@ def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
 def _number(raw: Any, key: str, where: str) -> float:
     if isinstance(raw, bool) or not isinstance(raw, (int, float)):
         raise ProfileError(f"{where}: {key} must be a number ({UNITS[key]}), got {raw!r}")
-    value = float(raw)
+    try:
+        value = float(raw)
+    except OverflowError:
+        value = math.inf
     if not math.isfinite(value):
         raise ProfileError(f"{where}: {key} must be finite, got {value}")
     if key != "bias" and value < 0:
         raise ProfileError(f"{where}: {key} must not be negative, got {value} {UNITS[key]}")
+    if key == "T":
+        low, high = T_RANGE_S
+        if value != 0 and not low <= value <= high:
+            raise ProfileError(f"{where}: T must be within {low:g}..{high:g} s, got {value}")
+    elif abs(value) > LIMITS[key]:
+        raise ProfileError(f"{where}: {key} must be at most {LIMITS[key]:g} {UNITS[key]} in "
+                           f"size (every sample stays finite), got {value:g}")
     return value
 
 
@@ -271,7 +299,24 @@ def format_profile(profile: Profile, header: str = "") -> str:
             if f.name in GM_KEYS and axis.gm and axis.B == 0.0:
                 continue  # every term is in the gm list
             lines.append(f"{f.name} = {toml_float(value, f.name):<24}# {UNITS[f.name]}")
+    if profile.errors:
+        lines += ["", "[errors]                  # the unit's error budget (docs/error-budget.md)"]
+        for key, value in profile.errors.items():
+            lines.append(f"{key} = {_toml_value(value)}")
     return "\n".join(lines) + "\n"
+
+
+def _toml_value(value: Any) -> str:
+    """A number, a string or (nested) lists of numbers as TOML."""
+    if isinstance(value, str):
+        return _toml_string(value)
+    if isinstance(value, (list, tuple)) or hasattr(value, "tolist"):
+        items = value.tolist() if hasattr(value, "tolist") else value
+        return "[" + ", ".join(_toml_value(v) for v in items) + "]"
+    number = float(value)
+    if not math.isfinite(number):
+        raise ProfileError(f"errors: {number} cannot be written (TOML profile values are finite)")
+    return repr(number)
 
 
 def _gm_lines(terms: tuple[tuple[float, float], ...]) -> list[str]:
