@@ -122,6 +122,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.io.atomic import OutputError, atomic_path, check_free_space, check_writable
     from bmg160_emu.io.rates import RateStreamWriter
     from bmg160_emu.noise import NoiseGenerator
 
@@ -162,17 +163,34 @@ def run(args: argparse.Namespace) -> int:
     if chosen_seed:
         print(f"bmg160-emu generate: seed {args.seed} (random; --seed {args.seed} repeats it)",
               file=sys.stderr)
+    try:  # before the work: a bad path, or a disk without room (a "1e9d" run streamed GBs)
+        check_writable(args.output)
+        check_free_space(args.output, RateStreamWriter.size_bytes(suffix, total))
+    except OutputError as exc:
+        raise CommandError(str(exc)) from None
     bar = _progress(total)
+    stopped: KeyboardInterrupt | None = None
     try:
-        with open(args.output, "wb") as handle:
+        # under a temporary name: complete, or (interrupted) an honest shorter record
+        with atomic_path(args.output) as partial, open(partial, "w+b") as handle:
             writer = RateStreamWriter(handle, suffix, total, gen.rate_hz, [header])
-            for start, block in _chunks(gen, total, bar):
-                writer.write(start, block)
+            try:
+                for start, block in _chunks(gen, total, bar):
+                    writer.write(start, block)
+            except KeyboardInterrupt as exc:
+                stopped = exc
+                writer.end_short(f"interrupted after {writer.samples} of {total} samples")
     except OSError as exc:
         raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     finally:
         if bar is not None:
             bar.close()
+    if stopped is not None:
+        name = getattr(stopped, "signal_name", "SIGINT")
+        print(f"bmg160-emu generate: interrupted by {name} after {writer.samples:,} of "
+              f"{total:,} samples; {args.output} holds those {writer.samples:,} "
+              f"(its header says so)", file=sys.stderr)
+        return 143 if name == "SIGTERM" else 130
     return 0
 
 
