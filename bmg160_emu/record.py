@@ -87,6 +87,7 @@ def record(
     counts = np.empty((n, 3), dtype=np.int64)
     truth_rows = np.empty((n, 3))
     chip.truth_hooks.append(truth)
+    k = 0
     try:
         # Find the phase of the sample clock: advance one period at a time until one appears.
         for _ in range(3):
@@ -112,6 +113,14 @@ def record(
             samples.clear()
             if progress is not None:
                 progress(k + 1, n)
+    except KeyboardInterrupt as exc:  # ^C, SIGTERM: the samples so far, as a shorter record
+        done = k  # samples 0 .. k - 1 are complete
+        metadata = {"odr_hz": odr, "range_dps": chip_range_dps(chip),
+                    "seed": getattr(chip, "seed", None), "interrupted": True,
+                    "samples_planned": n}
+        partial = Recording(t_s[:done], counts[:done], chip_lsb_per_dps(chip),
+                            truth_rows[:done], metadata)
+        raise RecordingInterrupted(partial, exc) from None
     finally:
         chip.truth_hooks.remove(truth)
     metadata = {
@@ -120,6 +129,16 @@ def record(
         "seed": getattr(chip, "seed", None),
     }
     return Recording(t_s, counts, chip_lsb_per_dps(chip), truth_rows, metadata)
+
+
+class RecordingInterrupted(KeyboardInterrupt):
+    """^C or SIGTERM during :func:`record`: ``recording`` holds the complete samples so far
+    (its metadata says ``interrupted`` and ``samples_planned``)."""
+
+    def __init__(self, recording: Recording, cause: BaseException) -> None:
+        super().__init__()
+        self.recording = recording
+        self.signal_name = getattr(cause, "signal_name", "SIGINT")
 
 
 # Output data rate -> the BW code the Linux driver writes for it (LNX bmg160_samp_freq_table;

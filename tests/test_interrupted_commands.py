@@ -101,3 +101,30 @@ def test_generate_stopped_by_sigterm_within_a_second(tmp_path):
 
     data = np.load(out)
     assert 0 < data.shape[0] < 17_280_000 and data.shape[1] == 3
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".npz"])
+def test_an_interrupted_record_keeps_the_samples_so_far(tmp_path, monkeypatch, suffix, capsys):
+    # record used to leave no file at all: every sample lost
+    from bmg160_emu.cli import main
+    from bmg160_emu.device.chip import BMG160
+    from bmg160_emu.record import read_recording
+
+    reads = {"n": 0}
+    real_read = BMG160.read
+
+    def read_then_stop(self, reg, n=1):
+        reads["n"] += 1
+        if reads["n"] == 1001:
+            raise KeyboardInterrupt
+        return real_read(self, reg, n)
+
+    monkeypatch.setattr(BMG160, "read", read_then_stop)
+    out = tmp_path / f"rec{suffix}"
+    assert main(["record", "--duration", "60s", "--rate", "200", "--seed", "4",
+                 "-o", str(out)]) == 130
+    assert "interrupted by SIGINT after 1,000 of 12,000 samples" in capsys.readouterr().err
+    rec = read_recording(out)
+    assert len(rec) == 1000 and rec.metadata["interrupted"] is True
+    assert rec.metadata["samples_planned"] == 12000
+    assert [p.name for p in tmp_path.iterdir() if ".part" in p.name] == []

@@ -52,7 +52,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.record import BW_CODE_BY_ODR_HZ, record, write_recording
+    from bmg160_emu.io.atomic import atomic_path
+    from bmg160_emu.record import BW_CODE_BY_ODR_HZ, RecordingInterrupted, record, write_recording
 
     if args.output.suffix.lower() not in (".csv", ".npz"):
         raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
@@ -95,16 +96,25 @@ def run(args: argparse.Namespace) -> int:
                 bar.n = done
                 bar.refresh()
 
+    stopped = None
     try:
         rec = record(chip, duration, progress)
     except (ValueError, RuntimeError) as exc:
         raise CommandError(str(exc)) from None
+    except RecordingInterrupted as exc:  # keep the samples so far: an honest shorter record
+        stopped, rec = exc, exc.recording
     if scenario is not None:
         rec.metadata["truth"] = str(args.truth)
     try:
-        write_recording(rec, args.output)
+        with atomic_path(args.output) as partial:
+            write_recording(rec, partial)
     except OSError as exc:
-        raise CommandError(f"cannot write {args.output}: {exc.strerror}") from None
+        raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
+    if stopped is not None:
+        print(f"bmg160-emu record: interrupted by {stopped.signal_name} after {len(rec):,} of "
+              f"{rec.metadata['samples_planned']:,} samples; {args.output} holds those (its "
+              "settings say interrupted)", file=sys.stderr)
+        return 143 if stopped.signal_name == "SIGTERM" else 130
     print(
         f"recorded {len(rec)} samples at {rec.odr_hz:g} Hz ({duration:g} s of chip time, "
         f"+-{rec.metadata['range_dps']} deg/s, {rec.lsb_per_dps:g} LSB/(deg/s)) to {args.output}"
