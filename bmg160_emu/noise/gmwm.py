@@ -416,7 +416,9 @@ def _minimize(model, wv, whiten, starts) -> tuple[np.ndarray, float]:
         return whiten(wv.wv - model_wv(model, np.exp(theta), wv.m, dt))
 
     best: tuple[np.ndarray, float] | None = None
+    margin = 1e-9 * (hi - lo)
     for start in starts:
+        start = np.clip(start, lo + margin, hi - margin)  # a refit's box moves with its data
         res = least_squares(residual, start, bounds=(lo, hi), x_scale=1.0, method="trf")
         cost = float(res.fun @ res.fun)
         if best is None or cost < best[1]:
@@ -523,7 +525,8 @@ def _asymptotic_estimates(fit: GMWMFit) -> dict[str, ParameterEstimate]:
     sd = np.sqrt(np.clip(np.diag(fit.log_cov), 0.0, None))
     for k, name in enumerate(fit.names):
         v = float(fit.params[k])
-        low, high = v * math.exp(-_Z95 * sd[k]), v * math.exp(_Z95 * sd[k])
+        spread = math.exp(min(_Z95 * sd[k], 700.0))  # an unidentified term: sd is enormous
+        low, high = v / spread, v * spread
         if fit.at_bound[k]:  # an unresolved term: its interval runs to the open end
             is_amp = not name.startswith("T")
             low, high = (0.0, high) if is_amp else (low, math.inf)
@@ -607,15 +610,21 @@ CANDIDATES = (
 def select_model(
     wv: WaveletVariance, candidates: Sequence[Sequence[str]] = CANDIDATES
 ) -> Selection:
-    """Fit every candidate (each with its own efficient Omega) and rank them by WIC."""
-    fits = []
+    """Fit every candidate and rank them by WIC.
+
+    The objectives are only comparable with one weight matrix: Omega is taken from the
+    two-step fit of the richest candidate (most parameters; it nests the others when the
+    list is nested), and every candidate is fitted with it."""
+    models = []
     for cand in candidates:
-        try:
-            fits.append(gmwm_fit(wv, cand))
-        except GMWMError:
-            continue
-    if not fits:
+        model = check_model(cand)
+        if wv.m.size > len(parameter_names(model)):
+            models.append(model)
+    if not models:
         raise GMWMError("no candidate model can be fitted to this record (too few scales)")
+    richest = max(models, key=lambda mod: len(parameter_names(mod)))
+    omega = gmwm_fit(wv, richest).omega
+    fits = [gmwm_fit(wv, model, omega=omega) for model in models]
     fits.sort(key=lambda f: f.wic)
     return Selection(fits)
 
