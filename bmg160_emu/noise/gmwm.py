@@ -24,7 +24,7 @@ parameters; the optimism of J is 2 tr(D (D' Omega^-1 D)^-1 D' Omega^-1) = 2 p), 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -188,24 +188,25 @@ def _unit_columns(model, T_values: Sequence[float], m: np.ndarray, dt: float) ->
     return np.column_stack(cols)
 
 
-def _starts(model, wv: WaveletVariance, weights: np.ndarray, count: int = 3) -> list[np.ndarray]:
+def _starts(model, wv: WaveletVariance, whiten, count: int = 3) -> list[np.ndarray]:
     """Starting points: a grid over the GM times with a non-negative least-squares solve for
-    the squared amplitudes (the WV is linear in them), best `count` kept."""
+    the squared amplitudes (the WV is linear in them, and so is the whitening: the residual
+    is then the weighted objective profiled over the amplitudes), best `count` kept."""
     dt = 1.0 / wv.rate_hz
     n_gm = model.count("GM")
-    grid = np.geomspace(2.0 * dt, wv.taus_s[-1] * 2.0, 24 if n_gm < 2 else 16)
+    grid = np.geomspace(2.0 * dt, wv.taus_s[-1] * 2.0, 24 if n_gm < 2 else 20)
     if n_gm == 0:
         combos: list[tuple[float, ...]] = [()]
     elif n_gm == 1:
         combos = [(t,) for t in grid]
     else:
-        combos = [(a, b) for a in grid for b in grid if b >= 4.0 * a]
+        combos = [(a, b) for a in grid for b in grid if b >= 2.0 * a]
         if n_gm > 2:
             combos = [c + tuple(grid[-1:]) * (n_gm - 2) for c in combos]
     scored = []
-    y = wv.wv * weights
+    y = whiten(wv.wv)
     for Ts in combos:
-        A = _unit_columns(model, Ts, wv.m, dt) * weights[:, None]
+        A = whiten(_unit_columns(model, Ts, wv.m, dt))
         scale = np.linalg.norm(A, axis=0)
         amp2, rnorm = nnls(A / scale, y)
         scored.append((rnorm, Ts, amp2 / scale))
@@ -222,6 +223,18 @@ def _starts(model, wv: WaveletVariance, weights: np.ndarray, count: int = 3) -> 
                 k += 1
         starts.append(np.clip(np.array(theta), lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo)))
     return starts
+
+
+def _diagonal_whitening(w: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """r -> W r for a vector or each column of a matrix (W = diag(w))."""
+    return lambda r: (r.T * w).T
+
+
+def _whitening(omega: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """r -> L^-1 r with Omega = L L' (on unit diagonal: the scales span decades)."""
+    sd = np.sqrt(np.diag(omega))
+    chol = np.linalg.cholesky(omega / np.outer(sd, sd))
+    return lambda r: solve_triangular(chol, (r.T / sd).T, lower=True)
 
 
 def _minimize(model, wv, whiten, starts) -> tuple[np.ndarray, float]:
@@ -285,22 +298,20 @@ def gmwm_fit(
             f"{wv.m.size} wavelet scales for {len(names)} parameters of {'+'.join(model)}: "
             "the record is too short for this model"
         )
+    theta1 = None
     if omega is None:
         # step 1: diagonal chi-square weights from the estimate itself
         w1 = np.sqrt(wv.edf() / 2.0) / wv.wv
-        theta1, _ = _minimize(model, wv, lambda r: r * w1, _starts(model, wv, w1))
+        diag = _diagonal_whitening(w1)
+        theta1, _ = _minimize(model, wv, diag, _starts(model, wv, diag))
         omega = omega_of(model, np.exp(theta1), wv)
-        starts = [theta1] + _starts(model, wv, w1, count=2)
+    # step 2: the efficient weights (whitening by Omega's Cholesky factor); the grid starts
+    # are scored with them too, so the global search is over the efficient objective
+    whiten = _whitening(omega)
+    if start is not None:
+        starts = [start]
     else:
-        w1 = 1.0 / np.sqrt(np.diag(omega))
-        starts = [start] if start is not None else _starts(model, wv, w1)
-    # step 2: the efficient weights; whitening by Omega's Cholesky factor (on unit diagonal)
-    sd = np.sqrt(np.diag(omega))
-    chol = np.linalg.cholesky(omega / np.outer(sd, sd))
-
-    def whiten(r: np.ndarray) -> np.ndarray:
-        return solve_triangular(chol, r / sd, lower=True)
-
+        starts = _starts(model, wv, whiten) + ([theta1] if theta1 is not None else [])
     theta, cost = _minimize(model, wv, whiten, starts)
     theta = _sorted_gm(model, theta)
     lo, hi = _bounds(model, wv)
@@ -377,9 +388,7 @@ def bootstrap(
 
 
 def _refit_fixed(model, wv, omega, theta0) -> np.ndarray:
-    sd = np.sqrt(np.diag(omega))
-    chol = np.linalg.cholesky(omega / np.outer(sd, sd))
-    theta, _ = _minimize(model, wv, lambda r: solve_triangular(chol, r / sd, lower=True), [theta0])
+    theta, _ = _minimize(model, wv, _whitening(omega), [theta0])
     return np.exp(_sorted_gm(model, theta))
 
 
