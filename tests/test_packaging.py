@@ -29,3 +29,30 @@ def test_kernel_module_sources_carry_the_gpl_spdx_header():
             if "SPDX-License-Identifier: GPL-2.0" not in first:
                 offenders.append(str(source.relative_to(ROOT)))
     assert offenders == []
+
+
+def test_metadata_version_is_the_package_version():
+    # Single source: pyproject reads bmg160_emu.__version__ (tool.setuptools.dynamic).
+    import bmg160_emu
+
+    assert importlib.metadata.version("bmg160-emu") == bmg160_emu.__version__
+    assert re.fullmatch(r"\d+\.\d+\.\d+", bmg160_emu.__version__)
+
+
+def test_version_option_prints_the_package_version(capsys):
+    import bmg160_emu
+    from bmg160_emu.cli import main
+
+    try:
+        main(["--version"])
+    except SystemExit as exc:
+        assert exc.code == 0
+    assert capsys.readouterr().out == f"bmg160-emu {bmg160_emu.__version__}\n"
+
+
+def test_changelog_top_release_is_the_package_version():
+    import bmg160_emu
+
+    text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    releases = re.findall(r"^## \[([^\]]+)\]", text, flags=re.M)
+    assert releases and releases[0] == bmg160_emu.__version__
