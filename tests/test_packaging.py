@@ -54,5 +54,21 @@ def test_changelog_top_release_is_the_package_version():
     import bmg160_emu
 
     text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
-    releases = re.findall(r"^## \[([^\]]+)\]", text, flags=re.M)
+    releases = re.findall(r"^## \[([^\]]+)\]", text, flags=re.MULTILINE)
     assert releases and releases[0] == bmg160_emu.__version__
+
+
+def test_a_checkout_builds_its_own_firmware_folder():
+    # Editable install / source tree: no shipped copy, so the checkout's sources and its
+    # firmware/build folder are used (a wheel's copy is exercised by .ci/package.sh).
+    from bmg160_emu.firmware import build
+
+    assert not (ROOT / "bmg160_emu" / "firmware" / "sources").exists()
+    assert build.FIRMWARE_DIR == ROOT / "firmware"
+    assert build.BUILD_ROOT == ROOT / "firmware" / "build"
+
+
+def test_the_sdist_manifest_ships_the_firmware_and_the_changelog():
+    manifest = (ROOT / "MANIFEST.in").read_text(encoding="utf-8").splitlines()
+    assert "graft firmware" in manifest
+    assert any(line.startswith("include") and "CHANGELOG.md" in line for line in manifest)
