@@ -72,3 +72,18 @@ def test_the_sdist_manifest_ships_the_firmware_and_the_changelog():
     manifest = (ROOT / "MANIFEST.in").read_text(encoding="utf-8").splitlines()
     assert "graft firmware" in manifest
     assert any(line.startswith("include") and "CHANGELOG.md" in line for line in manifest)
+
+
+def _sh_blocks(markdown: str) -> list[list[str]]:
+    return [b.strip().splitlines() for b in re.findall(r"```sh\n(.*?)```", markdown, re.DOTALL)]
+
+
+def test_readme_commands_make_a_venv_and_ci_runs_the_same_test_command():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    demo, tests = _sh_blocks(readme)[:2]
+    for block in (demo, tests):
+        assert block[0] == "python3 -m venv .venv && . .venv/bin/activate"
+    assert demo[1] == "python3 -m pip install . && bmg160-emu demo"
+    ci = (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+    assert tests[1] in ci  # verbatim, as its own line
+    assert "python3 -m venv .venv" in ci and ". .venv/bin/activate" in ci
