@@ -10,6 +10,7 @@ import subprocess
 import sys
 import time
 import uuid
+from pathlib import Path
 
 import pytest
 
@@ -139,5 +140,54 @@ def test_viewer_in_a_real_terminal_shows_a_script_session(tmp_path, runtime_dir)
         assert "INT1" in screen and "FIFO" in screen, screen
     finally:
         subprocess.run(["tmux", "kill-session", "-t", name], check=False, capture_output=True)
+        session.kill()
+        session.wait(timeout=10)
+
+
+def _umockdev_missing() -> str | None:
+    try:
+        from bmg160_emu.bus.umockdev import UMockdevUnavailable, load_umockdev, preload_available
+
+        load_umockdev()
+    except UMockdevUnavailable as exc:
+        return str(exc)
+    return None if preload_available() else "umockdev's preload library is missing"
+
+
+PROGRAM = """\
+import time
+import smbus2
+bus = smbus2.SMBus(1)
+bus.write_byte_data(0x68, 0x0F, 0x02)
+for _ in range(100):
+    bus.read_byte_data(0x68, 0x00)
+    time.sleep(0.05)
+"""
+
+
+@pytest.mark.umockdev
+def test_run_watch_serves_an_unmodified_programs_session(runtime_dir):
+    missing = _umockdev_missing()
+    if missing:
+        pytest.skip(f"umockdev route unavailable: {missing}")
+    env = dict(os.environ, XDG_RUNTIME_DIR=str(runtime_dir), PYTHONUNBUFFERED="1")
+    session = subprocess.Popen(
+        [sys.executable, "-m", "bmg160_emu", "run", "--watch", "--", sys.executable, "-c", PROGRAM],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env,
+    )  # fmt: skip
+    try:
+        announce = session.stderr.readline()
+        assert "watch this session with: bmg160-emu watch --socket " in announce, announce
+        path = Path(announce.rsplit(" ", 1)[1].strip())
+        assert stat.S_IMODE(path.stat().st_mode) == 0o600
+        deadline = time.monotonic() + 60
+        for snapshot in read_snapshots(path, timeout_s=10):
+            if snapshot["transactions"] >= 10 or time.monotonic() > deadline:
+                break
+        [chip] = snapshot["chips"]
+        assert snapshot["title"].startswith("run ") and snapshot["transactions"] >= 10
+        assert chip["registers"][address_of("RANGE")] == 0x02  # the program's write
+        assert "read_byte_data reg 0x00 -> 0f" in snapshot["last"][-1]
+    finally:
         session.kill()
         session.wait(timeout=10)
