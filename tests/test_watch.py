@@ -129,7 +129,7 @@ def test_viewer_in_a_real_terminal_shows_a_script_session(tmp_path, runtime_dir)
                 ["tmux", "capture-pane", "-p", "-t", name], capture_output=True, text=True,
                 check=True,
             ).stdout  # fmt: skip
-            if "recent changes" in screen and "RANGE = 0x0" in screen:
+            if "changed since reset" in screen and "RANGE = 0x0" in screen:
                 break
         assert "BMG160 0x68" in screen, screen
         assert "00 CHIP_ID       0F" in screen, screen

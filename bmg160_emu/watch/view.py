@@ -28,12 +28,14 @@ FIFO_CAPACITY = 100  # frames (spec 6.5)
 SPARK = "▁▂▃▄▅▆▇█"
 CHANGED = "bold black on yellow"
 LIVE = "cyan"
-# Output registers change with every sample: shown as live values (and as the rates), not
-# highlighted as changes, so a change a driver made stands out.
-DATA_REGISTERS = frozenset(
+# Output and status registers change by themselves, with every sample: they are shown as
+# live values (and as the rates, the FIFO level and the lines), not highlighted as changes,
+# so what a driver configured stands out.
+LIVE_REGISTERS = frozenset(
     address_of(name)
     for name in ("RATE_X_LSB", "RATE_X_MSB", "RATE_Y_LSB", "RATE_Y_MSB", "RATE_Z_LSB",
-                 "RATE_Z_MSB", "TEMP", "FIFO_DATA")
+                 "RATE_Z_MSB", "TEMP", "INT_STATUS_0", "INT_STATUS_1", "INT_STATUS_2",
+                 "INT_STATUS_3", "FIFO_STATUS", "FIFO_DATA")
 )  # fmt: skip
 
 
@@ -49,11 +51,12 @@ def sparkline(values: list[float]) -> str:
 
 
 class ChipView:
-    """What the view remembers of one chip between snapshots."""
+    """What the view remembers of one chip between snapshots. It starts from the reset
+    values, so a view attached late still shows what the driver changed since reset."""
 
     def __init__(self) -> None:
         self.rates: list[deque[float]] = [deque(maxlen=HISTORY) for _ in range(3)]
-        self.registers: list[int] | None = None
+        self.registers: list[int] = [reg.reset for reg in REGISTERS]
         self.changed_at = [float("-inf")] * len(REGISTERS)
         self.changes: deque[int] = deque(maxlen=DECODED_CHANGES)
 
@@ -61,13 +64,12 @@ class ChipView:
         for axis, value in zip(self.rates, chip["rate_dps"]):
             axis.append(float(value))
         new = chip["registers"]
-        if self.registers is not None:
-            for address, (old, value) in enumerate(zip(self.registers, new)):
-                if old != value and address not in DATA_REGISTERS:
-                    self.changed_at[address] = now
-                    if address in self.changes:
-                        self.changes.remove(address)
-                    self.changes.append(address)
+        for address, (old, value) in enumerate(zip(self.registers, new)):
+            if old != value and address not in LIVE_REGISTERS:
+                self.changed_at[address] = now
+                if address in self.changes:
+                    self.changes.remove(address)
+                self.changes.append(address)
         self.registers = list(new)
 
 
@@ -125,7 +127,7 @@ class WatchView:
         cells = []
         for reg in REGISTERS:
             value = chip["registers"][reg.address]
-            if reg.address in DATA_REGISTERS:
+            if reg.address in LIVE_REGISTERS:
                 style = LIVE
             elif self.now - view.changed_at[reg.address] < HIGHLIGHT_S:
                 style = CHANGED
@@ -158,8 +160,8 @@ class WatchView:
 
     def _decoded(self, chip: dict[str, Any], view: ChipView) -> Text:
         if not view.changes:
-            return Text("no register change yet", style="dim")
-        text = Text("recent changes, newest first:\n", style="bold")
+            return Text("all registers at their reset values", style="dim")
+        text = Text("changed since reset or lately, newest first:\n", style="bold")
         lines = [register(a).describe(chip["registers"][a]) for a in reversed(view.changes)]
         text.append("\n".join(lines))
         text.overflow, text.no_wrap = "ellipsis", True
@@ -172,7 +174,7 @@ def run_viewer(path: Path, console: Console | None = None) -> int:
 
     console = console or Console()
     view = WatchView()
-    with Live(view.render(), console=console, auto_refresh=False, screen=True) as live:
+    with Live(view.render(), console=console, auto_refresh=False, screen=False) as live:
         for snapshot in read_snapshots(path):
             view.update(snapshot)
             live.update(view.render(), refresh=True)
