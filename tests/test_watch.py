@@ -8,6 +8,7 @@ import shutil
 import stat
 import subprocess
 import sys
+import tempfile
 import time
 import uuid
 from pathlib import Path
@@ -30,11 +31,13 @@ pytest.importorskip("rich")
 
 
 @pytest.fixture
-def runtime_dir(tmp_path, monkeypatch):
-    folder = tmp_path / "run"
-    folder.mkdir()
+def runtime_dir(monkeypatch):
+    # A short folder of its own: a Unix socket path holds at most 107 bytes, and pytest's
+    # tmp_path can be longer than that with the socket's name added.
+    folder = Path(tempfile.mkdtemp(prefix="bmgw", dir="/tmp"))
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(folder))
-    return folder
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
 
 
 def test_socket_directory_is_private_and_an_open_one_is_refused(runtime_dir):
@@ -90,6 +93,13 @@ def test_view_highlights_a_changed_register_and_decodes_it():
     changed = Style.parse(CHANGED).render("0F RANGE         03", color_system=ColorSystem.STANDARD)
     assert changed in styled  # the changed register, highlighted
     assert "│ 10 BW            80" in styled  # an unchanged one, plain
+
+
+def test_a_socket_path_too_long_for_unix_sockets_is_a_clear_error(runtime_dir):
+    deep = runtime_dir / ("d" * 100)
+    deep.mkdir(mode=0o700)
+    with pytest.raises(WatchError, match="too long for a Unix socket .* at most 107"):
+        WatchServer({}, path=deep / "x.sock")
 
 
 def test_watch_without_a_session_says_how_to_start_one(runtime_dir, capsys):

@@ -12,7 +12,7 @@ examples:
   bmg160-emu script bringup.script --realtime --watch     # a watchable session
   bmg160-emu watch                                        # attach to the newest session
   bmg160-emu watch --list
-  bmg160-emu watch --socket /run/user/1000/bmg160-emu/session-4242-7f3a.sock
+  bmg160-emu watch --socket /run/user/1000/bmg160-emu/4242-0.sock
 
 A session started with --watch (run, script) serves snapshots on a Unix socket in a
 directory only you can enter ($XDG_RUNTIME_DIR/bmg160-emu, else /tmp/bmg160-emu-UID, mode

@@ -11,6 +11,7 @@ so watching a session never changes what its driver reads.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
 import select
@@ -36,6 +37,8 @@ SNAPSHOT_VERSION = 1
 PERIOD_S = 0.1  # ten snapshots a second: smooth enough for a person, cheap for the session
 LAST_TRANSACTIONS = 10
 SOCKET_SUFFIX = ".sock"
+SUN_PATH_MAX = 107  # bytes of a Unix socket path (sockaddr_un.sun_path is 108, NUL included)
+_SERIAL = itertools.count()
 
 
 class WatchError(RuntimeError):
@@ -109,9 +112,14 @@ class WatchServer:
         self.logs = list(logs)
         self.title = title
         if path is None:
-            path = socket_dir() / f"session-{os.getpid()}-{id(self):x}{SOCKET_SUFFIX}"
+            path = socket_dir() / f"{os.getpid()}-{next(_SERIAL)}{SOCKET_SUFFIX}"
         else:
             check_private_dir(path.parent)
+        if len(os.fsencode(path)) > SUN_PATH_MAX:
+            raise WatchError(
+                f"socket path {path} is too long for a Unix socket ({len(os.fsencode(path))} "
+                f"bytes, at most {SUN_PATH_MAX}): set XDG_RUNTIME_DIR to a shorter directory"
+            )
         self.path = path
         self._listener: socket.socket | None = None
         self._clients: list[socket.socket] = []
