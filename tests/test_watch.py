@@ -116,6 +116,7 @@ def test_viewer_in_a_real_terminal_shows_a_script_session(tmp_path, runtime_dir)
     script = tmp_path / "watched.script"
     script.write_text("\n".join(lines) + "\n")
     env = dict(os.environ, XDG_RUNTIME_DIR=str(runtime_dir), PYTHONUNBUFFERED="1")
+    env.pop("TMUX", None)  # inside tmux, --watch would open a pane in the developer's window
     session = subprocess.Popen(
         [sys.executable, "-m", "bmg160_emu", "script", str(script), "--realtime", "--watch",
          "--seed", "3", "--quiet"],
@@ -181,6 +182,7 @@ def test_run_watch_serves_an_unmodified_programs_session(runtime_dir):
     if missing:
         pytest.skip(f"umockdev route unavailable: {missing}")
     env = dict(os.environ, XDG_RUNTIME_DIR=str(runtime_dir), PYTHONUNBUFFERED="1")
+    env.pop("TMUX", None)  # inside tmux, --watch would open a pane in the developer's window
     session = subprocess.Popen(
         [sys.executable, "-m", "bmg160_emu", "run", "--watch", "--", sys.executable, "-c", PROGRAM],
         stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env,
