@@ -25,7 +25,7 @@ LAYERS = {  # first name under bmg160_emu -> layer (higher imports lower)
     "commands": 7, "cli": 7, "pytest_plugin": 7, "__main__": 7,
     "adcs": 6,
     "script": 5, "record": 5, "playback": 5, "replay": 5, "decode": 5, "faults": 5,
-    "firmware": 5,
+    "firmware": 5, "watch": 5,  # watch: the live view's session side and viewer
     "io": 4,
     "bus": 3,
     "device": 2,
