@@ -3,7 +3,7 @@
 Layer order, highest first; a module may import its own layer and any lower one:
 
     commands (cli, pytest_plugin) > adcs > tools (script, record, playback, replay, decode,
-    faults, firmware) > io > bus > device > base (clock, durations, noise)
+    faults, firmware, watch) > io > bus > device > base (clock, durations, noise)
 
 adcs sits above the other tools: it builds rigs from them, and no tool imports adcs (the
 fault engine moved from adcs to ``bmg160_emu.faults`` for that). Every import statement
