@@ -139,3 +139,10 @@ def test_commands_name_the_new_suffix_in_their_errors(tmp_path, capsys):
     assert "must end in .npy, .csv or .resd" in capsys.readouterr().err
     assert cli.main(["record", "--duration", "1s", "-o", str(tmp_path / "x.txt")]) == 2
     assert "must end in .csv, .npz or .resd" in capsys.readouterr().err
+
+
+def test_a_refused_write_leaves_no_file(tmp_path):
+    target = tmp_path / "x.resd"
+    with pytest.raises(ResdFormatError, match="channel 1: 1 rows for 2 times"):
+        write_resd(target, np.array([0.0, 0.5]), {0: np.zeros((2, 3)), 1: np.zeros((1, 3))})
+    assert list(tmp_path.iterdir()) == []  # not half a file under the target's name

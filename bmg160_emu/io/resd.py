@@ -23,10 +23,11 @@ import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, BinaryIO
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
+from bmg160_emu.io.atomic import atomic_open
 from bmg160_emu.io.errors import FormatError
 
 if TYPE_CHECKING:
@@ -87,7 +88,7 @@ class ResdWriter:
 
     def __init__(
         self,
-        handle: BinaryIO,
+        handle: IO[Any],
         *,
         rate_hz: float,
         samples: int,
@@ -143,7 +144,7 @@ def write_resd(
     if len(t_s) < 1:
         raise ResdFormatError("nothing to write: no samples")
     rate_hz = _uniform_rate_hz(t_s)
-    with open(path, "wb") as handle:
+    with atomic_open(path, "wb") as handle:  # complete or absent (docs/outputs.md)
         handle.write(FILE_HEADER)
         for channel, rate_dps in channels.items():
             rate_dps = np.asarray(rate_dps, dtype=float).reshape(-1, 3)
