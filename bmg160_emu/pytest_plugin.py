@@ -6,25 +6,50 @@ Registered as the ``pytest11`` entry point ``bmg160_emu``, so installing the pac
         from mydriver import Gyro            # builds smbus2.SMBus(1) itself
         assert Gyro(bus=1).chip_id() == 0x0F
 
-Fixtures: ``bmg160_chip`` (a fresh chip), ``bmg160_smbus`` (``patch_smbus`` active with the
-chip at 0x68 on bus 1; gives the ``I2CBus`` with its transaction log), ``fake_smbus`` (a
-``FakeSMBus`` on that chip), ``bmg160_spidev`` (``patch_spidev`` with the chip at
-/dev/spidev0.0), ``fake_spidev`` (a ``FakeSpiDev`` on the chip) and ``bmg160_virtual_sleep``
-(``time.sleep`` advances the chip's virtual clock).
+Fixtures (docs/pytest-plugin.md): ``bmg160_chip`` (a fresh chip), ``bmg160_smbus``
+(``patch_smbus`` with the chip at its address on bus 1; yields the emulated adapter, an
+``I2CBus`` with its transaction log), ``bmg160_spidev`` (``patch_spidev`` with the chip at
+/dev/spidev0.0; yields the emulated device, an ``SpiDevNode``), ``bmg160_fake_smbus`` and
+``bmg160_fake_spidev`` (a ``FakeSMBus`` / ``FakeSpiDev`` already open; ``fake_smbus`` and
+``fake_spidev`` are the 0.1 names), ``bmg160_virtual_sleep`` (``time.sleep`` advances the
+chip's virtual clock) and ``bmg160_virtual_time`` (so do ``time.monotonic``,
+``time.perf_counter`` and ``time.time``).
 
-Chip options come from the ``bmg160`` marker: ``@pytest.mark.bmg160(seed=3, noise=False,
-bus=2, address=0x69)``; every keyword except ``bus`` goes to ``BMG160``.
+Chip options come from the ``bmg160`` marker, ``@pytest.mark.bmg160(seed=3, noise=False,
+bus=2)``: every keyword except ``bus`` goes to ``BMG160``; an unknown one is a usage error
+that lists the valid ones. The ini options ``bmg160_seed`` and ``bmg160_profile`` set the
+suite's default seed and noise profile; the marker overrides them.
 """
 
 from __future__ import annotations
 
+import inspect
+import warnings
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 DEFAULT_BUS = 1
 DEFAULT_SEED = 7
+SPI_NODE = (0, 0)  # /dev/spidev0.0
+PLUGIN_KEYS = ("bus",)  # marker keys the plugin uses itself; the others go to BMG160
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addini(
+        "bmg160_seed",
+        f"noise seed of the bmg160_emu fixtures' chip when the marker gives none "
+        f"(default {DEFAULT_SEED})",
+        default=None,
+    )
+    parser.addini(
+        "bmg160_profile",
+        "noise profile of the bmg160_emu fixtures' chip: a built-in name or a TOML file "
+        "(relative to the ini file); the marker's profile= overrides it",
+        default=None,
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -33,31 +58,112 @@ def pytest_configure(config: pytest.Config) -> None:
         "bmg160(**options): options of the emulated BMG160 for the bmg160_emu fixtures "
         "(BMG160 keywords, plus bus= for the I2C bus number)",
     )
+    config.stash[_DEFAULTS] = _ini_defaults(config)
+
+
+_DEFAULTS = pytest.StashKey[dict[str, Any]]()
+
+
+def _ini_defaults(config: pytest.Config) -> dict[str, Any]:
+    """The suite-wide chip options from the ini file, checked once at start-up."""
+    defaults: dict[str, Any] = {"seed": DEFAULT_SEED}
+    seed = config.getini("bmg160_seed")
+    if seed not in (None, ""):
+        text = str(seed).strip()
+        if text.lower() == "none":
+            defaults["seed"] = None  # a fresh random realisation per test
+        else:
+            try:
+                defaults["seed"] = int(text, 0)
+            except ValueError:
+                raise pytest.UsageError(
+                    f"{_ini_name(config)}: bmg160_seed must be an integer or none, not {text!r}"
+                ) from None
+    profile = config.getini("bmg160_profile")
+    if profile not in (None, ""):
+        from bmg160_emu.noise import load_profile
+        from bmg160_emu.noise.profile import builtin_profile_names
+
+        name = str(profile).strip()
+        if name not in builtin_profile_names():
+            base = config.inipath.parent if config.inipath else config.rootpath
+            name = str((base / name) if not Path(name).is_absolute() else Path(name))
+        try:
+            load_profile(name)
+        except ValueError as exc:
+            raise pytest.UsageError(f"{_ini_name(config)}: bmg160_profile: {exc}") from None
+        defaults["profile"] = name
+    return defaults
+
+
+def _ini_name(config: pytest.Config) -> str:
+    return str(config.inipath) if config.inipath else "ini file"
+
+
+def chip_option_names() -> tuple[str, ...]:
+    """The keywords ``BMG160`` accepts, hence the marker's options besides ``bus``."""
+    from bmg160_emu.device.chip import BMG160
+
+    parameters = inspect.signature(BMG160.__init__).parameters.values()
+    return tuple(
+        p.name for p in parameters if p.name != "self" and p.kind is not p.VAR_KEYWORD
+    )
+
+
+def _check_marker(item: pytest.Item) -> dict[str, Any]:
+    """The marker's options of ``item`` ({} without a marker); a UsageError names the test
+    and lists the valid keys when one is misspelled."""
+    __tracebackhide__ = True
+    marker = item.get_closest_marker("bmg160")
+    if marker is None:
+        return {}
+    if marker.args:
+        raise pytest.UsageError(f"{item.nodeid}: @pytest.mark.bmg160 takes keyword options only")
+    valid = chip_option_names() + PLUGIN_KEYS
+    unknown = sorted(set(marker.kwargs) - set(valid))
+    if unknown:
+        raise pytest.UsageError(
+            f"{item.nodeid}: unknown @pytest.mark.bmg160 option"
+            f"{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
+            f"valid: {', '.join(sorted(valid))}"
+        )
+    return dict(marker.kwargs)
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Check every bmg160 marker before any test runs, as --strict-markers checks names."""
+    for item in items:
+        _check_marker(item)
 
 
 def _options(request: pytest.FixtureRequest) -> dict[str, Any]:
-    marker = request.node.get_closest_marker("bmg160")
-    options: dict[str, Any] = {"seed": DEFAULT_SEED}
-    if marker is not None:
-        if marker.args:
-            raise pytest.UsageError("@pytest.mark.bmg160 takes keyword options only")
-        options.update(marker.kwargs)
+    __tracebackhide__ = True
+    options = dict(request.config.stash.get(_DEFAULTS, {"seed": DEFAULT_SEED}))
+    options.update(_check_marker(request.node))
     return options
 
 
 @pytest.fixture
 def bmg160_chip(request: pytest.FixtureRequest) -> Any:
-    """A fresh BMG160 (seed 7 unless the ``bmg160`` marker says otherwise)."""
+    """A fresh BMG160 (seed 7, or the ini file's ``bmg160_seed``, unless the marker says)."""
     from bmg160_emu.device.chip import BMG160
 
+    __tracebackhide__ = True
     options = _options(request)
-    options.pop("bus", None)
-    return BMG160(**options)
+    for key in PLUGIN_KEYS:
+        options.pop(key, None)
+    try:
+        return BMG160(**options)
+    except (TypeError, ValueError) as exc:
+        raise pytest.UsageError(
+            f"{request.node.nodeid}: @pytest.mark.bmg160 options rejected by BMG160: {exc}"
+        ) from None
 
 
 @pytest.fixture
 def bmg160_smbus(request: pytest.FixtureRequest, bmg160_chip: Any) -> Iterator[Any]:
-    """``patch_smbus`` with the chip on the I2C bus (1 by default); yields the ``I2CBus``."""
+    """``patch_smbus`` with the chip on the I2C bus (1 by default); yields the emulated
+    adapter /dev/i2c-N, an ``I2CBus`` (``.log``, ``.devices``, ``.transaction_hooks``)."""
     from bmg160_emu.bus.patching import patch_smbus
 
     number = _options(request).get("bus", DEFAULT_BUS)
@@ -65,8 +171,57 @@ def bmg160_smbus(request: pytest.FixtureRequest, bmg160_chip: Any) -> Iterator[A
         yield buses[number]
 
 
+class SpiDevNode:
+    """The emulated /dev/spidevB.D that ``bmg160_spidev`` yields, as ``bmg160_smbus`` yields
+    the emulated /dev/i2c-N: ``.chip``, ``.bus``, ``.device``, ``.path``, and ``open()`` for a
+    ``FakeSpiDev`` on it. Each ``SpiDev`` keeps its own transaction ``.log``.
+
+    Before 0.2.0 the fixture yielded the chip itself; other attributes still reach the chip,
+    with a DeprecationWarning (use ``bmg160_chip`` or ``.chip``).
+    """
+
+    def __init__(self, chip: Any, bus: int, device: int) -> None:
+        self.chip = chip
+        self.bus = bus
+        self.device = device
+
+    @property
+    def path(self) -> str:
+        return f"/dev/spidev{self.bus}.{self.device}"
+
+    def open(self) -> Any:
+        """A ``FakeSpiDev`` open on this node, as ``spidev.SpiDev(bus, device)`` gives."""
+        from bmg160_emu.bus.spi import FakeSpiDev
+
+        return FakeSpiDev(self.bus, self.device)
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        value = getattr(self.chip, name)
+        warnings.warn(
+            f"bmg160_spidev.{name}: the fixture now yields the SPI device node; "
+            f"use bmg160_chip.{name} or bmg160_spidev.chip.{name}",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return value
+
+    def __repr__(self) -> str:
+        return f"SpiDevNode({self.path}, {self.chip!r})"
+
+
 @pytest.fixture
-def fake_smbus(bmg160_smbus: Any) -> Iterator[Any]:
+def bmg160_spidev(bmg160_chip: Any) -> Iterator[SpiDevNode]:
+    """``patch_spidev`` with the chip at /dev/spidev0.0; yields that ``SpiDevNode``."""
+    from bmg160_emu.bus.patching import patch_spidev
+
+    with patch_spidev({SPI_NODE: bmg160_chip}):
+        yield SpiDevNode(bmg160_chip, *SPI_NODE)
+
+
+@pytest.fixture
+def bmg160_fake_smbus(bmg160_smbus: Any) -> Iterator[Any]:
     """A ``FakeSMBus`` open on the patched bus."""
     from bmg160_emu.bus.smbus import FakeSMBus
 
@@ -75,16 +230,7 @@ def fake_smbus(bmg160_smbus: Any) -> Iterator[Any]:
 
 
 @pytest.fixture
-def bmg160_spidev(bmg160_chip: Any) -> Iterator[Any]:
-    """``patch_spidev`` with the chip at /dev/spidev0.0; yields the chip."""
-    from bmg160_emu.bus.patching import patch_spidev
-
-    with patch_spidev({(0, 0): bmg160_chip}):
-        yield bmg160_chip
-
-
-@pytest.fixture
-def fake_spidev(bmg160_chip: Any) -> Iterator[Any]:
+def bmg160_fake_spidev(bmg160_chip: Any) -> Iterator[Any]:
     """A ``FakeSpiDev`` open on the chip."""
     from bmg160_emu.bus.spi import FakeSpiDev
 
@@ -93,9 +239,32 @@ def fake_spidev(bmg160_chip: Any) -> Iterator[Any]:
 
 
 @pytest.fixture
+def fake_smbus(bmg160_fake_smbus: Any) -> Any:
+    """The 0.1 name of ``bmg160_fake_smbus``."""
+    return bmg160_fake_smbus
+
+
+@pytest.fixture
+def fake_spidev(bmg160_fake_spidev: Any) -> Any:
+    """The 0.1 name of ``bmg160_fake_spidev``."""
+    return bmg160_fake_spidev
+
+
+@pytest.fixture
 def bmg160_virtual_sleep(bmg160_chip: Any) -> Iterator[Any]:
     """``time.sleep(s)`` advances the chip's virtual clock by s; yields the clock."""
     from bmg160_emu.clock import virtual_sleep
 
     with virtual_sleep(bmg160_chip) as clock:
+        yield clock
+
+
+@pytest.fixture
+def bmg160_virtual_time(bmg160_chip: Any) -> Iterator[Any]:
+    """As ``bmg160_virtual_sleep``, and ``time.monotonic``, ``time.perf_counter``,
+    ``time.time`` (and their ``_ns`` forms) follow the virtual clock, so a driver's timeout
+    loop times out in virtual time; yields the clock."""
+    from bmg160_emu.clock import virtual_sleep
+
+    with virtual_sleep(bmg160_chip, patch_clocks=True) as clock:
         yield clock

@@ -3,7 +3,7 @@
 Layer order, highest first; a module may import its own layer and any lower one:
 
     commands (cli, pytest_plugin) > adcs > tools (script, record, playback, replay, decode,
-    faults, firmware) > io > bus > device > base (clock, durations, noise)
+    faults, firmware, watch) > io > bus > device > base (clock, durations, noise)
 
 adcs sits above the other tools: it builds rigs from them, and no tool imports adcs (the
 fault engine moved from adcs to ``bmg160_emu.faults`` for that). Every import statement
@@ -25,7 +25,7 @@ LAYERS = {  # first name under bmg160_emu -> layer (higher imports lower)
     "commands": 7, "cli": 7, "pytest_plugin": 7, "__main__": 7,
     "adcs": 6,
     "script": 5, "record": 5, "playback": 5, "replay": 5, "decode": 5, "faults": 5,
-    "firmware": 5,
+    "firmware": 5, "watch": 5,  # watch: the live view's session side and viewer
     "io": 4,
     "bus": 3,
     "device": 2,

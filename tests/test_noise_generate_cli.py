@@ -67,7 +67,7 @@ def test_bad_arguments_are_one_line_errors(tmp_path, capsys, extra, message):
 
 def test_unknown_output_suffix_is_an_error(tmp_path, capsys):
     assert main(["generate", "--duration", "1s", "-o", str(tmp_path / "n.txt")]) == 2
-    assert "must end in .npy or .csv" in capsys.readouterr().err
+    assert "must end in .npy, .csv or .resd" in capsys.readouterr().err
 
 
 def test_progress_bar_only_on_a_terminal(tmp_path, capsys, monkeypatch):

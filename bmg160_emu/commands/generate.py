@@ -20,7 +20,8 @@ examples:
 The output holds deg/s per axis, constant bias included: .npy is an (n, 3) float64 array;
 .csv has a header t_s,x_dps,y_dps,z_dps (sample k at t = (k + 1) / rate) after '#' lines
 naming the profile, mode, rate and seed. The record is written in chunks, never held whole
-in memory. Durations: 10s, 5min, 2h, 1d, 250ms or plain seconds.
+in memory. Durations: 10s, 5min, 2h, 1d, 250ms or plain seconds. .resd is Renode's sensor
+data format (angular rate, channel 0; docs/resd.md).
 
 --bandwidth CODE (BW register 0x10, 0-7) sets the rate to that code's ODR and passes the
 noise through the chip's low-pass for that code (device/lowpass.py: 2nd-order Butterworth
@@ -116,7 +117,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="CODE",
         help="BW code 0-7: the code's ODR, and the noise through the chip's low-pass for it",
     )
-    parser.add_argument("-o", "--output", type=Path, required=True, help="OUT.npy or OUT.csv")
+    parser.add_argument(
+        "-o", "--output", type=Path, required=True, help="OUT.npy, OUT.csv or OUT.resd (Renode)"
+    )
     parser.set_defaults(func=run)
 
 
@@ -131,8 +134,8 @@ def run(args: argparse.Namespace) -> int:
         args.rate = 200.0
 
     suffix = args.output.suffix.lower()
-    if suffix not in (".npy", ".csv"):
-        raise CommandError(f"output must end in .npy or .csv, not {args.output.name!r}")
+    if suffix not in (".npy", ".csv", ".resd"):
+        raise CommandError(f"output must end in .npy, .csv or .resd, not {args.output.name!r}")
     chosen_seed = args.seed is None
     if chosen_seed:
         args.seed = secrets.randbits(32)  # a record names its seed: a random run can be repeated
@@ -173,13 +176,25 @@ def run(args: argparse.Namespace) -> int:
     try:
         # under a temporary name: complete, or (interrupted) an honest shorter record
         with atomic_path(args.output) as partial, open(partial, "w+b") as handle:
-            writer = RateStreamWriter(handle, suffix, total, gen.rate_hz, [header])
-            try:
-                for start, block in _chunks(gen, total, bar):
-                    writer.write(start, block)
-            except KeyboardInterrupt as exc:
-                stopped = exc
-                writer.end_short(f"interrupted after {writer.samples} of {total} samples")
+            if suffix == ".resd":  # Renode Sensor Data, angular rate channel 0 (docs/resd.md)
+                from bmg160_emu.io.resd import ResdFormatError, ResdWriter
+
+                try:  # a RESD block gives its sample count up front: interrupted, nothing
+                    start_s = 1.0 / gen.rate_hz  # sample k at (k + 1) / rate, as in the CSV
+                    with ResdWriter(handle, rate_hz=gen.rate_hz, samples=total,
+                                    start_s=start_s) as w:
+                        for _, block in _chunks(gen, total, bar):
+                            w.write_dps(block)
+                except ResdFormatError as exc:
+                    raise CommandError(f"{args.output}: {exc}") from None
+            else:
+                writer = RateStreamWriter(handle, suffix, total, gen.rate_hz, [header])
+                try:
+                    for start, block in _chunks(gen, total, bar):
+                        writer.write(start, block)
+                except KeyboardInterrupt as exc:
+                    stopped = exc
+                    writer.end_short(f"interrupted after {writer.samples} of {total} samples")
     except OSError as exc:
         raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     finally:

@@ -15,6 +15,7 @@ examples:
   bmg160-emu record --duration 1h --range 250 --rate 200 -o static.npz
   bmg160-emu record --truth examples/scenarios/slew.toml --rate 400 -o slew.csv
   bmg160-emu identify static.npz      # N, B, T, K of the recorded output
+  bmg160-emu record --duration 1min --rate 200 -o static.resd   # for Renode (docs/resd.md)
 
 Every output sample is read as a driver reads it (one 6-byte burst from RATE_X_LSB after
 each new sample); the file holds time, raw counts, deg/s (counts / sensitivity) and the
@@ -55,8 +56,8 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.io.atomic import atomic_path
     from bmg160_emu.record import BW_CODE_BY_ODR_HZ, RecordingInterrupted, record, write_recording
 
-    if args.output.suffix.lower() not in (".csv", ".npz"):
-        raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
+    if args.output.suffix.lower() not in (".csv", ".npz", ".resd"):
+        raise CommandError(f"output must end in .csv, .npz or .resd, not {args.output.name!r}")
     check_writable(args.output)
     if args.rate is not None and args.bandwidth is not None:
         raise CommandError("give --rate or --bandwidth, not both")
@@ -106,8 +107,19 @@ def run(args: argparse.Namespace) -> int:
     if scenario is not None:
         rec.metadata["truth"] = str(args.truth)
     try:
-        with atomic_path(args.output) as partial:
-            write_recording(rec, partial)
+        if args.output.suffix.lower() == ".resd":  # Renode: 0 the output, 1 the truth
+            from bmg160_emu.io.resd import ResdFormatError, write_resd
+
+            channels = {0: rec.rate_dps}
+            if rec.true_rate_dps is not None:
+                channels[1] = rec.true_rate_dps
+            try:
+                write_resd(args.output, rec.t_s, channels)  # written atomically by io.resd
+            except ResdFormatError as exc:
+                raise CommandError(f"{args.output}: {exc}") from None
+        else:
+            with atomic_path(args.output) as partial:
+                write_recording(rec, partial)
     except OSError as exc:
         raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     if stopped is not None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import secrets
 import shutil
@@ -49,6 +50,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_chip_options(parser, realtime=False)
     parser.add_argument("program", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
+    parser.add_argument(
+        "--watch", action="store_true", help="make the session watchable live (bmg160-emu watch)"
+    )
     parser.set_defaults(func=run)
 
 
@@ -110,7 +114,14 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"cannot write {args.log}: {exc.strerror}") from None
     writer = _trace_writer(args, bus)
     try:
-        with devices:
+        with devices, contextlib.ExitStack() as watching:
+            if args.watch:  # a live view (commands/watch.py); the program runs unchanged
+                from bmg160_emu.watch.session import WatchError, watched
+
+                try:
+                    watching.enter_context(watched(chips, [bus.log], f"run {program[0]}"))
+                except (WatchError, OSError) as exc:
+                    raise CommandError(f"--watch: {exc}") from None
             status = _run_program(devices, program)
             for error in devices.handler_errors():
                 print(f"bmg160-emu run: internal error answered as EIO: {error}", file=sys.stderr)

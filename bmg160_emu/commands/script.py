@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
@@ -49,6 +50,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="make the register accesses SPI frames on a FakeSpiDev instead of I2C transactions",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="print only failures")
+    parser.add_argument(
+        "--watch", action="store_true",
+        help="make the session watchable live (bmg160-emu watch; best with --realtime)",
+    )
     add_chip_options(parser)
     parser.set_defaults(func=run)
 
@@ -108,7 +113,15 @@ def run(args: argparse.Namespace) -> int:
 
     runner = ScriptRunner(chip, log, str(args.file), port=port, bus=bus)
     try:
-        runner.run(statements)
+        with contextlib.ExitStack() as watching:
+            if args.watch:  # a live view (commands/watch.py); the script runs unchanged
+                from bmg160_emu.watch.session import WatchError, watched
+
+                try:
+                    watching.enter_context(watched(chips, [log_], f"script {args.file}"))
+                except (WatchError, OSError) as exc:
+                    raise CommandError(f"--watch: {exc}") from None
+            runner.run(statements)
     except ScriptFailure as exc:
         print(f"FAILED {exc}", file=sys.stderr)
         return 1

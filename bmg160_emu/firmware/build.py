@@ -8,6 +8,7 @@ profile never clobbers another's.
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 import subprocess
 from dataclasses import dataclass
@@ -16,7 +17,17 @@ from pathlib import Path
 from bmg160_emu.firmware.params_header import render_params_header
 from bmg160_emu.firmware.register_table import REGISTERS_HEADER, render_registers_header
 
-FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware"
+# The sources: the copy a wheel ships (setup.py puts firmware/ there), else the checkout's
+# firmware/ folder (editable installs). Builds of a shipped copy go to the user's cache, not
+# into site-packages.
+_PACKAGED_DIR = Path(__file__).resolve().parent / "sources"
+_PACKAGED = (_PACKAGED_DIR / "Makefile").is_file()
+FIRMWARE_DIR = _PACKAGED_DIR if _PACKAGED else Path(__file__).resolve().parents[2] / "firmware"
+BUILD_ROOT = (
+    Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "bmg160-emu" / "firmware"
+    if _PACKAGED
+    else FIRMWARE_DIR / "build"
+)
 AVR_TOOLS = ("avr-gcc", "avr-objcopy", "avr-size")
 AVR_PACKAGES = "gcc-avr avr-libc binutils-avr"
 SIM_PACKAGES = "simavr libsimavr-dev libelf-dev"
@@ -81,7 +92,7 @@ def _run(cmd: list[str], what: str) -> str:
 
 def default_build_dir(header_text: str, normal: str) -> Path:
     key = hashlib.sha256((header_text + normal).encode()).hexdigest()[:12]
-    return FIRMWARE_DIR / "build" / key
+    return BUILD_ROOT / key
 
 
 def build_firmware(
@@ -150,7 +161,7 @@ def build_simulator(out_dir: str | Path | None = None) -> Path:
             f"simavr development files not found: install the Debian packages {SIM_PACKAGES}"
         )
     _check_sources()
-    directory = Path(out_dir) if out_dir is not None else FIRMWARE_DIR / "build" / "sim"
+    directory = Path(out_dir) if out_dir is not None else BUILD_ROOT / "sim"
     directory.mkdir(parents=True, exist_ok=True)
     target = directory.resolve() / "bmg160_sim"
     _run(

@@ -588,9 +588,15 @@ class RateStreamWriter:
 
     @staticmethod
     def size_bytes(suffix: str, total: int) -> int:
-        """What ``total`` samples take: exact for .npy, a low estimate for .csv (about 40
-        characters a line), so a free-space check never refuses what would fit."""
-        return 128 + 24 * total if suffix.lower() == ".npy" else 100 + 40 * total
+        """What ``total`` samples take: exact for .npy and .resd (RESD v1: a 45-byte header
+        and block header, 12 bytes a sample), a low estimate for .csv (about 40 characters a
+        line), so a free-space check never refuses what would fit."""
+        suffix = suffix.lower()
+        if suffix == ".npy":
+            return 128 + 24 * total
+        if suffix == ".resd":
+            return 45 + 12 * total
+        return 100 + 40 * total
 
     def end_short(self, note: str) -> None:
         """Make the file an honest shorter record after an interruption: cut it after the

@@ -1,0 +1,182 @@
+"""The terminal view of ``bmg160-emu watch``, drawn with rich from the session's snapshots.
+
+Per chip: the 64 registers by spec name (a register that changed stays highlighted for
+``HIGHLIGHT_S``, and its decoded fields are listed), the three rates as sparklines of the last
+``HISTORY`` snapshots, the FIFO level and the INT1/INT2 lines; for the session: transactions per
+second and the last transactions.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console, Group, RenderableType
+from rich.live import Live
+from rich.panel import Panel
+from rich.table import Table
+from rich.text import Text
+
+from bmg160_emu.device.registers import REGISTERS, address_of, register
+
+HISTORY = 48  # snapshots in a sparkline: about 5 s at ten snapshots a second
+HIGHLIGHT_S = 2.0  # how long a changed register stays highlighted
+DECODED_CHANGES = 6
+FIFO_CAPACITY = 100  # frames (spec 6.5)
+SPARK = "▁▂▃▄▅▆▇█"
+CHANGED = "bold black on yellow"
+LIVE = "cyan"
+# Output and status registers change by themselves, with every sample: they are shown as
+# live values (and as the rates, the FIFO level and the lines), not highlighted as changes,
+# so what a driver configured stands out.
+LIVE_REGISTERS = frozenset(
+    address_of(name)
+    for name in ("RATE_X_LSB", "RATE_X_MSB", "RATE_Y_LSB", "RATE_Y_MSB", "RATE_Z_LSB",
+                 "RATE_Z_MSB", "TEMP", "INT_STATUS_0", "INT_STATUS_1", "INT_STATUS_2",
+                 "INT_STATUS_3", "FIFO_STATUS", "FIFO_DATA")
+)  # fmt: skip
+
+
+def sparkline(values: list[float]) -> str:
+    """Values as block characters scaled between their own minimum and maximum."""
+    if not values:
+        return ""
+    low, high = min(values), max(values)
+    if high - low < 1e-12:
+        return SPARK[0] * len(values)
+    top = len(SPARK) - 1
+    return "".join(SPARK[round((v - low) / (high - low) * top)] for v in values)
+
+
+class ChipView:
+    """What the view remembers of one chip between snapshots. It starts from the reset
+    values, so a view attached late still shows what the driver changed since reset."""
+
+    def __init__(self) -> None:
+        self.rates: list[deque[float]] = [deque(maxlen=HISTORY) for _ in range(3)]
+        self.registers: list[int] = [reg.reset for reg in REGISTERS]
+        self.changed_at = [float("-inf")] * len(REGISTERS)
+        self.changes: deque[int] = deque(maxlen=DECODED_CHANGES)
+
+    def update(self, chip: dict[str, Any], now: float) -> None:
+        for axis, value in zip(self.rates, chip["rate_dps"]):
+            axis.append(float(value))
+        new = chip["registers"]
+        for address, (old, value) in enumerate(zip(self.registers, new)):
+            if old != value and address not in LIVE_REGISTERS:
+                self.changed_at[address] = now
+                if address in self.changes:
+                    self.changes.remove(address)
+                self.changes.append(address)
+        self.registers = list(new)
+
+
+class WatchView:
+    """Turns snapshots into one renderable; ``update`` then ``render``."""
+
+    def __init__(self) -> None:
+        self.chips: dict[str, ChipView] = {}
+        self.snapshot: dict[str, Any] | None = None
+        self.now = 0.0
+
+    def update(self, snapshot: dict[str, Any], now: float | None = None) -> None:
+        self.now = time.monotonic() if now is None else now
+        self.snapshot = snapshot
+        for chip in snapshot["chips"]:
+            self.chips.setdefault(chip["name"], ChipView()).update(chip, self.now)
+
+    def render(self) -> RenderableType:
+        if self.snapshot is None:
+            return Text("waiting for the session's first snapshot ...")
+        snap = self.snapshot
+        head = Text.assemble(
+            ("bmg160-emu watch", "bold"), f"  {snap.get('title') or 'session'}",
+            f"  pid {snap.get('pid')}  ", (f"{snap['transactions_per_s']:.0f} tx/s", "bold cyan"),
+            f"  ({snap['transactions']} transactions)",
+        )  # fmt: skip
+        parts: list[RenderableType] = [head]
+        for chip in snap["chips"]:
+            parts.append(self._chip_panel(chip, self.chips[chip["name"]]))
+        last = Text("\n".join(snap["last"]) or "(none yet)", overflow="ellipsis", no_wrap=True)
+        parts.append(Panel(last, title="last transactions", title_align="left"))
+        return Group(*parts)
+
+    def _chip_panel(self, chip: dict[str, Any], view: ChipView) -> Panel:
+        side = Table.grid(padding=(0, 1))
+        side.add_column()
+        side.add_row(self._rates(chip, view))
+        side.add_row(self._fifo_and_lines(chip))
+        side.add_row(self._decoded(chip, view))
+        body = Table.grid(padding=(0, 2))
+        body.add_column()
+        body.add_column()
+        body.add_row(self._register_grid(chip, view), side)
+        title = (
+            f"BMG160 {chip['name']}  t = {chip['time_s']:.3f} s  ODR {chip['odr_hz']:g} Hz  "
+            f"{chip.get('power_mode', '')}"
+        )
+        return Panel(body, title=title, title_align="left")
+
+    def _register_grid(self, chip: dict[str, Any], view: ChipView) -> Table:
+        grid = Table.grid(padding=(0, 1))
+        for _ in range(2):
+            grid.add_column(no_wrap=True)
+        half = len(REGISTERS) // 2
+        cells = []
+        for reg in REGISTERS:
+            value = chip["registers"][reg.address]
+            if reg.address in LIVE_REGISTERS:
+                style = LIVE
+            elif self.now - view.changed_at[reg.address] < HIGHLIGHT_S:
+                style = CHANGED
+            else:
+                style = ""
+            cells.append(Text(f"{reg.address:02X} {reg.name[:13]:<13} {value:02X}", style=style))
+        for row in range(half):
+            grid.add_row(cells[row], cells[row + half])
+        return grid
+
+    def _rates(self, chip: dict[str, Any], view: ChipView) -> Table:
+        table = Table.grid(padding=(0, 1))
+        table.add_column(no_wrap=True)
+        table.add_column(justify="right", no_wrap=True)
+        table.add_column(no_wrap=True)
+        for axis, value, history in zip("xyz", chip["rate_dps"], view.rates):
+            table.add_row(axis, f"{value:+9.3f} °/s", Text(sparkline(list(history)), "green"))
+        return table
+
+    def _fifo_and_lines(self, chip: dict[str, Any]) -> Text:
+        frames = int(chip["fifo_frames"])
+        filled = round(frames / FIFO_CAPACITY * 20)
+        text = Text(f"FIFO {frames:3d}/{FIFO_CAPACITY} ")
+        text.append("█" * filled + "░" * (20 - filled), "magenta")
+        for pin in ("int1", "int2"):
+            active = chip[pin]
+            text.append(f"  {pin.upper()} ")
+            text.append("● on" if active else "○ off", "bold red" if active else "dim")
+        return text
+
+    def _decoded(self, chip: dict[str, Any], view: ChipView) -> Text:
+        if not view.changes:
+            return Text("all registers at their reset values", style="dim")
+        text = Text("changed since reset or lately, newest first:\n", style="bold")
+        lines = [register(a).describe(chip["registers"][a]) for a in reversed(view.changes)]
+        text.append("\n".join(lines))
+        text.overflow, text.no_wrap = "ellipsis", True
+        return text
+
+
+def run_viewer(path: Path, console: Console | None = None) -> int:
+    """Show the session behind the socket ``path`` until it ends (or Ctrl-C)."""
+    from bmg160_emu.watch.session import read_snapshots
+
+    console = console or Console()
+    view = WatchView()
+    with Live(view.render(), console=console, auto_refresh=False, screen=False) as live:
+        for snapshot in read_snapshots(path):
+            view.update(snapshot)
+            live.update(view.render(), refresh=True)
+    console.print(f"bmg160-emu watch: the session behind {path} ended")
+    return 0

@@ -1,0 +1,205 @@
+"""bmg160-emu watch: the private socket, the snapshots a session serves, the view drawn from
+them, and the viewer driven in a real terminal (tmux) against a script run with --watch."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import stat
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+from bmg160_emu import cli
+from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.registers import address_of
+from bmg160_emu.watch.session import (
+    WatchError,
+    WatchServer,
+    live_sockets,
+    read_snapshots,
+    socket_dir,
+)
+
+pytest.importorskip("rich")
+
+
+@pytest.fixture
+def runtime_dir(monkeypatch):
+    # A short folder of its own: a Unix socket path holds at most 107 bytes, and pytest's
+    # tmp_path can be longer than that with the socket's name added.
+    folder = Path(tempfile.mkdtemp(prefix="bmgw", dir="/tmp"))
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(folder))
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_socket_directory_is_private_and_an_open_one_is_refused(runtime_dir):
+    folder = socket_dir()
+    assert folder == runtime_dir / "bmg160-emu"
+    assert stat.S_IMODE(folder.stat().st_mode) == 0o700
+    folder.chmod(0o755)
+    with pytest.raises(WatchError, match="can be entered by other users .*755"):
+        socket_dir()
+
+
+def test_server_serves_registers_rates_and_traffic_on_a_user_only_socket(runtime_dir):
+    chip = BMG160(seed=1, noise=False, true_rate=(10.0, -20.0, 30.0))
+    bus = I2CBus(1, {0x68: chip})
+    bus.write_byte_data(0x68, address_of("RANGE"), 0x01)  # +-1000 deg/s
+    chip.advance(0.01)
+    with WatchServer({0x68: chip}, [bus.log], title="test") as server:
+        assert stat.S_IMODE(server.path.stat().st_mode) == 0o600
+        assert live_sockets() == [server.path]
+        snapshot = next(read_snapshots(server.path))
+    assert not server.path.exists()  # removed when the session ends
+    [view] = snapshot["chips"]
+    assert view["name"] == "0x68" and view["registers"][address_of("CHIP_ID")] == 0x0F
+    assert view["registers"][address_of("RANGE")] == 0x01
+    # noise off: the rates are the true rates to one LSB of the +-1000 deg/s range
+    assert view["rate_dps"] == pytest.approx([10.0, -20.0, 30.0], abs=1000 / 32768)
+    assert snapshot["transactions"] == 1
+    assert "write_byte_data reg 0x0f <- 01" in snapshot["last"][-1]
+
+
+def test_view_highlights_a_changed_register_and_decodes_it():
+    from rich.color import ColorSystem
+    from rich.console import Console
+    from rich.style import Style
+
+    from bmg160_emu.watch.view import CHANGED, WatchView
+
+    chip = BMG160(seed=1)
+    bus = I2CBus(1, {0x68: chip})
+    server = WatchServer({0x68: chip}, [bus.log], path=None)
+    view = WatchView()
+    view.update(server.snapshot(), now=100.0)
+    bus.write_byte_data(0x68, address_of("RANGE"), 0x03)
+    chip.advance(0.05)  # new samples: the RATE registers change too, but are not "changes"
+    view.update(server.snapshot(), now=100.1)
+    chip_view = view.chips["0x68"]
+    assert list(chip_view.changes) == [address_of("RANGE")]
+    console = Console(record=True, width=120, force_terminal=True, color_system="standard")
+    console.print(view.render())
+    text = console.export_text(clear=False)
+    assert "RANGE = 0x03" in text and "±250 °/s" in text
+    styled = console.export_text(styles=True)
+    changed = Style.parse(CHANGED).render("0F RANGE         03", color_system=ColorSystem.STANDARD)
+    assert changed in styled  # the changed register, highlighted
+    assert "│ 10 BW            80" in styled  # an unchanged one, plain
+
+
+def test_a_socket_path_too_long_for_unix_sockets_is_a_clear_error(runtime_dir):
+    deep = runtime_dir / ("d" * 100)
+    deep.mkdir(mode=0o700)
+    with pytest.raises(WatchError, match="too long for a Unix socket .* at most 107"):
+        WatchServer({}, path=deep / "x.sock")
+
+
+def test_watch_without_a_session_says_how_to_start_one(runtime_dir, capsys):
+    assert cli.main(["watch"]) == 2
+    assert "no live session to watch: start one with --watch" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(shutil.which("tmux") is None, reason="tmux not installed (.ci/setup.d/watch.sh)")
+def test_viewer_in_a_real_terminal_shows_a_script_session(tmp_path, runtime_dir):
+    # A script in real time long enough to watch: a RANGE change every 0.25 s.
+    lines = ["read CHIP_ID == 0x0F", "write BGW_SOFTRESET 0xB6", "advance 30ms"]
+    for i in range(60):
+        lines += [f"write RANGE 0x0{i % 5}", "advance 250ms", "burst RATE_X_LSB 6"]
+    script = tmp_path / "watched.script"
+    script.write_text("\n".join(lines) + "\n")
+    env = dict(os.environ, XDG_RUNTIME_DIR=str(runtime_dir), PYTHONUNBUFFERED="1")
+    env.pop("TMUX", None)  # inside tmux, --watch would open a pane in the developer's window
+    session = subprocess.Popen(
+        [sys.executable, "-m", "bmg160_emu", "script", str(script), "--realtime", "--watch",
+         "--seed", "3", "--quiet"],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env,
+    )  # fmt: skip
+    name = f"bmg160-watch-test-{uuid.uuid4().hex[:8]}"
+    try:
+        announce = session.stderr.readline()  # printed once the socket listens
+        assert "watch this session with: bmg160-emu watch --socket " in announce, announce
+        socket_path = announce.rsplit(" ", 1)[1].strip()
+        viewer = f"{sys.executable} -m bmg160_emu watch --socket {socket_path}; sleep 30"
+        subprocess.run(
+            ["tmux", "new-session", "-d", "-s", name, "-x", "120", "-y", "50", viewer],
+            check=True, env=env,
+        )  # fmt: skip
+        screen = ""
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            time.sleep(0.5)
+            screen = subprocess.run(
+                ["tmux", "capture-pane", "-p", "-t", name], capture_output=True, text=True,
+                check=True,
+            ).stdout  # fmt: skip
+            if "changed since reset" in screen and "RANGE = 0x0" in screen:
+                break
+        assert "BMG160 0x68" in screen, screen
+        assert "00 CHIP_ID       0F" in screen, screen
+        assert "tx/s" in screen and "last transactions" in screen, screen
+        assert "write_byte_data reg 0x0f" in screen, screen
+        assert "RANGE = 0x0" in screen, screen  # a change, decoded
+        assert any(ch in screen for ch in "▁▂▃▄▅▆▇█"), screen  # the rate sparklines
+        assert "INT1" in screen and "FIFO" in screen, screen
+    finally:
+        subprocess.run(["tmux", "kill-session", "-t", name], check=False, capture_output=True)
+        session.kill()
+        session.wait(timeout=10)
+
+
+def _umockdev_missing() -> str | None:
+    try:
+        from bmg160_emu.bus.umockdev import UMockdevUnavailable, load_umockdev, preload_available
+
+        load_umockdev()
+    except UMockdevUnavailable as exc:
+        return str(exc)
+    return None if preload_available() else "umockdev's preload library is missing"
+
+
+PROGRAM = """\
+import time
+import smbus2
+bus = smbus2.SMBus(1)
+bus.write_byte_data(0x68, 0x0F, 0x02)
+for _ in range(100):
+    bus.read_byte_data(0x68, 0x00)
+    time.sleep(0.05)
+"""
+
+
+@pytest.mark.umockdev
+def test_run_watch_serves_an_unmodified_programs_session(runtime_dir):
+    missing = _umockdev_missing()
+    if missing:
+        pytest.skip(f"umockdev route unavailable: {missing}")
+    env = dict(os.environ, XDG_RUNTIME_DIR=str(runtime_dir), PYTHONUNBUFFERED="1")
+    env.pop("TMUX", None)  # inside tmux, --watch would open a pane in the developer's window
+    session = subprocess.Popen(
+        [sys.executable, "-m", "bmg160_emu", "run", "--watch", "--", sys.executable, "-c", PROGRAM],
+        stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env,
+    )  # fmt: skip
+    try:
+        announce = session.stderr.readline()
+        assert "watch this session with: bmg160-emu watch --socket " in announce, announce
+        path = Path(announce.rsplit(" ", 1)[1].strip())
+        assert stat.S_IMODE(path.stat().st_mode) == 0o600
+        deadline = time.monotonic() + 60
+        for snapshot in read_snapshots(path, timeout_s=10):
+            if snapshot["transactions"] >= 10 or time.monotonic() > deadline:
+                break
+        [chip] = snapshot["chips"]
+        assert snapshot["title"].startswith("run ") and snapshot["transactions"] >= 10
+        assert chip["registers"][address_of("RANGE")] == 0x02  # the program's write
+        assert "read_byte_data reg 0x00 -> 0f" in snapshot["last"][-1]
+    finally:
+        session.kill()
+        session.wait(timeout=10)
