@@ -363,13 +363,16 @@ def _unit(value: Any, what: str) -> np.ndarray:
     return vector / norm
 
 
-def _positive(entry: dict[str, Any], key: str, where: str, default: float | None = None) -> float:
+def _positive(entry: dict[str, Any], key: str, where: str, default: float | None = None,
+              maximum: float = math.inf) -> float:
     value = entry.get(key, default)
     if value is None:
         raise ScenarioError(f"{where}: missing {key}")
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
             or not math.isfinite(value):
         raise ScenarioError(f"{where}: {key} must be a positive finite number, not {value!r}")
+    if value > maximum:  # jitter: 10 kHz, five times the chip's highest ODR
+        raise ScenarioError(f"{where}: {key} must be at most {maximum:g}, not {value!r}")
     return float(value)
 
 
@@ -383,8 +386,14 @@ def _inertia(value: Any, where: str) -> np.ndarray:
     if array.shape != (3, 3) or not np.all(np.isfinite(array)) or not np.allclose(array, array.T):
         raise ScenarioError(f"{where}: inertia_kg_m2 must be 3 principal moments or a 3x3 matrix "
                             "(finite, symmetric)")
-    if np.any(np.linalg.eigvalsh(array) <= 0):
+    moments = np.sort(np.linalg.eigvalsh(array))
+    if np.any(moments <= 0):
         raise ScenarioError(f"{where}: inertia_kg_m2 must be positive definite")
+    if moments[0] + moments[1] < moments[2] * (1 - 1e-9):
+        # no rigid body has it (the principal moments of any mass distribution obey the
+        # triangle inequality); such a body also makes Euler's equations needlessly stiff
+        raise ScenarioError(f"{where}: inertia_kg_m2 {moments.tolist()} breaks the triangle "
+                            "inequality I1 + I2 >= I3 of principal moments")
     return array
 
 
@@ -494,7 +503,7 @@ def motion_from_dict(
     if kind == "jitter":
         return Jitter(
             amplitude_dps=_vector(entry.get("amplitude_dps"), f"{where}: amplitude_dps"),
-            frequency_hz=_positive(entry, "frequency_hz", where),
+            frequency_hz=_positive(entry, "frequency_hz", where, maximum=1e4),
             phase_deg=_vector(entry.get("phase_deg", [0.0, 0.0, 0.0]), f"{where}: phase_deg"),
             **window,
         )

@@ -17,6 +17,7 @@ import csv
 import io
 import math
 import re
+import tokenize
 import zipfile
 import zlib
 from bisect import bisect_right
@@ -29,7 +30,10 @@ import numpy as np
 from bmg160_emu.io.errors import FileFormat, FormatError, format_for, register_format
 
 # What numpy raises for a damaged .npy/.npz (a cut zip member is EOFError or zlib.error).
-ARRAY_ERRORS = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
+# what numpy and zipfile raise on a damaged file: np.load's header parser (tokenize), a zip
+# member with an unknown compression method, a cut or corrupt archive
+ARRAY_ERRORS = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
+                tokenize.TokenError, SyntaxError, NotImplementedError)
 CHUNK_BYTES = 1 << 20  # text parsed per np.loadtxt call: bounds the reader's working memory
 CHUNK_ROWS = 1 << 20  # rows of a time column checked at a time
 MEDIAN_STEPS = 1 << 21  # steps the median step is taken from (evenly spread over the record)
@@ -504,7 +508,8 @@ def _read_record_csv(path: Path, columns: list[str] | None) -> RateTable:
             wanted = [c.lower() for c in columns]
             missing = [c for c in wanted if c not in names]
             if missing:
-                raise RateFileError(f"{where}: no column(s) {missing}; the header has {names}")
+                raise RateFileError(f"{where}: no column(s) {missing[:8]}; the header has "
+                                    f"{names[:12]}{' ...' if len(names) > 12 else ''}")
             rate_names = wanted
         else:
             rate_names = next(
@@ -512,8 +517,9 @@ def _read_record_csv(path: Path, columns: list[str] | None) -> RateTable:
                 [n for i, n in enumerate(names) if i != time_index],
             )
         if len(rate_names) > 3:
+            shown = ", ".join(rate_names[:8]) + (", ..." if len(rate_names) > 8 else "")
             raise RateFileError(
-                f"{where}: {len(rate_names)} rate columns ({', '.join(rate_names)}); "
+                f"{where}: {len(rate_names)} rate columns ({shown!r}); "
                 "choose up to three with --columns"
             )
         chosen.extend(rate_names)
