@@ -168,6 +168,9 @@ def load_replay_data(
         raise ReplayDataError(f"{path}: no such file")
     if path.suffix.lower() == ".npz":
         return _load_npz(path, unit, lsb_per_dps, max_gap_factor)
+    if path.suffix.lower() == ".npy":
+        raise ReplayDataError(f"{path}: a .npy array holds no time column: replay reads a "
+                              ".csv or .npz recording (t and x, y, z)")
     return _load_csv(path, unit, lsb_per_dps, max_gap_factor)
 
 

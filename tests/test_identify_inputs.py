@@ -162,3 +162,14 @@ def test_a_gap_in_the_time_column_is_refused_but_jitter_is_not(tmp_path, samples
     write_csv(gapped, np.column_stack([t, samples]), ["time", "x", "y", "z"])
     with pytest.raises(RecordError, match="gap of 0.505 s after sample 99"):
         load_rate_record(gapped)
+
+
+def test_an_empty_npz_record_is_a_one_line_error(tmp_path, capsys):
+    # t_s and rate_dps of 0 rows used to end in a numpy reshape ValueError traceback
+    from bmg160_emu.cli import main
+
+    path = tmp_path / "empty.npz"
+    np.savez(path, t_s=np.zeros(0), rate_dps=np.zeros((0, 3)))
+    assert main(["identify", str(path), "--rate", "200"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "record is empty" in err

@@ -288,6 +288,8 @@ def numeric(data: np.ndarray, path: str | Path, place: str | None = None) -> np.
 def first_non_finite(data: np.ndarray, chunk: int = 1 << 20) -> int | None:
     """The first row holding NaN or an infinity, or None; in chunks, so checking a 24 h
     record costs a few MB, not a copy."""
+    if data.size == 0:
+        return None
     rows = data.reshape(data.shape[0], -1)
     for start in range(0, rows.shape[0], chunk):
         ok = np.isfinite(rows[start : start + chunk]).all(axis=1)
