@@ -126,7 +126,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.io.atomic import OutputError, atomic_path, check_free_space, check_writable
-    from bmg160_emu.io.rates import RateStreamWriter
+    from bmg160_emu.io.rate_stream import RateStreamWriter
     from bmg160_emu.noise import NoiseGenerator
 
     args.rate_given = args.rate is not None
