@@ -27,3 +27,15 @@ def test_every_module_is_in_the_architecture_tree():
         if name not in words:
             missing.append(rel.as_posix())
     assert missing == []
+
+
+def test_no_module_is_over_600_lines_and_the_chip_under_500():
+    # issue 10's layout rule: one idea per module; the chip holds only lock, catch-up,
+    # primitives, hooks, reset and emission
+    from pathlib import Path
+
+    package = Path(__file__).resolve().parents[1] / "bmg160_emu"
+    lengths = {p.relative_to(package).as_posix(): len(p.read_text(encoding="utf-8").splitlines())
+               for p in package.rglob("*.py")}
+    assert {name: n for name, n in lengths.items() if n > 600} == {}
+    assert lengths["device/chip.py"] < 500
