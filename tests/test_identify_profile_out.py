@@ -23,7 +23,9 @@ BOUND_VALUES = [
               bias=np.float64(-0.1)),
     AxisNoise(N=np.float32(1e-5), B=np.float64(4e-3), T=np.float64(163.84), K=np.float16(1e-3),
               bias=np.int64(0)),
-    AxisNoise(N=1e-300, B=1e-12, T=1e12, K=5e-324, bias=1e300, Q=np.float64(1e-3),
+    # extreme magnitudes within the profile's bounds (|bias| <= 1e4 deg/s keeps every sample
+    # finite: noise.profile.LIMITS)
+    AxisNoise(N=1e-300, B=1e-12, T=1e12, K=5e-324, bias=-1e4, Q=np.float64(1e-3),
               R=np.float64(2e-6)),
 ]
 

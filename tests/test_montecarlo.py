@@ -148,15 +148,34 @@ def test_a_scheduler_address_that_is_not_one_is_a_clear_error(tmp_path, capsys):
 
 
 def test_an_existing_dask_cluster_given_by_address_gives_the_same_results():
-    from distributed import LocalCluster
+    # In a fresh interpreter: after the in-process cluster and command tests above, a new
+    # LocalCluster's IO loop in this process did not start within distributed's 10 s (seen in
+    # this session's CI run; the cause is in distributed's loop bookkeeping, not looked into).
+    import subprocess
+    import sys
+    import textwrap
 
-    seeds = [3, 4]
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
-        remote = run_montecarlo(_short(), seeds, scheduler=cluster.scheduler_address,
-                                progress=False)
-    in_process = run_montecarlo(_short(), seeds, scheduler="sync", progress=False)
-    assert np.array_equal(remote.angle_error_deg, in_process.angle_error_deg)
+    code = textwrap.dedent("""
+        import numpy as np
+        from distributed import LocalCluster
+        from bmg160_emu.adcs.montecarlo import run_montecarlo
+        from bmg160_emu.adcs.scenarios import scenario_from_dict
+
+        scenario = scenario_from_dict({"duration_s": 3.0, "motion": [
+            {"kind": "constant", "rate_dps": [0.0, -0.06, 0.0]}],
+            "readout": {"grid_s": 0.5, "bias": "profile"}})
+        seeds = [3, 4]
+        with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                          dashboard_address=None) as cluster:
+            remote = run_montecarlo(scenario, seeds, scheduler=cluster.scheduler_address,
+                                    progress=False)
+        in_process = run_montecarlo(scenario, seeds, scheduler="sync", progress=False)
+        print(np.array_equal(remote.angle_error_deg, in_process.angle_error_deg))
+    """)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=300, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.strip().splitlines()[-1] == "True"
 
 
 def test_progress_bar_counts_runs_when_asked(capsys):

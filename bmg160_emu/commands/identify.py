@@ -115,7 +115,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--method",
-        choices=("wls", "allan", "gmwm"),
         default="wls",
         help="wls (or allan): weighted least squares of the Allan variance (default); gmwm: "
         "the generalized method of wavelet moments, efficient weights (docs/gmwm.md)",

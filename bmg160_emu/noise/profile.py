@@ -51,7 +51,7 @@ GM_KEYS = ("B", "T")  # keys of one entry of an axis's gm list
 # K sqrt(t) over ten years stays below 1e7 deg/s). A value beyond is refused by name.
 LIMITS = {"N": 100.0, "B": 1e3, "K": 1.0, "bias": 1e4, "Q": 1e3, "R": 1e3,
           "sigma_gyro": 1e3, "sigma_K": 1e6}
-T_RANGE_S = (1e-6, 1e9)  # a correlation time: from below any sample period to 30 years
+T_RANGE_S = (1e-6, 1e13)  # a correlation time: below any sample period to identify's search edge
 
 
 class ProfileError(ValueError):
