@@ -173,3 +173,16 @@ def test_an_empty_npz_record_is_a_one_line_error(tmp_path, capsys):
     assert main(["identify", str(path), "--rate", "200"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "record is empty" in err
+
+
+def test_a_generate_csv_cut_short_is_refused_not_read_as_a_shorter_record(tmp_path, capsys):
+    # its '#' header says samples=2000; a copy of its first 500 lines was accepted silently
+    from bmg160_emu.cli import main
+
+    full, cut = tmp_path / "g.csv", tmp_path / "cut.csv"
+    assert main(["generate", "--duration", "10s", "--seed", "1", "-o", str(full)]) == 0
+    cut.write_text("".join(full.read_text().splitlines(keepends=True)[:500]))
+    capsys.readouterr()
+    assert main(["identify", str(cut)]) == 2
+    err = capsys.readouterr().err
+    assert "says samples=2000 but it holds 498 rows: the file was cut short" in err

@@ -437,6 +437,7 @@ def load_rate_record(
         raise RateFileError(
             f"expected one column per axis (1 to 3 axes), got shape {data.shape}", path=path
         )
+    _check_sample_count(table, data.shape[0])
     bad = first_non_finite(data)
     if bad is not None:
         raise RateFileError(f"{table.where(bad)}: NaN or infinite rate: "
@@ -444,6 +445,20 @@ def load_rate_record(
     names = table.header or ("x", "y", "z")[: data.shape[1]]
     rate = _resolve_rate(table, rate_hz, data.shape[0])
     return RateRecord(data, rate, tuple(n.removesuffix("_dps") for n in names), str(path))
+
+
+_SAMPLES_COMMENT = re.compile(r"\bbmg160-emu generate:.*\bsamples=(\d+)\b")
+
+
+def _check_sample_count(table: RateTable, n: int) -> None:
+    """A ``generate`` CSV says how many samples it holds: a file that holds fewer was cut
+    short (copied while written, a full disk, a crash) and is refused, not read as a shorter
+    record without a word. An interrupted run rewrites the count, so it passes."""
+    for line, text in table.comments:
+        found = _SAMPLES_COMMENT.search(text)
+        if found and int(found.group(1)) != n:
+            raise RateFileError(f"its header says samples={found.group(1)} but it holds {n} "
+                                "rows: the file was cut short", path=table.path, place=line)
 
 
 def _resolve_rate(table: RateTable, rate_hz: float | None, n: int) -> float:
