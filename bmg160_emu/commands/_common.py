@@ -61,16 +61,14 @@ def add_file_option(parser: argparse.ArgumentParser, flag: str, metavar: str, he
 
 def check_writable(path: Path) -> None:
     """Refuse an output path that cannot be written before any work is done (a long
-    recording would otherwise be lost at the end)."""
+    recording would otherwise be lost at the end): io.atomic's check, as a CommandError."""
+    from bmg160_emu.io.atomic import OutputError
+    from bmg160_emu.io.atomic import check_writable as check
 
-    existed = path.exists()
     try:
-        with open(path, "ab"):
-            pass
-    except OSError as exc:
-        raise CommandError(f"cannot write {path}: {exc.strerror}") from None
-    if not existed:
-        path.unlink()
+        check(path)
+    except OutputError as exc:
+        raise CommandError(str(exc)) from None
 
 
 def run_script_file(

@@ -119,15 +119,12 @@ def run_build(args: argparse.Namespace) -> int:
 
 
 def run_capture(args: argparse.Namespace) -> int:
-    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.firmware.build import FirmwareToolError, capture_uart
-    from bmg160_emu.io.atomic import OutputError, atomic_path, check_writable
+    from bmg160_emu.io.atomic import atomic_path
 
     output = Path(args.output)
-    try:
-        check_writable(output)
-    except OutputError as exc:
-        raise CommandError(str(exc)) from None
+    check_writable(output)
     build = _build(args)
     try:  # the stream appears under its name only when complete (docs/commands/firmware.md)
         with atomic_path(output) as partial:

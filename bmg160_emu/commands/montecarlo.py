@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from bmg160_emu.commands._common import add_command_parser
 
@@ -82,12 +83,9 @@ def run(args: argparse.Namespace) -> int:
     if args.output and not args.output.endswith((".json", ".csv")):
         raise CommandError("--output must end in .json or .csv")
     if args.output:
-        from bmg160_emu.io.atomic import OutputError, check_writable
+        from bmg160_emu.commands._common import check_writable
 
-        try:  # before the runs: an unwritable path would otherwise lose all of them
-            check_writable(args.output)
-        except OutputError as exc:
-            raise CommandError(str(exc)) from None
+        check_writable(Path(args.output))  # before the runs: else all of them would be lost
     try:
         scenario = load_scenario(args.scenario)
         result = run_montecarlo(

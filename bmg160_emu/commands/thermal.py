@@ -87,18 +87,15 @@ def _choose(temperature_column: str | None):
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.io.atomic import OutputError, atomic_open, check_writable
+    from bmg160_emu.io.atomic import atomic_open
     from bmg160_emu.io.rates import RateFileError, read_csv_table
     from bmg160_emu.noise.thermal_fit import ThermalFitError, fit_bias_temperature
 
     for out in (args.px4_params, args.errors_out):
         if out is not None:
-            try:
-                check_writable(out)
-            except OutputError as exc:
-                raise CommandError(str(exc)) from None
+            check_writable(out)
     try:
         block_s = parse_duration(args.block)
         table = read_csv_table(args.file, _choose(args.temperature_column))
