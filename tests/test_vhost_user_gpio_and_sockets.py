@@ -254,3 +254,33 @@ def test_an_edge_whose_sample_the_driver_already_read_is_dropped(gpio):
     chip.advance(0.010)  # the next sample, not read yet: its edge fires
     device.poll(0.0)
     assert fe.used(1) == [(head, 1)]
+
+
+def test_true_rate_file_applies_each_change_once(tmp_path):
+    """`echo X Y Z > FILE` truncates then writes: an empty file is looked at again, and the
+    same rate seen under a second time stamp is not a second change."""
+    from bmg160_emu.commands.vhost_user_i2c import _RateFile
+
+    applied: list[tuple[int, tuple[float, ...]]] = []
+
+    class Chip(BMG160):
+        def set_true_rate(self, rate, **kw):
+            applied.append((id(self), tuple(rate)))
+            super().set_true_rate(rate, **kw)
+
+    chips = {0x68: Chip(seed=5), 0x69: Chip(seed=6)}
+    path = tmp_path / "true_rate.txt"
+    poller = _RateFile(path, chips)
+    assert poller(0.0) == pytest.approx(0.05)          # no file yet: nothing applied
+    path.write_text("")
+    poller(0.05)                                        # caught between truncate and write
+    assert poller.changes == []
+    path.write_text("200 0 0\n")
+    poller(0.10)
+    os.utime(path, ns=(path.stat().st_atime_ns, path.stat().st_mtime_ns + 1))
+    poller(0.15)                                        # same text, new time stamp
+    path.write_text("20 -10 5\n")
+    poller(0.20)
+    assert [c["true_rate_dps"] for c in poller.changes] == [[200.0, 0.0, 0.0], [20.0, -10.0, 5.0]]
+    # each chip got each rate once, in order
+    assert [rate for _, rate in applied] == [(200.0, 0.0, 0.0)] * 2 + [(20.0, -10.0, 5.0)] * 2

@@ -82,12 +82,23 @@ class _RateFile:
         except OSError:
             return now_s + 0.05
         if stamp != self.stamp:
+            try:
+                text = self.path.read_text()
+            except OSError:
+                return now_s + 0.05
+            if not text.strip():
+                # `echo ... > FILE` truncates before it writes: the file is caught between
+                # the two, so look again at the next poll rather than call it an error
+                return now_s + 0.05
             self.stamp = stamp
             try:
-                rate = tuple(float(v) for v in self.path.read_text().split())
-            except (OSError, ValueError):
+                rate = tuple(float(v) for v in text.split())
+            except ValueError:
                 rate = ()
             if len(rate) == 3:
+                if self.changes and self.changes[-1]["true_rate_dps"] == list(rate):
+                    # the same rate rewritten (or the write's second time stamp): no change
+                    return now_s + 0.05
                 for chip in self.chips.values():
                     chip.set_true_rate(rate)
                 first = next(iter(self.chips.values()))

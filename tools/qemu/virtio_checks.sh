@@ -105,7 +105,7 @@ i=0; while [ ! -e /run/events.ready ] && [ $i -lt 600 ]; do sleep 0.1; i=$((i + 
 sleep 0.5
 echo "200 0 0" > "$OUT/true_rate.txt"   # the back end watches this file
 sleep 1
-echo "20 -10 5" > "$OUT/true_rate.txt"
+echo "20 -10 5" > "$OUT/true_rate.next" && mv "$OUT/true_rate.next" "$OUT/true_rate.txt"
 wait $EV
 kw 0 "$D68/events/in_anglvel_roc_either_en"
 
