@@ -14,6 +14,8 @@ __version__ = "0.2.0"
 # public name -> module that defines it
 _EXPORTS = {
     "BMG160": "bmg160_emu.device.chip",
+    "make_chip": "bmg160_emu.device.parts",
+    "PART_NAMES": "bmg160_emu.device.parts",
     "VirtualClock": "bmg160_emu.clock",
     "RealTimeClock": "bmg160_emu.clock",
     "virtual_sleep": "bmg160_emu.clock",
@@ -34,12 +36,14 @@ __all__ = [
     "FakeSpiDev",
     "I2CBus",
     "NoiseGenerator",
+    "PART_NAMES",
     "RealTimeClock",
     "Transaction",
     "TransactionLog",
     "VirtualClock",
     "__version__",
     "load_profile",
+    "make_chip",
     "patch_smbus",
     "patch_spidev",
     "virtual_sleep",
