@@ -32,11 +32,11 @@ _EXPORTS = {
 
 __all__ = [
     "BMG160",
+    "PART_NAMES",
     "FakeSMBus",
     "FakeSpiDev",
     "I2CBus",
     "NoiseGenerator",
-    "PART_NAMES",
     "RealTimeClock",
     "Transaction",
     "TransactionLog",
