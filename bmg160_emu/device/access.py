@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 from bmg160_emu.device import regmap
 from bmg160_emu.device import spec_choices as choice
 from bmg160_emu.device.engines import DEEP_SUSPEND, FAST_POWER_UP, SUSPEND
-from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, WRITE_MASKS, address_of, field_of
+from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of, field_of
 
 if TYPE_CHECKING:
     from bmg160_emu.device.chip import BMG160
@@ -81,7 +81,7 @@ def peek_reg(chip: BMG160, addr: int, now: int) -> int:
             if latched is not None:
                 return latched
         return chip._cur[addr - RATE_X_LSB]
-    hook = regmap.PEEK_AT[addr]
+    hook = chip._part.peek_at[addr]
     return chip._regs[addr] if hook is None else hook(chip, now)
 
 
@@ -105,13 +105,13 @@ def write_reg(chip: BMG160, addr: int, value: int, now: int) -> None:
             mode in (SUSPEND, FAST_POWER_UP) and addr not in choice.WRITABLE_IN_SUSPEND:
         chip._strict(f"write of 0x{value:02X} to 0x{addr:02X} ignored in {mode} (6.7)")
         return
-    mask = WRITE_MASKS[addr]
+    mask = chip._part.write_masks[addr]  # the part's table (part_spec)
     old = chip._regs[addr]
     chip._regs[addr] = (old & ~mask) | (value & mask)
-    action = regmap.ACTION_AT[addr]
+    action = chip._part.action_at[addr]
     if action is not None:
         action(chip, value, now)  # may reset the chip (a new register file)
-    effect = regmap.EFFECT_AT[addr]
+    effect = chip._part.effect_at[addr]
     if effect is not None:
         effect(chip, old, chip._regs[addr], now)
 
@@ -124,8 +124,10 @@ def poke_reg(chip: BMG160, reg: int, value: int, now: int) -> None:
         cur[reg - RATE_X_LSB] = value
         chip._cur = bytes(cur)
         return
+    if reg in chip._part.absent:  # no register there to upset
+        return
     old = chip._regs[reg]
     chip._regs[reg] = value
-    effect = regmap.EFFECT_AT[reg]
+    effect = chip._part.effect_at[reg]
     if effect is not None:
         effect(chip, old, value, now)

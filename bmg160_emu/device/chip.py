@@ -25,7 +25,8 @@ from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import spec_choices as choice
 from bmg160_emu.device.engines import NEVER, power_mode
 from bmg160_emu.device.interrupts import Interrupts
-from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, RESET_VALUES, address_of, field_of
+from bmg160_emu.device.part_spec import BMG160_PART, Part
+from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of, field_of
 from bmg160_emu.device.true_rate import TrueRate, true_rate_source
 
 log = logging.getLogger(__name__)
@@ -58,6 +59,8 @@ class BMG160(environment.EnvironmentInputs):
     _fifo_store_mode: int
     _fifo_int_on: bool
     _per_sample: bool
+    # the register table reset loads and access reads (part_spec; device.parts for others)
+    _part: Part = BMG160_PART
 
     def __init__(
         self,
@@ -312,8 +315,8 @@ class BMG160(environment.EnvironmentInputs):
     def _reset_state(self, now: int, *, powered: bool) -> None:
         """Soft reset, power-on reset and leaving deep suspend (6.6, 6.7)."""
         self._block = None
-        self._regs = bytearray(RESET_VALUES)
-        self._nvm.load_into(self._regs)
+        self._regs = bytearray(self._part.reset_values)
+        self._part.load_nvm(self._nvm, self._regs)
         self._nvm.busy_until_ns = -1
         self._cur = bytes(6)
         self._have_sample = False
@@ -493,5 +496,5 @@ class BMG160(environment.EnvironmentInputs):
             regmap.update_fifo_int(self, t_ns)
 
     def __repr__(self) -> str:
-        return (f"BMG160(address=0x{self.address:02X}, t={self.clock.now():.6f} s, "
+        return (f"{type(self).__name__}(address=0x{self.address:02X}, t={self.clock.now():.6f} s, "
                 f"mode={self.power_mode}, odr={self._odr} Hz)")

@@ -1,22 +1,60 @@
 """The BMG160 family: each part is the BMG160 model plus its differences, declared as data.
 
-This module is the one factory for parts other than the bare BMG160 (issue 13). Today it
-knows only ``bmg160``; the BMI055, BMX055 and BMI088 gyroscopes are added as tables of their
-differences on top of the BMG160 register table, never as copies of the model.
+This module is the one factory for the family (issue 13): ``make_chip("bmi088_gyro")`` is a
+``BMG160`` whose register table, reset values, write masks and register hooks are those of
+the named part (``part_spec``), with the part's data-sheet noise profile unless ``profile``
+is given. ``BMG160(...)`` stays the bare BMG160. docs/parts.md lists every difference and
+its source.
 """
 
 from __future__ import annotations
 
+from types import MappingProxyType
 from typing import Any
 
 from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.part_bmi088_gyro import BMI088_GYRO
+from bmg160_emu.device.part_spec import BMG160_PART, Part, derive
+
+# The BMI055 and BMX055 gyroscopes are the BMG160 die: their data sheets (BST-BMI055-DS000,
+# BST-BMX055-DS000, gyroscope register map) repeat the BMG160 map bit for bit, chip ID 0x0F
+# included. What differs is the package: the gyroscope's two interrupt outputs are the
+# module's INT3 and INT4 (INT1/INT2 belong to the accelerometer), and the typical noise.
+BMI055_GYRO = derive("bmi055_gyro", "BMI055 gyroscope", pins=("INT3", "INT4"),
+                     noise_profile="bmi055_datasheet")
+BMX055_GYRO = derive("bmx055_gyro", "BMX055 gyroscope", pins=("INT3", "INT4"),
+                     noise_profile="bmx055_datasheet")
 
 DEFAULT_PART = "bmg160"
-PART_NAMES: tuple[str, ...] = ("bmg160",)
+PARTS: MappingProxyType[str, Part] = MappingProxyType({
+    p.name: p for p in (BMG160_PART, BMI055_GYRO, BMX055_GYRO, BMI088_GYRO)})
+PART_NAMES: tuple[str, ...] = tuple(PARTS)
+
+
+def part_table(name: str) -> Part:
+    """The part table of ``name`` (one of ``PART_NAMES``)."""
+    try:
+        return PARTS[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown part {name!r}: choose from {', '.join(PART_NAMES)}") from None
+
+
+def _chip_class(p: Part) -> type[BMG160]:
+    """A BMG160 whose only difference is the part table it resets to (no second model)."""
+    if p is BMG160_PART:
+        return BMG160
+    title = "".join(word.capitalize() for word in p.name.split("_"))
+    return type(title, (BMG160,), {"_part": p, "__doc__": f"The {p.title} (bmg160_emu.device.parts).",
+                                   "__module__": __name__})
+
+
+_CLASSES = {name: _chip_class(p) for name, p in PARTS.items()}
 
 
 def make_chip(part: str = DEFAULT_PART, /, **options: Any) -> BMG160:
-    """A chip of the named part with the BMG160 keyword ``options``."""
-    if part not in PART_NAMES:
-        raise ValueError(f"unknown part {part!r}: choose from {', '.join(PART_NAMES)}")
-    return BMG160(**options)
+    """A chip of the named part with the BMG160 keyword ``options``; without ``profile``
+    the part's data-sheet noise profile (the BMG160 keeps its own default)."""
+    table = part_table(part)
+    if table is not BMG160_PART:
+        options.setdefault("profile", table.noise_profile)
+    return _CLASSES[part](**options)

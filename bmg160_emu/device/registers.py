@@ -368,6 +368,18 @@ def _install(table: tuple[Register, ...]) -> None:
 _install(_build())
 
 
+# ---------------------------------------------------------------- registers of other parts
+
+ABSENT_READ = 0x00  # a register a part lacks reads as a BMG160 reserved one (2.4, docs/parts.md)
+
+# BMI088 data sheet 5.5.13: FIFO synchronisation with an input pin, at the address of the
+# BMG160's BGW_SPI3_WDT (device/part_bmi088_gyro.py uses it).
+BMI088_FIFO_EXT_INT_S = Register(0x34, "FIFO_EXT_INT_S", "rw", 0x00, (
+    _f("ext_fifo_s_en", "5", "rw", "tag FIFO frames (z LSB) from an input pin", _ONOFF),
+    _f("ext_fifo_s_sel", "4", "rw", "tag input pin", {0: "INT3", 1: "INT4"}),
+), "FIFO external synchronisation (BMI088 DS 5.5.13)")
+
+
 def address_of(name: str) -> int:
     """Register address for a spec name such as ``"RATE_X_LSB"`` (case-insensitive)."""
     try:

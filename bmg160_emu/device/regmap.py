@@ -40,7 +40,7 @@ from bmg160_emu.device.engines import (
     FastOffset,
 )
 from bmg160_emu.device.interrupts import latch_hold_ns
-from bmg160_emu.device.registers import REGISTERS, WRITE_MASKS, address_of, field_of, offset_mask
+from bmg160_emu.device.registers import REGISTERS, address_of, field_of, offset_mask
 
 if TYPE_CHECKING:
     from bmg160_emu.device.chip import BMG160
@@ -273,7 +273,7 @@ def power_transition(chip: BMG160, old_mode: str, addr: int, value: int, now: in
     if old_mode == DEEP_SUSPEND and choice.LEAVING_DEEP_SUSPEND_RESETS:
         chip._reset_state(now, powered=False)
         if addr == _LPM1:  # the write that woke the chip is stored on the reset map
-            mask = WRITE_MASKS[_LPM1]
+            mask = chip._part.write_masks[_LPM1]
             chip._regs[_LPM1] = (chip._regs[_LPM1] & ~mask) | (value & mask)
         if chip.power_mode not in SAMPLING_MODES:
             chip._stop_sampling()

@@ -1,0 +1,145 @@
+"""A part of the BMG160 family as data: the BMG160 register table plus a table of differences.
+
+The BMG160 die is also the gyroscope of the BMI055 and BMX055; the BMI088 gyroscope keeps a
+subset of its registers (docs/parts.md). A part is therefore not a second model: it is the
+BMG160 table (``registers.REGISTERS``) with registers removed, narrowed to some of their
+fields, renamed after the part's data sheet, given other reset values, or replaced by a
+register of the same address. Behaviour follows from the derived table alone: the per-address
+write masks, reset values and register hooks (``regmap``) the model reads come from here, so
+an absent register reads 0x00 and ignores writes and upsets, and the engines behind it
+(any-motion, high-rate, offsets, NVM, power saving) can never be switched on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+from typing import Any
+
+from bmg160_emu.device import regmap
+from bmg160_emu.device.registers import ABSENT_READ, REGISTER_COUNT, REGISTERS, Field, Register
+from bmg160_emu.device.spec_choices import VALID_ADDRESSES
+
+
+@dataclass(frozen=True)
+class Differences:
+    """What a part changes on the BMG160 table, every entry by BMG160 register name.
+
+    ``absent``: registers the part does not have (read 0x00, writes ignored). ``fields``:
+    registers kept with only these fields (the other bits reserved: read 0, writes ignored).
+    ``renamed``: the part's data-sheet name of a register. ``reset``: other reset values.
+    ``replaced``: a register of the part at the address of the named BMG160 register, with
+    no behaviour beyond storage."""
+
+    absent: tuple[str, ...] = ()
+    fields: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    renamed: Mapping[str, str] = field(default_factory=dict)
+    reset: Mapping[str, int] = field(default_factory=dict)
+    replaced: Mapping[str, Register] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Part:
+    """One part: its name, pins, noise profile and the register table derived for it."""
+
+    name: str
+    title: str
+    differences: Differences = Differences()
+    pins: tuple[str, str] = ("INT1", "INT2")  # the pins chip.int1 / chip.int2 stand for
+    noise_profile: str = "paper"
+    i2c_addresses: tuple[int, ...] = tuple(VALID_ADDRESSES)
+    registers: tuple[Register, ...] = ()
+    absent: frozenset[int] = frozenset()
+    reset_values: bytes = b""
+    write_masks: bytes = b""
+    peek_at: tuple[Callable[[Any, int], int] | None, ...] = ()
+    action_at: tuple[Callable[[Any, int, int], None] | None, ...] = ()
+    effect_at: tuple[Callable[[Any, int, int, int], None] | None, ...] = ()
+
+    def address_of(self, name: str) -> int:
+        """Address of a register by the part's name or its BMG160 name."""
+        upper = name.upper()
+        for reg, base in zip(self.registers, REGISTERS):
+            if upper in (reg.name, base.name) and reg.address not in self.absent:
+                return reg.address
+        raise KeyError(f"no {self.title} register named {name!r}")
+
+    def register(self, address: int) -> Register:
+        return self.registers[address]
+
+    def load_nvm(self, nvm: Any, regs: bytearray) -> None:
+        """Power-up and soft reset: the NVM-backed registers the part has get their image."""
+        nvm.load_into(regs)
+        for address in self.absent:
+            regs[address] = 0
+
+    def decode_dump(self, dump: bytes) -> list[str]:
+        """One line per register of a 64-byte dump, in the part's register names."""
+        if len(dump) != REGISTER_COUNT:
+            raise ValueError(f"a register dump has {REGISTER_COUNT} bytes, not {len(dump)}")
+        return [f"0x{r.address:02X} {r.describe(v)}" for r, v in zip(self.registers, dump)]
+
+
+def _masked(hook: Callable[[Any, int], int], bits: int) -> Callable[[Any, int], int]:
+    def peek(chip: Any, now: int) -> int:
+        return hook(chip, now) & bits
+
+    return peek
+
+
+def _narrow(reg: Register, keep: tuple[str, ...]) -> Register:
+    unknown = set(keep) - {f.name for f in reg.fields}
+    if unknown:
+        raise KeyError(f"{reg.name} has no fields {sorted(unknown)}")
+    kept: tuple[Field, ...] = tuple(f for f in reg.fields if f.name in keep)
+    mask = sum(f.mask for f in kept)
+    return replace(reg, fields=kept, reset=reg.reset & mask)
+
+
+def derive(name: str, title: str, differences: Differences = Differences(), **details: Any) -> Part:
+    """The part ``name``: the BMG160 table with ``differences`` applied, and what follows."""
+    d = differences
+    names = {r.name for r in REGISTERS}
+    for table in (d.absent, d.fields, d.renamed, d.reset, d.replaced):
+        unknown = set(table) - names
+        if unknown:
+            raise KeyError(f"part {name}: no BMG160 registers named {sorted(unknown)}")
+    regs: list[Register] = []
+    absent: set[int] = set()
+    peek, action, effect = list(regmap.PEEK_AT), list(regmap.ACTION_AT), list(regmap.EFFECT_AT)
+    for base in REGISTERS:
+        reg = base
+        a = base.address
+        if base.name in d.absent:
+            # stored as 0 for ever: reset 0, write mask 0, no upsets (access.poke_reg), no hook
+            reg = Register(a, f"RESERVED_0x{a:02X}", "r", ABSENT_READ, (), "reserved on this part")
+            absent.add(a)
+            peek[a], action[a], effect[a] = None, None, None
+        elif base.name in d.replaced:
+            reg = d.replaced[base.name]
+            if reg.address != a:
+                raise ValueError(f"part {name}: {reg.name} replaces 0x{a:02X}, not 0x{reg.address:02X}")
+            peek[a], action[a], effect[a] = None, None, None
+        elif base.name in d.fields:
+            reg = _narrow(base, d.fields[base.name])
+            hook, bits = peek[a], sum(f.mask for f in reg.fields)
+            if hook is not None:  # a computed register shows only the bits the part has
+                peek[a] = _masked(hook, bits)
+        if base.name in d.renamed:
+            reg = replace(reg, name=d.renamed[base.name])
+        if base.name in d.reset:
+            reg = replace(reg, reset=d.reset[base.name])
+        regs.append(reg)
+    return Part(
+        name=name, title=title, differences=d, registers=tuple(regs), absent=frozenset(absent),
+        reset_values=bytes(r.reset for r in regs), write_masks=bytes(r.write_mask for r in regs),
+        peek_at=tuple(peek), action_at=tuple(action), effect_at=tuple(effect), **details)
+
+
+BMG160_PART = derive("bmg160", "BMG160")
+
+
+def frozen(mapping: Mapping[str, Any]) -> Mapping[str, Any]:
+    """A read-only copy, for the tables of the part modules."""
+    return MappingProxyType(dict(mapping))
