@@ -154,6 +154,11 @@ class BMG160(environment.EnvironmentInputs):
         return self.clock.now()
 
     @property
+    def part(self) -> Part:
+        """The part this chip is (device.parts): its name, pins and register table."""
+        return self._part
+
+    @property
     def power_mode(self) -> str:
         return power_mode(self._regs[_LPM1], self._regs[_LPM2])
 

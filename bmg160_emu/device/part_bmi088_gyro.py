@@ -11,17 +11,21 @@ BMI08x Sensor API ``bmi08_defs.h``) name the same registers at the same addresse
 from __future__ import annotations
 
 from bmg160_emu.device.part_spec import Differences, derive, frozen
-from bmg160_emu.device.registers import BMI088_FIFO_EXT_INT_S
+from bmg160_emu.device.registers import BMI088_FIFO_EXT_INT_S, REGISTERS
 
 # BMG160 registers the BMI088 gyroscope map (DS 5.4) marks reserved: no temperature
 # (0x08), no any-motion/high-rate/offset interrupts (0x09, 0x0B, 0x0C, 0x17, 0x19-0x1C,
 # 0x21-0x27), no LPM2 and RATE_HBW (0x12-0x13), no offset compensation or NVM (0x31-0x33,
 # 0x36-0x3B).
+STREAM_DEPTH_FRAMES = 99  # DS 4.9.4.4, 5.5.16
+
 ABSENT = (
     "TEMP", "INT_STATUS_0", "INT_STATUS_2", "INT_STATUS_3", "LPM2", "RATE_HBW", "INT_MAP_0",
     "INT_MAP_2", "INT_DATA_SRC", "ANY_TH", "ANY_EN", "INT_RST_LATCH",
     "HIGH_TH_X", "HIGH_DUR_X", "HIGH_TH_Y", "HIGH_DUR_Y", "HIGH_TH_Z", "HIGH_DUR_Z",
     "SOC", "A_FOC", "TRIM_NVM_CTRL", "OFC1", "OFC2", "OFC3", "OFC4", "TRIM_GP0", "TRIM_GP1",
+    # and every register the BMG160 reserves is reserved here too (0x01, 0x0D, 0x1D, ...)
+    *(reg.name for reg in REGISTERS if reg.reserved),
 )
 
 # Registers kept with only the bits DS 5.5 describes (the other bits are '-': read 0).
@@ -50,4 +54,7 @@ DIFFERENCES = Differences(absent=ABSENT, fields=FIELDS, renamed=RENAMED,
 
 BMI088_GYRO = derive(
     "bmi088_gyro", "BMI088 gyroscope", DIFFERENCES, pins=("INT3", "INT4"),
-    noise_profile="bmi088_datasheet")
+    noise_profile="bmi088_datasheet",
+    # DS 4.9.4.4 and 5.5.16: stream mode holds 99 frames (FIFO mode 100), and the FIFO
+    # interrupt without a watermark comes at 99 frames in stream mode
+    stream_depth=STREAM_DEPTH_FRAMES)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import Any
 
+from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import regmap
 from bmg160_emu.device.registers import ABSENT_READ, REGISTER_COUNT, REGISTERS, Field, Register
 from bmg160_emu.device.spec_choices import VALID_ADDRESSES
@@ -49,6 +50,7 @@ class Part:
     pins: tuple[str, str] = ("INT1", "INT2")  # the pins chip.int1 / chip.int2 stand for
     noise_profile: str = "paper"
     i2c_addresses: tuple[int, ...] = tuple(VALID_ADDRESSES)
+    stream_depth: int | None = None  # frames the FIFO holds in stream mode (None: capacity)
     registers: tuple[Register, ...] = ()
     absent: frozenset[int] = frozenset()
     reset_values: bytes = b""
@@ -67,6 +69,12 @@ class Part:
 
     def register(self, address: int) -> Register:
         return self.registers[address]
+
+    def fifo_depth(self, mode: int) -> int:
+        """Frames the FIFO holds in ``mode`` (fifo.FIFO or fifo.STREAM)."""
+        if mode == fifo_mod.STREAM and self.stream_depth is not None:
+            return self.stream_depth
+        return fifo_mod.Fifo.capacity
 
     def load_nvm(self, nvm: Any, regs: bytearray) -> None:
         """Power-up and soft reset: the NVM-backed registers the part has get their image."""

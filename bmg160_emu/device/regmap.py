@@ -352,6 +352,7 @@ def update_engine_flags(chip: BMG160) -> None:
         mode = choice.FIFO_RESERVED_MODE_AS
     chip._fifo_mode = mode
     chip._fifo_store_mode = mode if mode in (fifo_mod.FIFO, fifo_mod.STREAM) else 0
+    chip._fifo.capacity = chip._part.fifo_depth(mode)  # a part's stream depth (part_spec)
     chip._per_sample = bool(chip._irq.any_axes or chip._irq.high_axes or chip._foc is not None)
 
 
