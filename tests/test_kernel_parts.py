@@ -1,0 +1,193 @@
+"""The kernel's bmg160 driver binds to the BMI055 and BMI088 gyroscope parts through i2c-stub.
+
+One QEMU guest (tools/qemu/guest.py) loads i2c-stub with two chip addresses and runs one
+Python process that builds a ``bmi055_gyro`` at 0x68 and a ``bmi088_gyro`` at 0x69 with
+``make_chip`` and keeps both in i2c-stub's memory (``I2CStubAdapter``, one thread each).
+The guest then reads both with i2c-tools, binds the driver by the names its I2C ID table
+gives them (``bmi055_gyro``, ``bmi088_gyro``) and reads the rate and temperature through
+sysfs. The tests assert on what it wrote; the guest console is attached to every report.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import shlex
+import shutil
+import statistics
+import sys
+from pathlib import Path
+
+import pytest
+
+import bmg160_emu
+
+pytestmark = pytest.mark.kernel
+
+REPO = Path(bmg160_emu.__file__).resolve().parents[1]
+TRUE_RATE_DPS = (20.0, -10.0, 5.0)
+TEMPERATURE_C = 30.0
+PARTS = {"bmi055_gyro": 0x68, "bmi088_gyro": 0x69}
+SAMPLES = 12
+
+# Runs in the guest: both parts on bus 0, until SIGTERM; then a JSON report per part.
+ADAPTERS = """
+import json, signal, sys, threading
+from pathlib import Path
+from bmg160_emu.bus.i2c_stub import I2CStubAdapter
+from bmg160_emu.clock import RealTimeClock
+from bmg160_emu.device.parts import make_chip
+
+out, parts = Path(sys.argv[1]), sys.argv[2:]
+clock = RealTimeClock()
+stop = threading.Event()
+signal.signal(signal.SIGTERM, lambda *_: stop.set())
+adapters = {}
+for spec in parts:
+    name, address = spec.split("@")
+    chip = make_chip(name, seed=7, clock=clock, address=int(address, 0),
+                     true_rate=(20.0, -10.0, 5.0), temperature_c=30.0)
+    adapters[name] = I2CStubAdapter(chip, 0, int(address, 0))
+    adapters[name].preload()
+threads = [threading.Thread(target=a.run, kwargs={"should_stop": stop.is_set, "preload": False})
+           for a in adapters.values()]
+for t in threads:
+    t.start()
+Path("/run/parts.ready").write_text("ready\\n")
+for t in threads:
+    t.join()
+for name, a in adapters.items():
+    a.close()
+    report = {"events": a.events, "part": a.chip.part.name, "final": a.chip.dump().hex()}
+    (out / f"stub_{name}.json").write_text(json.dumps(report))
+"""
+
+GUEST_SCRIPT = r"""
+set -u
+OUT=${GUEST_OUT:?}
+cd /run || exit 1
+modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68,0x69 || echo "modprobe i2c-stub failed"
+modprobe -d "$GUEST_ROOT" i2c-dev || echo "modprobe i2c-dev failed"
+"$PY" "$ADAPTERS" "$OUT" bmi055_gyro@0x68 bmi088_gyro@0x69 > "$OUT/adapters.log" 2>&1 &
+STUB=$!
+i=0
+while [ ! -e /run/parts.ready ] && [ $i -lt 3000 ] && kill -0 $STUB 2>/dev/null; do
+    sleep 0.1; i=$((i + 1))
+done
+[ -e /run/parts.ready ] && echo ready > "$OUT/ready.txt"
+for a in 0x68 0x69; do
+    i2cdump -y -r 0x00-0x3f 0 $a b > "$OUT/i2cdump_$a.txt" 2>&1
+done
+modprobe -d "$GUEST_ROOT" bmg160_i2c || echo "modprobe bmg160_i2c failed"
+n=0
+for spec in bmi055_gyro:0x68 bmi088_gyro:0x69; do
+    name=${spec%:*}; a=${spec#*:}
+    echo "$name $a" > /sys/bus/i2c/devices/i2c-0/new_device
+    IIO=/sys/bus/iio/devices/iio:device$n
+    i=0
+    while [ ! -e "$IIO/in_anglvel_x_raw" ] && [ $i -lt 100 ]; do sleep 0.1; i=$((i + 1)); done
+    cat "$IIO/name" > "$OUT/iio_name_$name.txt" 2>&1
+    cat "$IIO/in_anglvel_scale" > "$OUT/scale_$name.txt" 2>&1
+    for axis in x y z; do
+        j=0
+        while [ $j -lt 12 ]; do cat "$IIO/in_anglvel_${axis}_raw"; sleep 0.05; j=$((j + 1)); done \
+            > "$OUT/raw_${name}_$axis.txt" 2>&1
+    done
+    cat "$IIO/in_temp_raw" > "$OUT/temp_$name.txt" 2>&1
+    n=$((n + 1))
+done
+kill -TERM $STUB 2>/dev/null
+wait $STUB
+dmesg > "$OUT/dmesg.txt"
+echo done > "$OUT/done.txt"
+"""
+
+
+def _load_guest_module():
+    spec = importlib.util.spec_from_file_location("bmg160_guest", REPO / "tools/qemu/guest.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def guest(tmp_path_factory):
+    harness = _load_guest_module()
+    reason = harness.missing_requirements()
+    if reason is None and shutil.which("i2cdump") is None:
+        reason = "i2cdump is missing (Debian package i2c-tools; the guest runs the host's)"
+    if reason:
+        pytest.skip(f"kernel tests need a bootable guest: {reason}")
+    work = tmp_path_factory.mktemp("kernel_parts")
+    adapters = work / "adapters.py"
+    adapters.write_text(ADAPTERS)
+    script = work / "run.sh"
+    script.write_text(
+        f"export PY={shlex.quote(sys.executable)} ADAPTERS={shlex.quote(str(adapters))}\n"
+        f"export PYTHONPATH={shlex.quote(str(REPO))}\n" + GUEST_SCRIPT)
+    out = work / "out"
+    # 400 s as tests/test_kernel_i2c_stub.py: the guest's Python imports are slow under TCG
+    result = harness.run_guest(script, out, console_log=work / "console.txt", timeout_s=400)
+    return out, result
+
+
+@pytest.fixture(autouse=True)
+def _console_in_report(request, guest):
+    request.node.add_report_section("setup", "guest console", guest[1].console)
+
+
+def text(guest, name: str) -> str:
+    out, result = guest
+    path = out / name
+    assert path.exists(), f"the guest did not write {name} (timed out: {result.timed_out})"
+    return path.read_text()
+
+
+def test_guest_ran_to_the_end(guest):
+    assert not guest[1].timed_out
+    assert text(guest, "ready.txt").strip() == "ready"
+    assert text(guest, "done.txt").strip() == "done"
+
+
+@pytest.mark.parametrize("name, address", sorted(PARTS.items()))
+def test_i2cdump_shows_each_parts_reset_map(guest, name, address):
+    rows = text(guest, f"i2cdump_0x{address:02x}.txt").splitlines()[1:]
+    dump = [int(v, 16) for row in rows for v in row.split()[1:17]]
+    assert dump[0x00] == 0x0F and dump[0x10] == 0x80 and dump[0x16] == 0x0F
+    if name == "bmi088_gyro":  # reserved on the BMI088 (DS 5.4), reset 0x04 / 0xA0 / 0xF4 on a BMG160
+        assert dump[0x1B] == dump[0x1C] == dump[0x33] == 0x00
+    else:
+        assert (dump[0x1B], dump[0x1C]) == (0x04, 0xA0)
+
+
+@pytest.mark.parametrize("name", sorted(PARTS))
+def test_kernel_driver_binds_by_the_parts_name_and_reads_the_rate(guest, name):
+    assert text(guest, f"iio_name_{name}.txt").strip() == name
+    assert text(guest, f"scale_{name}.txt").strip() == "0.000266"  # driver default 500 deg/s
+    for axis, true in zip("xyz", TRUE_RATE_DPS):
+        values = [float(v) for v in text(guest, f"raw_{name}_{axis}.txt").split()]
+        assert len(values) == SAMPLES
+        # new samples, not one frozen value (noise ~2 counts rms at 500 deg/s, 32 Hz filter)
+        assert len(set(values)) >= 3, values
+        # 12 samples: noise of the mean ~0.06 deg/s, bias instability ~0.01; a wrong range
+        # would be off by a factor of 2 or more
+        mean = statistics.fmean(values) * 500.0 / 32768
+        assert math.isclose(mean, true, abs_tol=1.5), (name, axis, mean)
+
+
+def test_temperature_is_absent_on_the_bmi088_die(guest):
+    # BMI055: (30 - 23) / 0.5 K per LSB = 14; BMI088: register 0x08 reserved, reads 0
+    assert int(text(guest, "temp_bmi055_gyro.txt")) == round((TEMPERATURE_C - 23.0) / 0.5)
+    assert int(text(guest, "temp_bmi088_gyro.txt")) == 0
+
+
+def test_driver_writes_to_registers_the_bmi088_lacks_are_dropped(guest):
+    report = json.loads(text(guest, "stub_bmi088_gyro.json"))
+    assert report["part"] == "bmi088_gyro"
+    final = bytes.fromhex(report["final"])
+    written = {e["register"] for e in report["events"]}
+    assert {0x0F, 0x10, 0x21} <= written  # range, bandwidth and INT_RST_LATCH were written
+    assert final[0x0F] == 0x02 and final[0x10] == 0x87  # 500 deg/s, code 7 (bit 7 reads 1)
+    assert final[0x21] == 0x00  # INT_RST_LATCH is absent on the BMI088: it still reads 0
