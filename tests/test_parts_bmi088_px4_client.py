@@ -8,7 +8,8 @@ reset the FIFO (write 0 to FIFO_CONFIG_0 and FIFO_CONFIG_1, then restore them); 
 FIFO watermark interrupt on INT3 (falling edge: INT3 push-pull, active low) read
 FIFO_STATUS, reset the FIFO on overrun, else burst-read the counted frames from FIFO_DATA
 (leaving one if exactly one more than expected arrived); every 100 ms read one
-configuration register back and reset the chip if it changed.
+configuration register back and reset the chip if it changed. ArduPilot's BMI088 gyro
+start-up and FIFO polling (the last test) is a second, independent client.
 """
 
 from __future__ import annotations
@@ -197,3 +198,29 @@ def test_px4_resets_the_fifo_after_an_overrun_and_reads_on():
     # before the stall ~200 samples, after the reset another ~200 (frames in between lost)
     assert 350 <= len(driver.published) <= 410
     assert driver.bad_registers == 0
+
+
+def test_ardupilot_bmi088_gyro_init_checks_and_stream_reads_pass():
+    # ArduPilot AP_InertialSensor_BMI088.cpp (read to learn): chip ID, soft reset, 30 ms,
+    # then five "checked" writes it reads back while running, stream mode, FIFO reads of at
+    # most 8 frames. It writes 0 to RATE_HBW (0x13), which the BMI088 map reserves: the
+    # read-back still matches, as a reserved register reads 0.
+    chip = make_chip("bmi088_gyro", seed=3, true_rate=TRUE_RATE_DPS)
+    spi = FakeSpiDev(chip)
+    assert spi.xfer2([CHIP_ID | READ, 0])[1] == 0x0F
+    spi.xfer2([SOFTRESET, 0xB6])
+    chip.advance(0.030)
+    checked = {RANGE: 0x00, BANDWIDTH: 0x81, 0x11: 0x00, 0x13: 0x00, FIFO_CONFIG_1: 0x80}
+    for reg, value in checked.items():
+        spi.xfer2([reg, value])
+    frames = []
+    for _ in range(400):  # its 2 kHz periodic callback, for 0.2 s
+        chip.advance(FIFO_SAMPLE_DT_S)
+        count = min(spi.xfer2([FIFO_STATUS | READ, 0])[1] & 0x7F, 8)
+        if count:
+            data = bytes(spi.xfer2([FIFO_DATA | READ] + [0] * (6 * count)))[1:]
+            frames += [struct.unpack_from("<3h", data, 6 * i) for i in range(count)]
+    assert all(spi.xfer2([reg | READ, 0])[1] == value for reg, value in checked.items())
+    assert 390 <= len(frames) <= 400 and chip.read(FIFO_STATUS)[0] & 0x80 == 0
+    mean_x = statistics.fmean(f[0] for f in frames[100:]) * 2000.0 / 32768
+    assert abs(mean_x - TRUE_RATE_DPS[0]) < 0.3  # ~300 samples at 230 Hz: noise of the mean ~0.02
