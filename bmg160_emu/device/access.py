@@ -81,7 +81,7 @@ def peek_reg(chip: BMG160, addr: int, now: int) -> int:
             if latched is not None:
                 return latched
         return chip._cur[addr - RATE_X_LSB]
-    hook = chip._part.peek_at[addr]
+    hook = chip.part.peek_at[addr]
     return chip._regs[addr] if hook is None else hook(chip, now)
 
 
@@ -105,13 +105,13 @@ def write_reg(chip: BMG160, addr: int, value: int, now: int) -> None:
             mode in (SUSPEND, FAST_POWER_UP) and addr not in choice.WRITABLE_IN_SUSPEND:
         chip._strict(f"write of 0x{value:02X} to 0x{addr:02X} ignored in {mode} (6.7)")
         return
-    mask = chip._part.write_masks[addr]  # the part's table (part_spec)
+    mask = chip.part.write_masks[addr]  # the part's table (part_spec)
     old = chip._regs[addr]
     chip._regs[addr] = (old & ~mask) | (value & mask)
-    action = chip._part.action_at[addr]
+    action = chip.part.action_at[addr]
     if action is not None:
         action(chip, value, now)  # may reset the chip (a new register file)
-    effect = chip._part.effect_at[addr]
+    effect = chip.part.effect_at[addr]
     if effect is not None:
         effect(chip, old, chip._regs[addr], now)
 
@@ -124,10 +124,10 @@ def poke_reg(chip: BMG160, reg: int, value: int, now: int) -> None:
         cur[reg - RATE_X_LSB] = value
         chip._cur = bytes(cur)
         return
-    if reg in chip._part.absent:  # no register there to upset
+    if reg in chip.part.absent:  # no register there to upset
         return
     old = chip._regs[reg]
     chip._regs[reg] = value
-    effect = chip._part.effect_at[reg]
+    effect = chip.part.effect_at[reg]
     if effect is not None:
         effect(chip, old, value, now)

@@ -59,8 +59,7 @@ class BMG160(environment.EnvironmentInputs):
     _fifo_store_mode: int
     _fifo_int_on: bool
     _per_sample: bool
-    # the register table reset loads and access reads (part_spec; device.parts for others)
-    _part: Part = BMG160_PART
+    part: Part = BMG160_PART  # name, pins and register table (part_spec; device.parts: others)
 
     def __init__(
         self,
@@ -152,11 +151,6 @@ class BMG160(environment.EnvironmentInputs):
     def time(self) -> float:
         """The chip's current time in seconds."""
         return self.clock.now()
-
-    @property
-    def part(self) -> Part:
-        """The part this chip is (device.parts): its name, pins and register table."""
-        return self._part
 
     @property
     def power_mode(self) -> str:
@@ -320,8 +314,8 @@ class BMG160(environment.EnvironmentInputs):
     def _reset_state(self, now: int, *, powered: bool) -> None:
         """Soft reset, power-on reset and leaving deep suspend (6.6, 6.7)."""
         self._block = None
-        self._regs = bytearray(self._part.reset_values)
-        self._part.load_nvm(self._nvm, self._regs)
+        self._regs = bytearray(self.part.reset_values)
+        self.part.load_nvm(self._nvm, self._regs)
         self._nvm.busy_until_ns = -1
         self._cur = bytes(6)
         self._have_sample = False

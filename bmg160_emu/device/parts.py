@@ -16,10 +16,10 @@ from bmg160_emu.device.chip import BMG160
 from bmg160_emu.device.part_bmi088_gyro import BMI088_GYRO
 from bmg160_emu.device.part_spec import BMG160_PART, Part, derive
 
-# The BMI055 and BMX055 gyroscopes are the BMG160 die: their data sheets (BST-BMI055-DS000,
-# BST-BMX055-DS000, gyroscope register map) repeat the BMG160 map bit for bit, chip ID 0x0F
-# included. What differs is the package: the gyroscope's two interrupt outputs are the
-# module's INT3 and INT4 (INT1/INT2 belong to the accelerometer), and the typical noise.
+# The BMI055 and BMX055 gyroscopes are the BMG160 die (chip ID 0x0F, the same register map:
+# PX4's BMI055 gyroscope header, the Linux bmg160 driver's ID table; docs/parts.md). What
+# differs is the package: the gyroscope's two interrupt outputs are the module's INT3 and
+# INT4 (INT1/INT2 belong to the accelerometer), and the data sheet's typical noise.
 BMI055_GYRO = derive("bmi055_gyro", "BMI055 gyroscope", pins=("INT3", "INT4"),
                      noise_profile="bmi055_datasheet")
 BMX055_GYRO = derive("bmx055_gyro", "BMX055 gyroscope", pins=("INT3", "INT4"),
@@ -44,7 +44,7 @@ def _chip_class(p: Part) -> type[BMG160]:
     if p is BMG160_PART:
         return BMG160
     title = "".join(word.capitalize() for word in p.name.split("_"))
-    return type(title, (BMG160,), {"_part": p, "__doc__": f"The {p.title} (bmg160_emu.device.parts).",
+    return type(title, (BMG160,), {"part": p, "__doc__": f"The {p.title} (bmg160_emu.device.parts).",
                                    "__module__": __name__})
 
 

@@ -273,7 +273,7 @@ def power_transition(chip: BMG160, old_mode: str, addr: int, value: int, now: in
     if old_mode == DEEP_SUSPEND and choice.LEAVING_DEEP_SUSPEND_RESETS:
         chip._reset_state(now, powered=False)
         if addr == _LPM1:  # the write that woke the chip is stored on the reset map
-            mask = chip._part.write_masks[_LPM1]
+            mask = chip.part.write_masks[_LPM1]
             chip._regs[_LPM1] = (chip._regs[_LPM1] & ~mask) | (value & mask)
         if chip.power_mode not in SAMPLING_MODES:
             chip._stop_sampling()
@@ -352,7 +352,7 @@ def update_engine_flags(chip: BMG160) -> None:
         mode = choice.FIFO_RESERVED_MODE_AS
     chip._fifo_mode = mode
     chip._fifo_store_mode = mode if mode in (fifo_mod.FIFO, fifo_mod.STREAM) else 0
-    chip._fifo.capacity = chip._part.fifo_depth(mode)  # a part's stream depth (part_spec)
+    chip._fifo.capacity = chip.part.fifo_depth(mode)  # a part's stream depth (part_spec)
     chip._per_sample = bool(chip._irq.any_axes or chip._irq.high_axes or chip._foc is not None)
 
 
