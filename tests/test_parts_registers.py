@@ -150,3 +150,25 @@ def test_bmi088_decode_dump_uses_the_part_names():
     assert lines[0x15].startswith("0x15 GYRO_INT_CTRL = 0x00: data_en=0 (off) fifo_en=0 (off)")
     assert lines[0x08] == "0x08 RESERVED_0x08 = 0x00: reserved"
     assert len(lines) == len(REGISTERS)
+
+
+def _stem(name: str) -> str:
+    """A register family as the docs table groups it (HIGH_TH_Y -> HIGH_TH, OFC3 -> OFC)."""
+    if name.startswith(("HIGH_", "OFC", "INT_STATUS_", "INT_MAP_", "TRIM_GP")):
+        return name.rstrip("XYZ_0123456789")
+    return name
+
+
+def test_docs_parts_page_names_every_bmi088_difference():
+    # docs/parts.md's differences table must keep up with the part's data
+    from pathlib import Path
+
+    from bmg160_emu.device import part_bmi088_gyro as bmi088
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "parts.md").read_text(encoding="utf-8")
+    table = page[page.index("## BMI088 gyroscope"):page.index("### What the sources")]
+    named = [n for n in bmi088.ABSENT if not n.startswith("RESERVED_")]
+    named += [*bmi088.FIELDS, *bmi088.RENAMED.values(), *bmi088.DIFFERENCES.replaced,
+              bmi088.FIFO_EXT_INT_S.name]
+    assert len(named) > 40
+    assert [n for n in named if _stem(n) not in table] == []
