@@ -111,6 +111,9 @@ def test_bmi088_existing_registers_are_exactly_the_data_sheet_map():
     assert p.address_of("gyro_int_ctrl") == p.address_of("INT_EN_0") == 0x15
     with pytest.raises(KeyError, match="no BMI088 gyroscope register named 'TEMP'"):
         p.address_of("TEMP")
+    assert p.address_of("fifo_ext_int_s") == 0x34
+    with pytest.raises(KeyError, match="named 'BGW_SPI3_WDT'"):
+        p.address_of("BGW_SPI3_WDT")  # replaced by FIFO_EXT_INT_S at the same address
 
 
 @pytest.mark.parametrize("address, kept", sorted(BMI088_WRITE_KEEPS.items()))

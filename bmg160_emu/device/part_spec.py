@@ -63,7 +63,8 @@ class Part:
         """Address of a register by the part's name or its BMG160 name."""
         upper = name.upper()
         for reg, base in zip(self.registers, REGISTERS):
-            if upper in (reg.name, base.name) and reg.address not in self.absent:
+            names = {reg.name} if base.name in self.differences.replaced else {reg.name, base.name}
+            if upper in names and reg.address not in self.absent:
                 return reg.address
         raise KeyError(f"no {self.title} register named {name!r}")
 
