@@ -175,3 +175,11 @@ def test_docs_parts_page_names_every_bmi088_difference():
               bmi088.FIFO_EXT_INT_S.name]
     assert len(named) > 40
     assert [n for n in named if _stem(n) not in table] == []
+
+
+def test_docs_parts_page_embeds_the_bmi088_register_map():
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "parts.md").read_text(encoding="utf-8")
+    start = page.index("<!-- bmi088-map:start -->\n") + len("<!-- bmi088-map:start -->\n")
+    assert page[start:page.index("<!-- bmi088-map:end -->")] == part_table("bmi088_gyro").markdown_table()

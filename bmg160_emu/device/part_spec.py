@@ -19,7 +19,14 @@ from typing import Any
 
 from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import regmap
-from bmg160_emu.device.registers import ABSENT_READ, REGISTER_COUNT, REGISTERS, Field, Register
+from bmg160_emu.device.registers import (
+    ABSENT_READ,
+    REGISTER_COUNT,
+    REGISTERS,
+    Field,
+    Register,
+    markdown_table,
+)
 from bmg160_emu.device.spec_choices import VALID_ADDRESSES
 
 
@@ -82,6 +89,10 @@ class Part:
         nvm.load_into(regs)
         for address in self.absent:
             regs[address] = 0
+
+    def markdown_table(self) -> str:
+        """The part's register map as a Markdown table (docs/parts.md embeds the BMI088's)."""
+        return markdown_table(self.registers)
 
     def decode_dump(self, dump: bytes) -> list[str]:
         """One line per register of a 64-byte dump, in the part's register names."""

@@ -439,11 +439,12 @@ def decode_dump(dump: bytes) -> list[str]:
     return [f"0x{r.address:02X} {r.describe(v)}" for r, v in zip(REGISTERS, dump)]
 
 
-def markdown_table() -> str:
-    """The register map as a Markdown table (embedded in docs/device-model.md)."""
+def markdown_table(table: tuple[Register, ...] | None = None) -> str:
+    """The register map (or another part's ``table``) as a Markdown table (embedded in
+    docs/device-model.md and docs/parts.md)."""
     lines = ["| addr | name | access | reset | fields (bits, access) |",
              "| --- | --- | --- | --- | --- |"]
-    for r in REGISTERS:
+    for r in REGISTERS if table is None else table:
         fields = ", ".join(f"`{f.name}` [{f.bits}] {f.access}" for f in r.fields) or "reserved"
         reset = f"0x{r.reset:02X}" + (" (NVM)" if r.nvm else "")
         lines.append(f"| 0x{r.address:02X} | {r.name} | {r.access} | {reset} | {fields} |")
