@@ -49,6 +49,8 @@ def _chip_class(p: Part) -> type[BMG160]:
 
 
 _CLASSES = {name: _chip_class(p) for name, p in PARTS.items()}
+# the classes by the names their chips print (isinstance checks, introspection)
+Bmi055Gyro, Bmx055Gyro, Bmi088Gyro = (_CLASSES[n] for n in ("bmi055_gyro", "bmx055_gyro", "bmi088_gyro"))
 
 
 def make_chip(part: str = DEFAULT_PART, /, **options: Any) -> BMG160:
