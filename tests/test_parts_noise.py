@@ -22,7 +22,7 @@ def test_each_part_defaults_to_its_data_sheet_profile(name):
     chip = make_chip(name, seed=1)
     profile = chip._noise_gen.profile
     assert profile.name == part_table(name).noise_profile == name.split("_")[0] + "_datasheet"
-    # 0.014 deg/s/sqrt(Hz) typical on the BMI088 (DS table 5), BMI055 and BMX055 data sheets
+    # 0.014 deg/s/sqrt(Hz): BMI088 DS table 5; for the BMI055/BMX055 the BMG160 die's figure
     assert all(axis.N == 0.014 and axis.bias == 0.0 for axis in profile.axes)
 
 
