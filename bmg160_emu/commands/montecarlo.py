@@ -10,9 +10,9 @@ from bmg160_emu.commands._common import add_command_parser
 
 EPILOG = """\
 examples:
-  bmg160-emu montecarlo orbit.toml --runs 1000
-  bmg160-emu montecarlo orbit.toml --runs 200 --seeds 5000 --workers 2 --output mc.csv
-  bmg160-emu montecarlo orbit.toml --seeds 0:64 --scheduler tcp://10.0.0.5:8786
+  bmg160-emu montecarlo examples/scenarios/orbit_pointing.toml --runs 1000
+  bmg160-emu montecarlo examples/scenarios/orbit_pointing.toml --runs 200 --seeds 5000 --workers 2 --output mc.csv
+  bmg160-emu montecarlo examples/scenarios/orbit_pointing.toml --seeds 0:64 --scheduler tcp://10.0.0.5:8786
 
 Each run is one noise realisation (seed) of every gyro in the scenario; the attitude
 propagated from the gyro output is compared with the true attitude, and the percentiles of
