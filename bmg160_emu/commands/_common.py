@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -40,18 +41,45 @@ def add_bus_option(parser: argparse.ArgumentParser, help_text: str, **kwargs: An
     parser.add_argument("--bus", type=bus_number, metavar="N", help=help_text, **kwargs)
 
 
+def duration_seconds(text: str) -> float:
+    """An argparse type: a positive duration (``30s``, ``5min``, a bare number of seconds)
+    read by :func:`bmg160_emu.durations.parse_duration`, in seconds."""
+    from bmg160_emu.durations import parse_duration
+
+    try:
+        return parse_duration(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+duration_seconds.__name__ = "duration"  # argparse names the type in some messages
+
+# argparse takes a word that starts with '-' for an option unless it looks like a negative
+# number, so "--duration -5s" used to fail with "expected one argument". Negative durations
+# count as negative numbers here, and reach the duration parser, which says what is wrong.
+_NEGATIVE_NUMBER_OR_DURATION = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?[a-z]*$", re.IGNORECASE)
+
+
 def add_command_parser(
     subparsers: argparse._SubParsersAction, name: str, summary: str, description: str, epilog: str
 ) -> argparse.ArgumentParser:
     """The sub-command's parser: one-line ``summary`` for the command list, ``description``
     and an ``epilog`` of examples shown as written."""
-    return subparsers.add_parser(
+    parser = subparsers.add_parser(
         name,
         help=summary,
         description=description,
         epilog=epilog,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    accept_negative_durations(parser)
+    return parser
+
+
+def accept_negative_durations(parser: argparse.ArgumentParser) -> None:
+    """Let ``-5s`` (and ``-5``) be an option's value on ``parser``, as a negative number is."""
+    if hasattr(parser, "_negative_number_matcher"):  # CPython's argparse since 2.7
+        parser._negative_number_matcher = _NEGATIVE_NUMBER_OR_DURATION
 
 
 def add_file_option(parser: argparse.ArgumentParser, flag: str, metavar: str, help_text: str) -> None:

@@ -97,7 +97,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="output data rate: 100, 200, 400, 1000 or 2000 Hz (default 200)",
     )
     parser.add_argument(
-        "--duration", required=True, metavar="TIME", help="simulated time: 10s, 5min, 2h, 1d"
+        "--duration", required=True, metavar="TIME",
+        help="simulated time: 10s, 5min, 2h, 1d, or seconds (positive)",
     )
     parser.add_argument(
         "--seed", type=int, default=None,
@@ -141,9 +142,12 @@ def run(args: argparse.Namespace) -> int:
         args.seed = secrets.randbits(32)  # a record names its seed: a random run can be repeated
     elif args.seed < 0:
         raise CommandError(f"--seed must be a non-negative integer, not {args.seed}")
-    gen: ChipFilteredNoise | NoiseGenerator
     try:
         duration = parse_duration(args.duration)
+    except ValueError as exc:
+        raise CommandError(f"--duration: {exc}") from None
+    gen: ChipFilteredNoise | NoiseGenerator
+    try:
         if args.bandwidth is not None:
             gen = ChipFilteredNoise(args.profile, args.bandwidth, seed=args.seed, mode=args.mode)
             if args.rate_given and args.rate != gen.rate_hz:

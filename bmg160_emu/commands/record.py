@@ -21,6 +21,8 @@ Every output sample is read as a driver reads it (one 6-byte burst from RATE_X_L
 each new sample); the file holds time, raw counts, deg/s (counts / sensitivity) and the
 true body rate. --rate picks the BW code the Linux driver uses for that output data rate
 (100->0x07, 200->0x06, 400->0x03, 1000->0x02, 2000->0x01); --bandwidth picks any code.
+Without either the chip keeps its reset BW (0x00): 2000 Hz, where generate's default is
+200 Hz. Durations: 10min, 30s, 1.5h, 1d, 250ms, or seconds; they must be positive.
 """
 
 
@@ -39,7 +41,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument(
         "--rate", type=int, default=None, metavar="HZ", choices=(100, 200, 400, 1000, 2000),
-        help="output data rate in Hz: 100, 200, 400, 1000 or 2000",
+        help="output data rate in Hz: 100, 200, 400, 1000 or 2000 (default: the chip's reset "
+        "BW 0x00, 2000 Hz with the 523 Hz filter; note that generate defaults to 200 Hz)",
     )
     parser.add_argument(
         "--truth", type=Path, default=None, metavar="SCENARIO",
@@ -75,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             duration = parse_duration(args.duration)
         except ValueError as exc:
-            raise CommandError(str(exc)) from None
+            raise CommandError(f"--duration: {exc}") from None
     elif scenario is not None:
         duration = scenario.duration_s
     else:

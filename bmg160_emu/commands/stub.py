@@ -8,14 +8,23 @@ import signal
 import sys
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import add_bus_option, add_command_parser, add_file_option
+from bmg160_emu.commands._common import (
+    add_bus_option,
+    add_command_parser,
+    add_file_option,
+    duration_seconds,
+)
 
 EPILOG = """\
-example (as root, on a machine or VM that can load modules):
+examples (as root, on a machine or VM that can load modules):
   modprobe i2c-stub chip_addr=0x68 && modprobe i2c-dev
   bmg160-emu stub --bus 0 --address 0x68 --seed 7 &
   echo bmg160 0x68 > /sys/bus/i2c/devices/i2c-0/new_device
   cat /sys/bus/iio/devices/iio:device0/in_anglvel_x_raw
+  bmg160-emu stub --bus 0 --seed 7 --true-rate 20 -10 5 --duration 30s --stats stats.json
+  bmg160-emu stub --bus 0 --seed 7 --ready-file /run/bmg160.ready &   # scripts wait for it
+  modprobe i2c-stub chip_addr=0x68,0x69    # two chips: one stub process per address
+  bmg160-emu stub --bus 0 --address 0x69 --seed 8 &
 
 The adapter runs in real time until interrupted (or --duration has passed), refreshing the
 data registers once per output data period (at most --max-refresh-hz) and applying what
@@ -36,8 +45,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_bus_option(parser, "number N of the i2c-stub bus /dev/i2c-N", required=True)
     parser.add_argument(
-        "--duration", type=float, default=None, metavar="SECONDS",
-        help="stop after this many seconds (default: run until interrupted)",
+        "--duration", type=duration_seconds, default=None, metavar="TIME",
+        help="stop after this long: 30s, 5min, or seconds (default: run until interrupted)",
     )
     add_file_option(
         parser, "--stats", "FILE",

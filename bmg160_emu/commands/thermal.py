@@ -98,6 +98,9 @@ def run(args: argparse.Namespace) -> int:
             check_writable(out)
     try:
         block_s = parse_duration(args.block)
+    except ValueError as exc:
+        raise CommandError(f"--block: {exc}") from None
+    try:
         table = read_csv_table(args.file, _choose(args.temperature_column))
     except (ValueError, RateFileError) as exc:
         raise CommandError(str(exc)) from None

@@ -13,7 +13,12 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import add_bus_option, add_command_parser, add_file_option
+from bmg160_emu.commands._common import (
+    add_bus_option,
+    add_command_parser,
+    add_file_option,
+    duration_seconds,
+)
 
 EPILOG = """\
 example (the socket directory is created 0700 if missing):
@@ -50,8 +55,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--gpio-socket", type=Path, default=None, metavar="PATH",
                         help="UNIX socket for virtio-gpio: the chips' INT1/INT2 lines")
     add_bus_option(parser, "bus number recorded in the log and trace (default 0)", default=0)
-    parser.add_argument("--duration", type=float, default=None, metavar="SECONDS",
-                        help="stop after this many seconds (default: run until interrupted)")
+    parser.add_argument("--duration", type=duration_seconds, default=None, metavar="TIME",
+                        help="stop after this long: 30s, 5min, or seconds (default: run until interrupted)")
     add_file_option(parser, "--trace", "OUT.jsonl",
                     "record every transaction as a JSON Lines trace (bmg160-emu trace FILE)")
     add_file_option(parser, "--log", "FILE", "write the transaction log to FILE at exit")
