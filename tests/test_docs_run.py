@@ -121,3 +121,16 @@ def test_titled_blocks_become_files_and_markers_are_checked(tmp_path):
     bad = _page(tmp_path, "<!-- docs-run: colour=red -->\n```console\n$ true\n```\n")
     [failure] = run_docs.run_page(bad).failures
     assert "unknown docs-run option 'colour=red'" in failure
+
+
+def test_commands_quoted_in_prose_name_real_options(tmp_path):
+    page = _page(tmp_path, "Use `bmg160-emu record --duration 1s --frobnicate` or\n"
+                 "`bmg160-emu recrod`; `bmg160-emu firmware capture --seconds 2` is fine, as is\n"
+                 "`bmg160-emu trace --replay`.\n\n```console\n$ echo '`bmg160-emu x --y`'\n"
+                 "`bmg160-emu x --y`\n```\n")
+    failures = run_docs.run_page(page).failures
+    assert failures == [
+        (f"{page}, line 1: `bmg160-emu record --duration 1s --frobnicate`: record has no option "
+         "--frobnicate"),
+        f"{page}, line 2: `bmg160-emu recrod` names no sub-command 'recrod'",
+    ]

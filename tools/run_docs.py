@@ -16,8 +16,9 @@ is written for authors in docs/contributing.md; in short:
   pytest marker of the same name), ``fails`` expects its last command to exit non-zero,
   ``timeout=SECONDS`` allows longer than 120 s, and ``skip='REASON'`` does not run it (a
   root prompt ``# ``, a QEMU guest, hardware); ``sh``/``bash`` blocks must say ``skip``.
-  Skipped ``bmg160-emu`` commands are still parsed by the real argument parser, and every
-  ``examples/...`` path a command names must exist.
+  Skipped ``bmg160-emu`` commands are still parsed by the real argument parser, every
+  ``examples/...`` path a command names must exist, and a ``bmg160-emu ...`` quoted in
+  the prose must name a real sub-command and real options.
 
 Usage: ``python tools/run_docs.py [--update] [PAGE ...]`` (default: every page).
 """
@@ -340,6 +341,47 @@ def check_listing(block: Block, command: str, line: int) -> list[str]:
     return problems
 
 
+INLINE = re.compile(r"`bmg160-emu ([^`]+)`")
+
+
+def _options_of(parser: argparse.ArgumentParser) -> set[str]:
+    """Every option string of ``parser`` and of its own sub-commands (firmware build ...)."""
+    found: set[str] = set()
+    for action in parser._actions:
+        found.update(action.option_strings)
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                found |= _options_of(sub)
+    return found
+
+
+def check_inline(page: Path, lines: list[str], fenced: set[int]) -> list[str]:
+    """Commands quoted in the prose (```bmg160-emu trace --replay```) are fragments, not
+    runnable, but their sub-command and every option they name must exist."""
+    from bmg160_emu.cli import build_parser
+
+    commands = next(a for a in build_parser()._actions
+                    if isinstance(a, argparse._SubParsersAction)).choices
+    problems = []
+    for number, line in enumerate(lines, 1):
+        if number in fenced:
+            continue
+        for match in INLINE.finditer(line):
+            words = match.group(1).split()
+            where = f"{relative(page)}, line {number}: `bmg160-emu {match.group(1)}`"
+            name = words[0].rstrip(":")
+            if name not in commands:
+                if not words[0].endswith(":"):  # "bmg160-emu run: error ..." quotes a message
+                    problems.append(f"{where} names no sub-command {words[0]!r}")
+                continue
+            known = _options_of(commands[name]) | {"--"}
+            for word in words[1:]:
+                option = word.strip("[]()|,.").split("=")[0]
+                if option.startswith("--") and option not in known:
+                    problems.append(f"{where}: {name} has no option {option}")
+    return problems
+
+
 @dataclass
 class PageResult:
     page: Path
@@ -359,6 +401,8 @@ def run_page(page: Path, *, markers: set[str] | None = None, update: bool = Fals
     except DocsError as exc:
         result.failures.append(str(exc))
         return result
+    fenced = {block.line + offset for block in blocks for offset in range(len(block.body) + 2)}
+    result.failures += check_inline(page, page.read_text(encoding="utf-8").splitlines(), fenced)
     with tempfile.TemporaryDirectory(prefix="bmg160-docs-") as name:
         scratch = Path(name)
         shutil.copytree(ROOT / "examples", scratch / "examples",
@@ -464,4 +508,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    try:
+        raise SystemExit(main())
+    except BrokenPipeError:  # `run_docs.py | head`: stop quietly, as Unix tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        raise SystemExit(141) from None
