@@ -128,7 +128,7 @@ def test_a_trace_onto_a_full_disk_is_a_one_line_error(tmp_path, capsys):
     # must not fail the driver's bus transactions), the error comes when the trace is closed
     full = tmp_path / "full.jsonl"
     full.symlink_to("/dev/full")
-    status = main(["script", str(_script(tmp_path)), "--trace", str(full), "-q"])
+    status = main(["script", str(_script(tmp_path)), "--trace", str(full), "-q", "--seed", "1"])
     err = capsys.readouterr().err
     assert status == 2 and err.count("\n") == 1 and "No space left on device" in err
     assert full.is_symlink()

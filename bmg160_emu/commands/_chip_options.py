@@ -1,24 +1,93 @@
 """Command-line options that build emulated chips, shared by every sub-command.
 
 ``add_chip_options(parser)`` adds the options; ``chips_from_args(args)`` turns them into
-``{address: BMG160}``, all chips sharing one clock so they stay in step; both go through
-:class:`~bmg160_emu.device.config.ChipConfig` (``configs_from_args``), as trace headers do.
+``{address: device}`` on the command's bus and ``buses_from_args(args, bus)`` into
+``{bus: {address: device}}``, every device sharing one clock so they stay in step; both go
+through :class:`~bmg160_emu.device.config.ChipConfig` and
+:class:`~bmg160_emu.device.standin.StandinConfig` (``configs_from_args``), as trace headers
+do. Without ``--seed`` a session's seed is chosen here, printed to stderr and carried by
+the chips (so records and traces name it), as ``generate`` does.
+
+Devices: ``--address`` places chips of ``--part`` (default bmg160); ``--device
+NAME@ADDRESS[:BUS]`` places one part or stand-in (docs/sessions.md).
 """
 
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
+import secrets
+import sys
+from dataclasses import dataclass
+from typing import Any
 
 from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.device.spec_choices import DEFAULT_ADDRESS, RANGE_CODE_BY_DPS, VALID_ADDRESSES
 
-if TYPE_CHECKING:  # the chip module is imported lazily to keep ``--help`` fast
-    from bmg160_emu.device.chip import BMG160
-
 RANGE = address_of("RANGE")  # --range is written here at start (spec 4.8)
 BW = address_of("BW")  # --bandwidth is written here at start (spec 5.3)
+
+
+I2C_ADDRESSES = range(0x03, 0x78)  # the 7-bit addresses i2cdetect scans (0x03..0x77)
+
+
+@dataclass(frozen=True)
+class DeviceOption:
+    """One ``--device NAME@ADDRESS[:BUS]``: a part name, or a stand-in (built-in or file)."""
+
+    text: str
+    address: int
+    bus: int | None
+    part: str | None = None
+    standin: Any = None  # a StandinSpec
+
+
+def device_option(text: str) -> DeviceOption:
+    """Parse ``NAME@ADDRESS[:BUS]``; a bad one is a usage error that quotes it."""
+    from bmg160_emu.device.parts import PART_NAMES
+
+    name, at, place = text.rpartition("@")
+    if not at or not name or not place:
+        raise argparse.ArgumentTypeError(f"{text}: give NAME@ADDRESS[:BUS], e.g. bmg160@0x68")
+    address_text, colon, bus_text = place.partition(":")
+    try:
+        address = int(address_text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text}: not an I2C address: {address_text!r}") from None
+    if address not in I2C_ADDRESSES:
+        raise argparse.ArgumentTypeError(f"{text}: I2C address must be 0x03..0x77, "
+                                         f"not 0x{address:02x}")
+    bus = None
+    if colon:
+        try:
+            bus = int(bus_text, 0)
+        except ValueError:
+            bus = -1
+        if bus < 0:
+            raise argparse.ArgumentTypeError(f"{text}: bus must be an integer >= 0, "
+                                             f"not {bus_text!r}")
+    if name in PART_NAMES:
+        if address not in VALID_ADDRESSES:
+            raise argparse.ArgumentTypeError(
+                f"{text}: a {name} answers at 0x68 or 0x69 only, not 0x{address:02x}")
+        return DeviceOption(text, address, bus, part=name)
+    from bmg160_emu.io.errors import FormatError
+    from bmg160_emu.io.standin_file import builtin_names, load_standin
+
+    looks_like_file = "/" in name or "." in name
+    if name not in builtin_names() and not looks_like_file:
+        raise argparse.ArgumentTypeError(
+            f"{text}: unknown device {name!r}: a part ({', '.join(PART_NAMES)}), a stand-in "
+            f"({', '.join(builtin_names())}) or a stand-in TOML or dump file")
+    try:
+        spec = load_standin(name)
+    except FormatError as exc:
+        raise argparse.ArgumentTypeError(f"{text}: {exc}") from None
+    if spec.addresses and address not in spec.addresses:
+        allowed = ", ".join(f"0x{a:02x}" for a in spec.addresses)
+        raise argparse.ArgumentTypeError(f"{text}: a {spec.name} answers at {allowed} only "
+                                         f"(its address pins), not 0x{address:02x}")
+    return DeviceOption(text, address, bus, standin=spec)
 
 
 def _address(text: str) -> int:
@@ -58,6 +127,8 @@ def _bandwidth_code(text: str) -> int:
 def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) -> None:
     """Add the options that describe the emulated chip(s) to ``parser``; ``realtime=False``
     where the command fixes the clock itself (an option that did nothing is not offered)."""
+    from bmg160_emu.device.parts import DEFAULT_PART, PART_NAMES
+
     group = parser.add_argument_group("emulated chip")
     group.add_argument("--seed", type=int, default=None, help="master noise seed (default: random)")
     group.add_argument("--profile", default="paper", help="noise profile name (default: paper)")
@@ -97,7 +168,19 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) 
         type=_address,
         action="append",
         default=None,
-        help="I2C address of a chip, 0x68 or 0x69; repeat for two chips (default 0x68)",
+        help="I2C address of a chip, 0x68 or 0x69; repeat for two chips (default 0x68 "
+             "unless --device is given)",
+    )
+    group.add_argument(
+        "--part", choices=PART_NAMES, default=DEFAULT_PART,
+        help=f"the part of the chips at --address (default {DEFAULT_PART})",
+    )
+    group.add_argument(
+        "--device", dest="devices", type=device_option, action="append", default=None,
+        metavar="NAME@ADDRESS[:BUS]",
+        help="one more device: a part or a stand-in (bmi088_accel, bma2x2_accel, bmm150, or "
+             "a stand-in TOML or dump file) at ADDRESS, on BUS (default: the command's bus); "
+             "repeatable (docs/sessions.md)",
     )
     group.add_argument(
         "--sensitivity",
@@ -123,20 +206,26 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) 
     )
 
 
-def configs_from_args(args: argparse.Namespace) -> list[ChipConfig]:
-    """One :class:`ChipConfig` per ``--address`` (default 0x68) from parsed options.
+def configs_from_args(args: argparse.Namespace) -> list[Any]:
+    """One :class:`ChipConfig` per ``--address`` (default 0x68 unless ``--device`` is given)
+    and one ChipConfig or StandinConfig per ``--device``, in that order.
 
     The chips of a session and the header of its trace are both made from these, so an
-    option given here reaches replay.
+    option given here reaches replay. Two devices at one address of one bus are refused.
     """
+    from bmg160_emu.device.standin import StandinConfig
+
     setup: list[tuple[int, bytes]] = []
     if getattr(args, "range_dps", None) is not None:
         setup.append((RANGE, bytes([RANGE_CODE_BY_DPS[args.range_dps]])))
     if getattr(args, "bandwidth", None) is not None:
         setup.append((BW, bytes([args.bandwidth])))
     rate = getattr(args, "true_rate", None)
-    return [
-        ChipConfig(
+    devices: list[DeviceOption] = list(getattr(args, "devices", None) or [])
+    addresses = getattr(args, "addresses", None) or ([] if devices else [DEFAULT_ADDRESS])
+
+    def gyro(address: int, part: str, bus: int | None) -> ChipConfig:
+        return ChipConfig(
             address=address,
             profile=getattr(args, "profile", "paper"),
             noise=not getattr(args, "no_noise", False),
@@ -146,23 +235,81 @@ def configs_from_args(args: argparse.Namespace) -> list[ChipConfig]:
             strict=getattr(args, "strict", False),
             true_rate_dps=None if rate is None else tuple(rate),
             setup_writes=list(setup),
+            part=part,
+            bus=bus,
         )
-        for address in dict.fromkeys(getattr(args, "addresses", None) or [DEFAULT_ADDRESS])
-    ]
 
-
-def chips_from_args(args: argparse.Namespace) -> dict[int, BMG160]:
-    """Build ``{address: BMG160}`` from parsed options; every chip shares one clock."""
-    from bmg160_emu.clock import RealTimeClock, VirtualClock
-
-    clock = RealTimeClock() if getattr(args, "realtime", False) else VirtualClock()
-    chips: dict[int, BMG160] = {}
-    for config in configs_from_args(args):
-        try:
-            chip = config.build(getattr(args, "seed", None), clock)
-        except (ValueError, KeyError, OSError) as exc:
+    part = getattr(args, "part", None) or "bmg160"
+    configs: list[Any] = [gyro(a, part, None) for a in dict.fromkeys(addresses)]
+    places: dict[tuple[int | None, int], str] = {
+        (None, c.address): f"--address 0x{c.address:02x}" for c in configs}
+    for device in devices:
+        where = (device.bus, device.address)
+        if where in places:
             from bmg160_emu.commands._common import CommandError
 
+            raise CommandError(f"--device {device.text}: {places[where]} is already at that "
+                               "address on that bus")
+        places[where] = f"--device {device.text}"
+        if device.part is not None:
+            configs.append(gyro(device.address, device.part, device.bus))
+        else:
+            configs.append(StandinConfig(device.standin, device.address, device.bus))
+    return configs
+
+
+def session_seed(args: argparse.Namespace) -> int | None:
+    """The session's master seed: ``--seed``, or one chosen now, printed to stderr and kept
+    in ``args`` (so the trace header and the record name it), as ``generate`` does."""
+    if not hasattr(args, "seed"):
+        return None
+    if args.seed is None:
+        args.seed = secrets.randbits(32)
+        command = getattr(args, "command", None) or "session"
+        print(f"bmg160-emu {command}: seed {args.seed} (random; --seed {args.seed} repeats it)",
+              file=sys.stderr)
+    elif args.seed < 0:
+        from bmg160_emu.commands._common import CommandError
+
+        raise CommandError(f"--seed must be a non-negative integer, not {args.seed}")
+    return int(args.seed)
+
+
+def buses_from_args(args: argparse.Namespace, bus: int | None) -> dict[int | None, dict[int, Any]]:
+    """Build ``{bus: {address: device}}`` from parsed options (devices without a bus go on
+    ``bus``); every device shares one clock."""
+    from bmg160_emu.clock import RealTimeClock, VirtualClock
+    from bmg160_emu.commands._common import CommandError
+
+    configs = configs_from_args(args)
+    seed = session_seed(args)
+    clock = RealTimeClock() if getattr(args, "realtime", False) else VirtualClock()
+    buses: dict[int | None, dict[int, Any]] = {}
+    for config in configs:
+        try:
+            device = config.build(seed, clock)
+        except (ValueError, KeyError, OSError) as exc:
             raise CommandError(str(exc)) from None
-        chips[config.address] = chip
-    return chips
+        number = bus if config.bus is None else config.bus
+        chips = buses.setdefault(number, {})
+        if config.address in chips:
+            raise CommandError(f"two devices at 0x{config.address:02x} on bus {number}")
+        chips[config.address] = device
+    return buses
+
+
+def chips_from_args(args: argparse.Namespace, default_bus: int | None = None) -> dict[int, Any]:
+    """Build ``{address: device}`` from parsed options, for commands with one bus (``--bus``,
+    else ``default_bus``); every device shares one clock. A device placed on another bus is
+    refused."""
+    bus = getattr(args, "bus", None)
+    if bus is None:
+        bus = default_bus
+    buses = buses_from_args(args, bus)
+    others = sorted(str(b) for b in buses if b != bus)
+    if others:
+        from bmg160_emu.commands._common import CommandError
+
+        raise CommandError(f"this command drives one bus: a --device on bus "
+                           f"{', '.join(others)} has nowhere to go (drop its :BUS)")
+    return buses.get(bus, {})  # BMG160 family chips and StandinDevices

@@ -24,7 +24,11 @@ examples:
   bmg160-emu dump --address 0x68 --address 0x69 --format i2cdump
   bmg160-emu dump --address 0x68 --address 0x69 --after two.script --chip 0x69
 
-The i2cdump format is byte for byte what `i2cdump -y -r 0x00-0x3f BUS 0x68 b` prints.
+  bmg160-emu dump --device bmm150@0x10 --chip 0x10 > bmm150.dump   # a stand-in: 0x00..0xff
+
+The i2cdump format is byte for byte what `i2cdump -y -r 0x00-0x3f BUS 0x68 b` prints; a
+stand-in (--device) is dumped whole, as `i2cdump -y BUS ADDRESS b` prints it, whatever
+--format says (json cannot hold one).
 With several --address options every chip is dumped, one block per address (json: a
 list); --chip dumps one of them (for i2c-stub-from-dump, which loads one chip per file).
 The dump reads no register through the bus: it has no read side effects (FIFO, shadowing).
@@ -59,13 +63,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.io.dump import RegisterDump, format_dumps
+    from bmg160_emu.io.dump import DUMP_TITLE, RegisterDump, format_dumps, format_i2cdump
 
     chips = chips_from_args(args)
     if args.chip is not None and args.chip not in chips:
         emulated = ", ".join(f"0x{a:02x}" for a in chips)
         raise CommandError(f"--chip 0x{args.chip:02x} is not an emulated chip ({emulated}); "
-                           "add it with --address")
+                           "add it with --address or --device")
+    chosen = {a: c for a, c in chips.items() if args.chip is None or a == args.chip}
+    standins = {a: c for a, c in chosen.items() if hasattr(c, "spec")}
+    if standins and args.format == "json":
+        raise CommandError("--format json holds BMG160-family registers; a stand-in dumps as "
+                           "i2cdump only (give --format i2cdump, or --chip for a gyro)")
     if args.after is not None:
 
         def log(line: str) -> None:
@@ -74,13 +83,25 @@ def run(args: argparse.Namespace) -> int:
         if run_script_file(args.after, chips, log, "script failed: "):
             return 1
     dumps = []
-    for address, each in chips.items():
-        if args.chip is not None and address != args.chip:
+    for address, each in chosen.items():
+        if address in standins:
             continue
         dump = RegisterDump.from_chip(each)
         dump.metadata["sensitivity"] = getattr(args, "sensitivity", None)
         dumps.append(dump)
-    text = format_dumps(dumps, args.format)
+    blocks = [format_dumps(dumps, args.format)] if dumps else []
+    if len(dumps) == 1 and standins and args.format == "i2cdump":  # title it, as for several
+        only = dumps[0]
+        blocks[0] = f"{DUMP_TITLE}  address=0x{only.address:02x}  t={only.time_s:.9f} s\n" + blocks[0]
+    for address, device in standins.items():
+        with device.lock:
+            table = format_i2cdump(device.dump())
+        if len(chosen) == 1:  # one chip: exactly what i2cdump prints (for i2c-stub-from-dump)
+            blocks.append(table)
+        else:
+            blocks.append(f"{DUMP_TITLE}  address=0x{address:02x}  stand-in={device.name}\n"
+                          + table)
+    text = "\n".join(blocks)
     if args.output is not None:
         try:
             args.output.write_text(text, encoding="utf-8")

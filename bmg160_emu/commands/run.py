@@ -5,14 +5,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-import secrets
 import shutil
 import signal
 import subprocess
 import sys
 from typing import Any
 
-from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+from bmg160_emu.commands._chip_options import add_chip_options, buses_from_args
 from bmg160_emu.commands._common import add_bus_option, add_command_parser, add_file_option
 
 EPILOG = """\
@@ -20,6 +19,8 @@ examples:
   bmg160-emu run -- i2cget -y 1 0x68 0x00          # prints 0x0f
   bmg160-emu run --bus 3 --seed 7 -- python3 my_driver.py
   bmg160-emu run --address 0x68 --address 0x69 -- i2cdetect -y -r 1
+  bmg160-emu run --part bmi088_gyro --address 0x69 --device bmi088_accel@0x19 -- ./probe
+  bmg160-emu run --device bmg160@0x68 --device bmm150@0x10:2 -- i2cdetect -y 2
   bmg160-emu run --seed 7 --trace session.jsonl -- i2cdump -y 1 0x68 i
   bmg160-emu trace session.jsonl                    # the session, register by register
 
@@ -89,21 +90,23 @@ def run(args: argparse.Namespace) -> int:
             f"/dev/i2c-{args.bus} will not reach the emulator",
             file=sys.stderr,
         )
-    if args.trace is not None and args.seed is None:
-        args.seed = secrets.randbits(32)  # a trace always names the seed of its chips
     # An unmodified program lives in real time. The chips are built and set up at t = 0 of
     # a virtual clock, as a trace replay builds them, then run on real time from 0 on: built
     # on a running clock they would start sampling wherever their construction ended
     # (~15 ms each), and a replay of the session would sample at other instants.
     args.realtime = False
-    chips = chips_from_args(args)
+    placed: dict[Any, Any] = buses_from_args(args, args.bus)  # {bus: {address: device}}; --device ...:BUS
     clock = RequestClock()
-    for chip in chips.values():
-        with chip.lock:
-            chip.clock = clock
-    bus = I2CBus(args.bus, chips)
+    chips: dict[int, Any] = {}  # the gyros, for --watch
+    for on_bus in placed.values():
+        for address, chip in on_bus.items():
+            with chip.lock:
+                chip.clock = clock
+            if not hasattr(chip, "spec"):  # a stand-in has no rate to watch
+                chips.setdefault(address, chip)
+    buses = [I2CBus(number, on_bus) for number, on_bus in sorted(placed.items())]
     try:
-        devices = VirtualI2CDevices([bus])
+        devices = VirtualI2CDevices(buses)
     except UMockdevUnavailable as exc:
         raise CommandError(str(exc)) from None
     log_file = None
@@ -112,14 +115,15 @@ def run(args: argparse.Namespace) -> int:
             log_file = args.log.open("w", encoding="utf-8")
         except OSError as exc:
             raise CommandError(f"cannot write {args.log}: {exc.strerror}") from None
-    writer = _trace_writer(args, bus)
+    writer = _trace_writer(args, buses)
     try:
         with devices, contextlib.ExitStack() as watching:
             if args.watch:  # a live view (commands/watch.py); the program runs unchanged
                 from bmg160_emu.watch.session import WatchError, watched
 
                 try:
-                    watching.enter_context(watched(chips, [bus.log], f"run {program[0]}"))
+                    watching.enter_context(
+                        watched(chips, [b.log for b in buses], f"run {program[0]}"))
                 except (WatchError, OSError) as exc:
                     raise CommandError(f"--watch: {exc}") from None
             status = _run_program(devices, program)
@@ -128,7 +132,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if log_file is not None:
             with log_file:
-                log_file.write(str(bus.log) + os.linesep)
+                for bus in buses:
+                    log_file.write(str(bus.log) + os.linesep)
         if writer is not None:
             try:
                 writer.close()  # the transactions so far, also when stopped
@@ -137,8 +142,8 @@ def run(args: argparse.Namespace) -> int:
     return 128 - status if status < 0 else status
 
 
-def _trace_writer(args: argparse.Namespace, bus: Any) -> Any:
-    """A TraceWriter fed by the bus's log (None without --trace)."""
+def _trace_writer(args: argparse.Namespace, buses: list[Any]) -> Any:
+    """A TraceWriter fed by every bus's log (None without --trace)."""
     if args.trace is None:
         return None
     from bmg160_emu.commands._common import CommandError
@@ -149,7 +154,8 @@ def _trace_writer(args: argparse.Namespace, bus: Any) -> Any:
         writer = TraceWriter(args.trace, header_from_chip_args(args))
     except OSError as exc:
         raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
-    bus.log.sinks.append(writer)
+    for bus in buses:
+        bus.log.sinks.append(writer)
     return writer
 
 

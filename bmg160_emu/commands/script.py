@@ -15,6 +15,7 @@ examples:
   bmg160-emu script bringup.script --seed 7
   bmg160-emu script regression.script --range 500 --trace session.jsonl --quiet
   bmg160-emu script bringup.script --spi --seed 7       # the same session over SPI
+  bmg160-emu script bmx055.script --device bmx055_gyro@0x68 --device bma2x2_accel@0x18
 
 A script is one statement per line (docs/script-format.md):
   read CHIP_ID == 0x0F
@@ -29,6 +30,9 @@ Mistakes in the script are all reported with line and column before anything run
 decoded difference (exit 1). Register accesses go through an emulated I2C bus 1, or
 with --spi through SPI frames on a FakeSpiDev (spec 2.2).
 """
+
+
+SCRIPT_BUS = 1  # the emulated bus a script's accesses go through
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -81,15 +85,16 @@ def run(args: argparse.Namespace) -> int:
         ) from None
     if args.trace is not None and getattr(args, "realtime", False):
         raise CommandError("--trace needs virtual time (a real-time session cannot be replayed)")
-    if args.trace is not None and args.seed is None:
-        import secrets
-
-        args.seed = secrets.randbits(32)  # a trace names the seed of its chips, or replay diverges
-    if args.spi and len(set(args.addresses or [0x68])) > 1:
-        raise CommandError("--spi drives one chip (one chip select): give --address once")
-    chips = chips_from_args(args)
-    chip = next(iter(chips.values()))
-    i2c_bus = I2CBus(1, chips)
+    if args.spi and len(set(args.addresses or [])) + len(args.devices or []) > 1:
+        raise CommandError("--spi drives one chip (one chip select): give --address or "
+                           "--device once")
+    chips = chips_from_args(args, default_bus=SCRIPT_BUS)
+    chip = next((c for c in chips.values() if not hasattr(c, "spec")), None)
+    if chip is None:
+        raise CommandError("a script drives a gyro part: give --address or --device "
+                           "PART@ADDRESS besides the stand-ins")
+    chips = {chip.address: chip, **chips}  # the script's default chip is the first gyro
+    i2c_bus = I2CBus(SCRIPT_BUS, chips)
     bus: I2CBus | None = i2c_bus
     if args.spi:
         from bmg160_emu.bus.spi import FakeSpiDev

@@ -20,6 +20,8 @@ examples (as root, on a machine or VM that can load modules):
   modprobe i2c-stub chip_addr=0x68 && modprobe i2c-dev
   bmg160-emu stub --bus 0 --address 0x68 --seed 7 &
   echo bmg160 0x68 > /sys/bus/i2c/devices/i2c-0/new_device
+  (a BMI088 gyro: bmg160-emu stub --bus 0 --device bmi088_gyro@0x68, then
+   echo bmi088_gyro 0x68 > .../new_device)
   cat /sys/bus/iio/devices/iio:device0/in_anglvel_x_raw
   bmg160-emu stub --bus 0 --seed 7 --true-rate 20 -10 5 --duration 30s --stats stats.json
   bmg160-emu stub --bus 0 --seed 7 --ready-file /run/bmg160.ready &   # scripts wait for it
@@ -73,9 +75,21 @@ def run(args: argparse.Namespace) -> int:
     )
     from bmg160_emu.commands._common import CommandError
 
-    addresses = list(dict.fromkeys(args.addresses or [0x68]))
+    devices = list(args.devices or [])
+    for device in devices:
+        if device.standin is not None:
+            raise CommandError(
+                f"--device {device.text}: stub keeps a gyro in step with i2c-stub; a stand-in "
+                "has nothing to keep in step: load its registers into i2c-stub once with "
+                f"`bmg160-emu dump --device {device.text.partition(':')[0]} --format i2cdump` "
+                "and i2c-stub-from-dump")
+        if device.bus is not None and device.bus != args.bus:
+            raise CommandError(f"--device {device.text}: stub serves bus {args.bus} only")
+    addresses = list(dict.fromkeys(args.addresses or ([] if devices else [0x68])))
+    addresses += [d.address for d in devices]
     if len(addresses) != 1:
-        raise CommandError("stub serves one chip address per process: give --address once")
+        raise CommandError("stub serves one chip address per process: give --address or "
+                           "--device once")
     address = addresses[0]
     try:
         check_stub_bus(args.bus, address)
@@ -88,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise CommandError(f"cannot write {args.stats}: {exc.strerror}") from None
     args.realtime = True  # a kernel driver lives in real time
-    chip = chips_from_args(args)[address]
+    chip = chips_from_args(args)[address]  # --part or the --device part
     try:
         adapter = I2CStubAdapter(chip, args.bus, address)
         if args.max_refresh_hz is not None:

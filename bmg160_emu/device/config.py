@@ -21,6 +21,9 @@ from bmg160_emu.device import spec_choices as choice
 ALWAYS_WRITTEN = ("address", "profile", "noise", "noise_mode", "sensitivity", "temperature_c")
 SESSION_OPTIONS = ("seed", "clock")  # BMG160 options a config leaves to the session
 START_STATE = ("true_rate_dps", "setup_writes")  # not constructor options
+PLACEMENT = ("part", "bus")  # which part, on which bus: not constructor options either
+NOT_SETTINGS = START_STATE + PLACEMENT
+DEFAULT_PART = "bmg160"  # device.parts.DEFAULT_PART (not imported: it imports the chip model)
 
 
 @dataclass
@@ -47,12 +50,14 @@ class ChipConfig:
     acceleration_g: Any = (0.0, 0.0, 0.0)  # g in the chip's frame, or a function of time
     true_rate_dps: tuple[float, ...] | None = None  # x, y, z deg/s, set after construction
     setup_writes: list[tuple[int, bytes]] = field(default_factory=list)  # written at start
+    part: str = DEFAULT_PART  # a device.parts.PART_NAMES entry
+    bus: int | None = None  # the I2C bus number, None: the command's own bus
 
     def chip_options(self) -> dict[str, Any]:
         """The BMG160 keyword arguments (defaults left out, so the chip's own apply)."""
         options: dict[str, Any] = {}
         for f in fields(self):
-            if f.name in START_STATE:
+            if f.name in NOT_SETTINGS:
                 continue
             value = getattr(self, f.name)
             if f.name in ALWAYS_WRITTEN or not _is_default(f.name, value):
@@ -60,10 +65,11 @@ class ChipConfig:
         return options
 
     def build(self, seed: int | None = None, clock: Any = None) -> Any:
-        """A chip with these options, then its start-up state (true rate, register writes)."""
-        from bmg160_emu.device.chip import BMG160
+        """A chip of this part with these options, then its start-up state (true rate,
+        register writes)."""
+        from bmg160_emu.device.parts import make_chip
 
-        chip = BMG160(seed, clock=clock, **self.chip_options())
+        chip = make_chip(self.part, seed=seed, clock=clock, **self.chip_options())
         if self.true_rate_dps is not None:
             chip.set_true_rate(tuple(self.true_rate_dps))
         for register, data in self.setup_writes:
@@ -83,6 +89,10 @@ class ChipConfig:
         writes = [[int(reg), list(bytes(data))] for reg, data in self.setup_writes]
         if writes:
             entry["setup_writes"] = writes
+        if self.part != DEFAULT_PART:
+            entry["part"] = self.part
+        if self.bus is not None:
+            entry["bus"] = int(self.bus)
         return entry
 
     @classmethod
@@ -96,8 +106,15 @@ class ChipConfig:
             settings["nvm_image"] = bytes(settings["nvm_image"])
         rate = entry.get("true_rate_dps")
         writes = [(int(reg), bytes(data)) for reg, data in entry.get("setup_writes", [])]
+        part = entry.get("part", DEFAULT_PART)
+        from bmg160_emu.device.parts import PART_NAMES
+
+        if part not in PART_NAMES:
+            raise ValueError(f"the trace's chip is a {part!r}, a part this version does not "
+                             f"know (known: {', '.join(PART_NAMES)})")
+        bus = entry.get("bus")
         return cls(**settings, true_rate_dps=None if rate is None else tuple(rate),
-                   setup_writes=writes)
+                   setup_writes=writes, part=part, bus=None if bus is None else int(bus))
 
     @classmethod
     def from_settings(cls, settings: dict[str, Any] | None = None,
@@ -137,7 +154,7 @@ def _is_default(name: str, value: Any) -> bool:
 
 
 _DEFAULTS: dict[str, Any] = {
-    f.name: f.default for f in fields(ChipConfig) if f.name not in START_STATE
+    f.name: f.default for f in fields(ChipConfig) if f.name not in NOT_SETTINGS
 }
 # Every option a trace header may carry (the functions of time are refused when written).
 SETTING_KEYS: tuple[str, ...] = tuple(_DEFAULTS)

@@ -115,13 +115,10 @@ def format_i2cdump(values: Sequence[int | None], first: int = 0x00, last: int | 
 _I2CDUMP_ROW = re.compile(r"^([0-9a-fA-F]{2}): ((?:(?:[0-9a-fA-F]{2}|XX| {2}) ){16})")
 
 
-def parse_i2cdump(text: str, source: str = "<dump>") -> bytes:
-    """Read an i2cdump byte-mode listing back into 64 register values.
-
-    Rows above 0x30 (a full 256-register dump) are accepted and ignored; every register
-    0x00..0x3F must be present and readable.
-    """
-    found: dict[int, int] = {}
+def i2cdump_cells(text: str, source: str = "<dump>") -> dict[int, int | None]:
+    """Every cell of an i2cdump byte-mode listing, 0x00..0xFF: register -> value, or None
+    for a cell printed ``XX`` (a failed read); blank cells are left out."""
+    found: dict[int, int | None] = {}
     for lineno, line in enumerate(text.splitlines(), 1):
         if not line.strip() or line.startswith(I2CDUMP_HEADER.rstrip()[:10]):
             continue
@@ -138,15 +135,23 @@ def parse_i2cdump(text: str, source: str = "<dump>") -> bytes:
             reg = row + i
             if cell == "  ":
                 continue
-            if cell == "XX":
-                if reg < REGISTER_COUNT:
-                    raise DumpFormatError(
-                        f"{source}:{lineno}: register 0x{reg:02x} was unreadable (XX)"
-                    )
-                continue
             if reg in found:
                 raise DumpFormatError(f"{source}:{lineno}: register 0x{reg:02x} appears twice")
-            found[reg] = int(cell, 16)
+            found[reg] = None if cell == "XX" else int(cell, 16)
+    return found
+
+
+def parse_i2cdump(text: str, source: str = "<dump>") -> bytes:
+    """Read an i2cdump byte-mode listing back into 64 register values.
+
+    Rows above 0x30 (a full 256-register dump) are accepted and ignored; every register
+    0x00..0x3F must be present and readable.
+    """
+    found = i2cdump_cells(text, source)
+    unreadable = [reg for reg in range(REGISTER_COUNT) if reg in found and found[reg] is None]
+    if unreadable:
+        line = _line_of_row(text, unreadable[0] // 16 * 16)
+        raise DumpFormatError(f"{source}:{line}: register 0x{unreadable[0]:02x} was unreadable (XX)")
     missing = [reg for reg in range(REGISTER_COUNT) if reg not in found]
     if missing:
         raise DumpFormatError(
@@ -154,7 +159,14 @@ def parse_i2cdump(text: str, source: str = "<dump>") -> bytes:
             + ", ".join(f"0x{reg:02x}" for reg in missing[:8])
             + (" ..." if len(missing) > 8 else "")
         )
-    return bytes(found[reg] for reg in range(REGISTER_COUNT))
+    return bytes(found[reg] or 0 for reg in range(REGISTER_COUNT))
+
+
+def _line_of_row(text: str, row: int) -> int:
+    for lineno, line in enumerate(text.splitlines(), 1):
+        if line[:3].lower() == f"{row:02x}:":
+            return lineno
+    return 0
 
 
 # --------------------------------------------------------------------------- json

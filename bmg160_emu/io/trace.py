@@ -129,22 +129,40 @@ class TraceHeader:
             entry["setup_writes"] = writes
         self.chips.append(entry)
 
-    def add_config(self, config: ChipConfig) -> None:
-        """Describe one chip by its config: every option it sets is carried to replay."""
+    def add_config(self, config: Any) -> None:
+        """Describe one device by its config (a ChipConfig, or a StandinConfig whose whole
+        declaration is written): every option it sets is carried to replay."""
         self.chips.append(config.to_dict())
 
-    def configs(self) -> list[ChipConfig]:
-        """The chips the header describes (one default chip when it describes none)."""
-        return [ChipConfig.from_dict(entry) for entry in self.chips or [{"settings": {}}]]
+    def configs(self) -> list[Any]:
+        """The devices the header describes (one default chip when it describes none):
+        ChipConfig for the parts, StandinConfig for the stand-ins."""
+        from bmg160_emu.device.standin import StandinConfig
+        from bmg160_emu.io.standin_file import spec_from_dict
+
+        configs: list[Any] = []
+        for i, entry in enumerate(self.chips or [{"settings": {}}]):
+            if "standin" in entry:
+                spec = spec_from_dict(entry["standin"], f"header chips[{i}].standin")
+                configs.append(StandinConfig(spec, int(entry["address"]), entry.get("bus")))
+            else:
+                configs.append(ChipConfig.from_dict(entry))
+        return configs
 
     def build_chips(self) -> dict[int, Any]:
-        """Fresh chips as the header describes them, sharing one VirtualClock at t = 0."""
+        """Fresh devices as the header describes them, sharing one VirtualClock at t = 0,
+        by address (replay drives every bus of the session on these; two devices at one
+        address on two buses cannot be told apart and are refused)."""
         from bmg160_emu.clock import VirtualClock
 
         clock = VirtualClock()
         chips: dict[int, Any] = {}
         for config in self.configs():
             chip = config.build(self.seed, clock)
+            if chip.address in chips:
+                raise TraceFormatError(
+                    f"the session had two devices at 0x{chip.address:02x} (on two buses): "
+                    "replay tells devices apart by address and cannot rebuild it")
             chips[chip.address] = chip
         return chips
 
@@ -311,6 +329,20 @@ def _check_header(obj: dict, where: str) -> None:
             raise TraceFormatError(f"{where}: header chips[{i}] must be an object")
         if not isinstance(chip.get("settings", {}), dict):
             raise TraceFormatError(f"{where}: header chips[{i}].settings must be an object")
+        if "part" in chip and not isinstance(chip["part"], str):
+            raise TraceFormatError(f"{where}: header chips[{i}].part must be a part name")
+        if "bus" in chip and not _integer(chip["bus"], 0, 2**31 - 1):
+            raise TraceFormatError(f"{where}: header chips[{i}].bus must be a bus number")
+        if "standin" in chip:
+            if not isinstance(chip["standin"], dict) or not _integer(chip.get("address"), 0, 0x7F):
+                raise TraceFormatError(f"{where}: header chips[{i}] is a stand-in: it needs its "
+                                       "declaration (an object) and an 'address' 0..0x7F")
+            from bmg160_emu.io.standin_file import spec_from_dict
+
+            try:
+                spec_from_dict(chip["standin"], f"{where}: header chips[{i}].standin")
+            except FormatError as exc:
+                raise TraceFormatError(str(exc)) from None
         rate = chip.get("true_rate_dps")
         if rate is not None and not (isinstance(rate, list) and len(rate) == 3 and all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in rate)):

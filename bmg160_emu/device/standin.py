@@ -1,0 +1,256 @@
+"""Register-file stand-ins: companion chips (accelerometers, magnetometers) as registers only.
+
+A driver for a BMX055 or BMI088 board probes the accelerometer and magnetometer next to the
+gyroscope before it reads anything: chip ID, soft reset, power bits, configuration writes
+read back. A stand-in answers exactly that: a chip ID, reset values, read-only bits,
+write masks, a soft-reset command, a power gate (the BMM150 answers nothing but its power
+register until its power bit is set), auto-increment, and plain storage for everything
+else. It holds registers and produces no motion data: its data registers keep their reset
+values whatever is done to it, and no time-dependent behaviour (start-up delays, data
+ready, FIFO filling) is modelled.
+
+The declaration is data (:class:`StandinSpec`), read from a small TOML or a register dump
+by :mod:`bmg160_emu.io.standin_file`; this module knows no file. The device offers the chip
+primitives of :class:`~bmg160_emu.device.contract.RegisterDevice`, so I2CBus, FakeSMBus,
+``bmg160-emu run`` and trace replay take it like a chip.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from bmg160_emu.device import contract
+
+REGISTER_SPACE = 0x100  # an 8-bit register pointer: 0x00..0xFF
+
+
+@dataclass(frozen=True)
+class StandinRegister:
+    """One declared register: its reset value, the bits a write changes (``writable``; 0
+    for a read-only register) and whether it reads back at all (a command register does
+    not: ``write_only`` reads 0x00)."""
+
+    reset: int = 0x00
+    writable: int = 0xFF
+    write_only: bool = False
+    name: str = ""
+
+
+@dataclass(frozen=True)
+class SoftReset:
+    """A write of ``value`` (the bits in ``mask``) to ``register`` resets every register
+    to its reset value except those in ``keeps``; the command bits themselves read 0."""
+
+    register: int
+    value: int
+    mask: int = 0xFF
+    keeps: tuple[int, ...] = ()
+
+    def triggered_by(self, value: int) -> bool:
+        return value & self.mask == self.value & self.mask
+
+
+@dataclass(frozen=True)
+class PowerGate:
+    """While ``register & mask`` is 0 (the chip is suspended), every register but those in
+    ``open`` reads ``closed_value`` and ignores writes."""
+
+    register: int
+    mask: int
+    open: tuple[int, ...] = ()
+    closed_value: int = 0x00
+
+    def is_open(self, regs: bytearray) -> bool:
+        return bool(regs[self.register] & self.mask)
+
+
+@dataclass(frozen=True)
+class StandinSpec:
+    """A stand-in's declaration: what it answers at which addresses."""
+
+    name: str
+    chip_id_register: int
+    chip_id: int
+    addresses: tuple[int, ...]  # where the chip can answer (its address pins); () : anywhere
+    registers: Mapping[int, StandinRegister]
+    description: str = ""
+    absent_value: int = 0x00  # what a register not declared reads (writes to it are ignored)
+    no_increment: tuple[int, ...] = ()  # FIFO data registers: the pointer stays on them
+    soft_reset: SoftReset | None = None
+    power_gate: PowerGate | None = None
+    source: str = ""  # where the declaration came from (a file, a built-in name)
+
+    def reset_image(self) -> bytearray:
+        regs = bytearray([self.absent_value]) * REGISTER_SPACE
+        for reg, spec in self.registers.items():
+            regs[reg] = spec.reset
+        return regs
+
+    def to_dict(self) -> dict[str, Any]:
+        """The declaration as plain data (the TOML layout; what a trace header carries)."""
+        document: dict[str, Any] = {
+            "name": self.name,
+            "description": self.description,
+            "chip_id_register": self.chip_id_register,
+            "chip_id": self.chip_id,
+            "addresses": list(self.addresses),
+            "absent_value": self.absent_value,
+            "no_increment": list(self.no_increment),
+        }
+        if self.soft_reset is not None:
+            s = self.soft_reset
+            document["soft_reset"] = {"register": s.register, "value": s.value,
+                                      "mask": s.mask, "keeps": list(s.keeps)}
+        if self.power_gate is not None:
+            g = self.power_gate
+            document["power_gate"] = {"register": g.register, "mask": g.mask,
+                                      "open": list(g.open), "closed_value": g.closed_value}
+        document["registers"] = {
+            f"0x{reg:02X}": {"name": r.name, "reset": r.reset, "writable": r.writable,
+                             "write_only": r.write_only}
+            for reg, r in sorted(self.registers.items())
+        }
+        return document
+
+
+class StandinDevice:
+    """A register file that answers like the declared chip (no motion data, no timing).
+
+    ``clock`` is the session's clock (shared with the gyros, so ``time`` agrees with
+    theirs); without one the device keeps its own virtual time.
+    """
+
+    def __init__(self, spec: StandinSpec, address: int | None = None, clock: Any = None) -> None:
+        if address is None:
+            if not spec.addresses:
+                raise ValueError(f"stand-in {spec.name!r} declares no address: give one")
+            address = spec.addresses[0]
+        self.spec = spec
+        self.name = spec.name
+        self.address = address
+        self.clock = clock
+        self.lock = threading.RLock()
+        self._own_time_s = 0.0
+        self.regs = spec.reset_image()
+        self.pointer = 0
+
+    # ----------------------------------------------------------------- time
+
+    @property
+    def time(self) -> float:
+        return self.clock.now() if self.clock is not None else self._own_time_s
+
+    def advance(self, seconds: float) -> None:
+        ns = contract.duration_ns(seconds)
+        if self.clock is not None:
+            self.clock.advance_ns(ns)
+        else:
+            self._own_time_s += ns / 1e9
+
+    # ----------------------------------------------------------------- registers
+
+    def _readable(self, reg: int) -> bool:
+        gate = self.spec.power_gate
+        return gate is None or reg == gate.register or reg in gate.open or gate.is_open(self.regs)
+
+    def _value(self, reg: int) -> int:
+        if not self._readable(reg):
+            return self.spec.power_gate.closed_value  # type: ignore[union-attr]
+        declared = self.spec.registers.get(reg)
+        if declared is not None and declared.write_only:
+            return 0x00
+        return self.regs[reg]
+
+    def _store(self, reg: int, value: int) -> None:
+        declared = self.spec.registers.get(reg)
+        if declared is None or not self._readable(reg):
+            return  # not in the map, or the chip is suspended: the write is ignored
+        reset = self.spec.soft_reset
+        if reset is not None and reg == reset.register and reset.triggered_by(value):
+            kept = {r: self.regs[r] for r in reset.keeps}
+            self.regs[:] = self.spec.reset_image()
+            for r, v in kept.items():
+                self.regs[r] = v
+            if reg in reset.keeps:  # the rest of the written byte applies; the command bits clear
+                value &= ~reset.mask
+                self.regs[reg] = (self.regs[reg] & ~declared.writable) | (value & declared.writable)
+            return
+        self.regs[reg] = (self.regs[reg] & ~declared.writable & 0xFF) | (value & declared.writable)
+
+    def _next(self, reg: int) -> int:
+        return reg if reg in self.spec.no_increment else (reg + 1) % REGISTER_SPACE
+
+    def read(self, reg: int, n: int) -> bytes:
+        reg, n = contract.check_register(reg), contract.check_count(n)
+        with self.lock:
+            out = bytearray()
+            for _ in range(n):
+                out.append(self._value(reg))
+                reg = self._next(reg)
+            self.pointer = reg
+            return bytes(out)
+
+    def write(self, reg: int, data: bytes) -> None:
+        reg, data = contract.check_register(reg), contract.check_data(data)
+        with self.lock:
+            for value in data:
+                self._store(reg, value)
+                reg = self._next(reg)
+            self.pointer = reg
+
+    def i2c_write(self, data: bytes) -> None:
+        data = contract.check_data(data)
+        if not data:
+            return
+        with self.lock:
+            self.pointer = data[0]
+            if len(data) > 1:
+                self.write(data[0], data[1:])
+
+    def i2c_read(self, n: int) -> bytes:
+        with self.lock:
+            return self.read(self.pointer, n)
+
+    def peek(self, reg: int) -> int:
+        """A register as a read would give it, without moving the pointer."""
+        reg = contract.check_register(reg)
+        with self.lock:
+            return self._value(reg)
+
+    def dump(self) -> bytes:
+        """All 256 registers as reads would give them (no side effects)."""
+        with self.lock:
+            return bytes(self._value(reg) for reg in range(REGISTER_SPACE))
+
+    def reset(self) -> None:
+        """Power-on reset: every register back to its reset value."""
+        with self.lock:
+            self.regs[:] = self.spec.reset_image()
+            self.pointer = 0
+
+    def __repr__(self) -> str:
+        return f"StandinDevice({self.name!r}, address=0x{self.address:02x})"
+
+
+@dataclass
+class StandinConfig:
+    """One stand-in of a session: its declaration, address and bus (None: the command's)."""
+
+    spec: StandinSpec
+    address: int
+    bus: int | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def build(self, seed: int | None = None, clock: Any = None) -> StandinDevice:
+        """The device (``seed`` is accepted and unused: a stand-in has no noise)."""
+        return StandinDevice(self.spec, self.address, clock)
+
+    def to_dict(self) -> dict[str, Any]:
+        """A trace header entry: the whole declaration, so replay needs no file."""
+        entry: dict[str, Any] = {"standin": self.spec.to_dict(), "address": self.address}
+        if self.bus is not None:
+            entry["bus"] = self.bus
+        return entry
