@@ -81,8 +81,14 @@ class GyroSpec:
     unit: Any = None  # k: unit k of lot ``lot``; "per-run": a new unit of the lot every run
     lot: int = 0  # the production lot's seed (device.unit_population.draw_unit)
     acceleration_g: Any = (0.0, 0.0, 0.0)  # g in the sensor frame (g-sensitivity)
+    part: str = "bmg160"  # a device.parts.PART_NAMES entry
 
     def __post_init__(self) -> None:
+        from bmg160_emu.device.parts import PART_NAMES
+
+        if self.part not in PART_NAMES:
+            raise ScenarioError(f"{self.name}: part must be one of {', '.join(PART_NAMES)}, "
+                                f"not {self.part!r}")
         if not _is_whole(self.address) or self.address not in VALID_ADDRESSES:
             shown = f"0x{self.address:02x}" if _is_whole(self.address) else repr(self.address)
             raise ScenarioError(f"{self.name}: address must be 0x68 or 0x69 (the BMG160 answers "
@@ -149,6 +155,43 @@ def gyro_spec_from_dict(entry: dict[str, Any], index: int) -> GyroSpec:
         raise ScenarioError(f"gyro {index + 1}: unknown keys {sorted(unknown)}")
     entry = {"name": f"gyro{index}", **entry}
     return GyroSpec(**entry)
+
+
+_DEVICE_KEYS = {"name", "address", "bus"}
+
+
+def standin_from_dict(entry: dict[str, Any], index: int, base: Any = None) -> Any:
+    """A stand-in from its ``[[device]]`` table: ``name`` (a built-in stand-in, or a TOML or
+    dump path, relative to the scenario file), ``address`` and ``bus`` (default 1)."""
+    from pathlib import Path
+
+    from bmg160_emu.device.standin import StandinConfig
+    from bmg160_emu.io.errors import FormatError
+    from bmg160_emu.io.standin_file import builtin_names, load_standin
+
+    where = f"device {index + 1}"
+    unknown = set(entry) - _DEVICE_KEYS
+    if unknown:
+        raise ScenarioError(f"{where}: unknown keys {sorted(unknown)} (known: address, bus, name)")
+    name, address, bus = entry.get("name"), entry.get("address"), entry.get("bus", 1)
+    if not isinstance(name, str) or not name:
+        raise ScenarioError(f"{where}: name must be a stand-in ({', '.join(builtin_names())}) "
+                            "or the path of a stand-in TOML or dump")
+    if not _is_whole(address) or not 0x03 <= address <= 0x77:
+        raise ScenarioError(f"{where}: address must be an I2C address 0x03..0x77, not {address!r}")
+    if not _is_whole(bus) or bus < 0:
+        raise ScenarioError(f"{where}: bus must be a whole number >= 0, not {bus!r}")
+    if name not in builtin_names() and base is not None and not Path(name).is_absolute():
+        name = str(Path(base) / name)
+    try:
+        spec = load_standin(name)
+    except FormatError as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+    if spec.addresses and address not in spec.addresses:
+        raise ScenarioError(f"{where}: a {spec.name} answers at "
+                            f"{', '.join(f'0x{a:02x}' for a in spec.addresses)} only, "
+                            f"not 0x{address:02x}")
+    return StandinConfig(spec, int(address), int(bus))
 
 
 @dataclass
@@ -248,6 +291,20 @@ class GyroRig:
             fault_seed = int(children[-1].generate_state(1, dtype=np.uint64)[0])
             self.faults = FaultSchedule(fault_list, seed=fault_seed)
         self.faults.install(self.gyros)
+        base = None if scenario.source is None else scenario.source.parent
+        self.standins: list[Any] = []  # the [[device]] stand-ins, on the gyros' buses
+        for index, entry in enumerate(scenario.devices):
+            config = standin_from_dict(entry, index, base)
+            if (config.bus, config.address) in places:
+                raise ScenarioError(f"device {index + 1}: bus {config.bus} already has a device "
+                                    f"at 0x{config.address:02x}")
+            places.append((config.bus, config.address))
+            device = config.build(clock=self.clock)
+            bus = self.buses.get(config.bus)
+            if bus is None:
+                bus = self.buses[config.bus] = I2CBus(config.bus)
+            bus.attach(config.address, device)
+            self.standins.append(device)
 
     def _truth_hook(self, index: int):
         times, rates = self._times[index], self._rates[index]
@@ -340,6 +397,7 @@ def chip_config(spec: GyroSpec, rig_seed: int = 0) -> ChipConfig:
         mounting=None if np.allclose(spec.mounting, np.eye(3)) else spec.mounting,
         scale_factor=spec.scale_factor_error if np.any(spec.scale_factor_error) else None,
         misalignment=spec.misalignment_rad if np.any(spec.misalignment_rad) else None,
+        part=spec.part,
     )
 
 

@@ -289,6 +289,7 @@ class Scenario:
     readout: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
     thermal: Any = None  # die temperature of every gyro: deg C or t -> deg C (adcs.thermal)
+    devices: list[dict[str, Any]] = field(default_factory=list)  # [[device]]: stand-ins
 
     def rate_dps(self, t: float | np.ndarray) -> np.ndarray:
         """True body rate in deg/s: shape (3,) for a scalar time, (n, 3) for n times."""
@@ -533,7 +534,7 @@ def motion_from_dict(
 
 
 _TOP_KEYS = {"name", "description", "duration_s", "motion", "gyro", "fault", "readout",
-             "thermal"}
+             "thermal", "device"}
 
 
 def scenario_from_dict(data: dict[str, Any], base: Path | None = None) -> Scenario:
@@ -545,7 +546,7 @@ def scenario_from_dict(data: dict[str, Any], base: Path | None = None) -> Scenar
     entries = data.get("motion", [{"kind": "rest"}])
     if not isinstance(entries, list):
         raise ScenarioError("motion must be an array of tables ([[motion]])")
-    for key in ("motion", "gyro", "fault"):
+    for key in ("motion", "gyro", "fault", "device"):
         listed = data.get(key, [])
         if not isinstance(listed, list) or not all(isinstance(e, dict) for e in listed):
             raise ScenarioError(f"{key} must be an array of tables ([[{key}]])")
@@ -571,6 +572,7 @@ def scenario_from_dict(data: dict[str, Any], base: Path | None = None) -> Scenar
         faults=list(data.get("fault", [])),
         readout=dict(data.get("readout", {})),
         thermal=thermal,
+        devices=list(data.get("device", [])),
     )
 
 

@@ -20,7 +20,7 @@ import sys
 from dataclasses import dataclass
 from typing import Any
 
-from bmg160_emu.device.config import ChipConfig
+from bmg160_emu.device.config import DEFAULT_PART, ChipConfig
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.device.spec_choices import DEFAULT_ADDRESS, RANGE_CODE_BY_DPS, VALID_ADDRESSES
 
@@ -127,7 +127,7 @@ def _bandwidth_code(text: str) -> int:
 def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) -> None:
     """Add the options that describe the emulated chip(s) to ``parser``; ``realtime=False``
     where the command fixes the clock itself (an option that did nothing is not offered)."""
-    from bmg160_emu.device.parts import DEFAULT_PART, PART_NAMES
+    from bmg160_emu.device.parts import PART_NAMES
 
     group = parser.add_argument_group("emulated chip")
     group.add_argument("--seed", type=int, default=None, help="master noise seed (default: random)")
@@ -172,8 +172,9 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) 
              "unless --device is given)",
     )
     group.add_argument(
-        "--part", choices=PART_NAMES, default=DEFAULT_PART,
-        help=f"the part of the chips at --address (default {DEFAULT_PART})",
+        "--part", choices=PART_NAMES, default=None,
+        help=f"the part of the chips at --address (default {DEFAULT_PART}; given with "
+             "--device and no --address, one such chip at 0x68)",
     )
     group.add_argument(
         "--device", dest="devices", type=device_option, action="append", default=None,
@@ -222,7 +223,9 @@ def configs_from_args(args: argparse.Namespace) -> list[Any]:
         setup.append((BW, bytes([args.bandwidth])))
     rate = getattr(args, "true_rate", None)
     devices: list[DeviceOption] = list(getattr(args, "devices", None) or [])
-    addresses = getattr(args, "addresses", None) or ([] if devices else [DEFAULT_ADDRESS])
+    part = getattr(args, "part", None)
+    addresses = getattr(args, "addresses", None) or (
+        [DEFAULT_ADDRESS] if not devices or part is not None else [])
 
     def gyro(address: int, part: str, bus: int | None) -> ChipConfig:
         return ChipConfig(
@@ -239,8 +242,7 @@ def configs_from_args(args: argparse.Namespace) -> list[Any]:
             bus=bus,
         )
 
-    part = getattr(args, "part", None) or "bmg160"
-    configs: list[Any] = [gyro(a, part, None) for a in dict.fromkeys(addresses)]
+    configs: list[Any] = [gyro(a, part or DEFAULT_PART, None) for a in dict.fromkeys(addresses)]
     places: dict[tuple[int | None, int], str] = {
         (None, c.address): f"--address 0x{c.address:02x}" for c in configs}
     for device in devices:
