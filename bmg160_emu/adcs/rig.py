@@ -173,7 +173,8 @@ def standin_from_dict(entry: dict[str, Any], index: int, base: Any = None) -> An
     unknown = set(entry) - _DEVICE_KEYS
     if unknown:
         raise ScenarioError(f"{where}: unknown keys {sorted(unknown)} (known: address, bus, name)")
-    name, address, bus = entry.get("name"), entry.get("address"), entry.get("bus", 1)
+    name, bus = entry.get("name"), entry.get("bus", 1)
+    address: Any = entry.get("address")
     if not isinstance(name, str) or not name:
         raise ScenarioError(f"{where}: name must be a stand-in ({', '.join(builtin_names())}) "
                             "or the path of a stand-in TOML or dump")
