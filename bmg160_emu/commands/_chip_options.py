@@ -303,15 +303,14 @@ def buses_from_args(args: argparse.Namespace, bus: int | None) -> dict[int | Non
 def chips_from_args(args: argparse.Namespace, default_bus: int | None = None) -> dict[int, Any]:
     """Build ``{address: device}`` from parsed options, for commands with one bus (``--bus``,
     else ``default_bus``); every device shares one clock. A device placed on another bus is
-    refused."""
+    refused (before a seed is chosen or anything is built)."""
     bus = getattr(args, "bus", None)
     if bus is None:
         bus = default_bus
-    buses = buses_from_args(args, bus)
-    others = sorted(str(b) for b in buses if b != bus)
+    others = sorted({str(c.bus) for c in configs_from_args(args) if c.bus not in (None, bus)})
     if others:
         from bmg160_emu.commands._common import CommandError
 
         raise CommandError(f"this command drives one bus: a --device on bus "
                            f"{', '.join(others)} has nowhere to go (drop its :BUS)")
-    return buses.get(bus, {})  # BMG160 family chips and StandinDevices
+    return buses_from_args(args, bus).get(bus, {})  # BMG160 family chips and StandinDevices

@@ -82,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
                 f"--device {device.text}: stub keeps a gyro in step with i2c-stub; a stand-in "
                 "has nothing to keep in step: load its registers into i2c-stub once with "
                 f"`bmg160-emu dump --device {device.text.partition(':')[0]} --format i2cdump` "
-                "and i2c-stub-from-dump")
+                "and i2c-stub-from-dump (i2c-stub then holds plain memory: no read-only bits, "
+                "soft reset or power gate)")
         if device.bus is not None and device.bus != args.bus:
             raise CommandError(f"--device {device.text}: stub serves bus {args.bus} only")
     addresses = list(dict.fromkeys(args.addresses or ([] if devices else [0x68])))
