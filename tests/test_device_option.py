@@ -29,7 +29,7 @@ SEED_LINE = re.compile(r"^bmg160-emu (\w+): seed (\d+) \(random; --seed \2 repea
 
 def parse(*argv: str) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="t", exit_on_error=False)
-    add_chip_options(parser)
+    add_chip_options(parser, devices=True)
     return parser.parse_args(list(argv))
 
 
@@ -234,6 +234,12 @@ def test_script_without_seed_writes_the_printed_seed_into_its_trace(tmp_path, ca
     assert main(["script", str(script), "-q", "--trace", str(trace)]) == 0
     found = SEED_LINE.findall(capsys.readouterr().err)
     assert read_trace(trace)[0]["seed"] == int(found[0][1])
+
+
+def test_one_gyro_sessions_offer_no_device_option(capsys):
+    for command in (["record", "--duration", "1", "-o", "x.csv"], ["demo"]):
+        err = usage_error(capsys, *command, "--device", "bmm150@0x10")
+        assert "unrecognized arguments: --device bmm150@0x10" in err
 
 
 def test_a_negative_seed_is_refused():

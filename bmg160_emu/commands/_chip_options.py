@@ -124,9 +124,12 @@ def _bandwidth_code(text: str) -> int:
     return value
 
 
-def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) -> None:
+def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
+                     devices: bool = False) -> None:
     """Add the options that describe the emulated chip(s) to ``parser``; ``realtime=False``
-    where the command fixes the clock itself (an option that did nothing is not offered)."""
+    where the command fixes the clock itself (an option that did nothing is not offered),
+    ``devices=True`` where the command's session takes other devices (``--device``: run,
+    stub, dump, script; not where the session is one gyro's, as record's and demo's are)."""
     from bmg160_emu.device.parts import PART_NAMES
 
     group = parser.add_argument_group("emulated chip")
@@ -176,13 +179,14 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True) 
         help=f"the part of the chips at --address (default {DEFAULT_PART}; given with "
              "--device and no --address, one such chip at 0x68)",
     )
-    group.add_argument(
-        "--device", dest="devices", type=device_option, action="append", default=None,
-        metavar="NAME@ADDRESS[:BUS]",
-        help="one more device: a part or a stand-in (bmi088_accel, bma2x2_accel, bmm150, or "
-             "a stand-in TOML or dump file) at ADDRESS, on BUS (default: the command's bus); "
-             "repeatable (docs/sessions.md)",
-    )
+    if devices:
+        group.add_argument(
+            "--device", dest="devices", type=device_option, action="append", default=None,
+            metavar="NAME@ADDRESS[:BUS]",
+            help="one more device: a part or a stand-in (bmi088_accel, bma2x2_accel, bmm150, "
+                 "or a stand-in TOML or dump file) at ADDRESS, on BUS (default: the "
+                 "command's bus); repeatable (docs/sessions.md)",
+        )
     group.add_argument(
         "--sensitivity",
         choices=("binary", "nominal"),
@@ -313,4 +317,6 @@ def chips_from_args(args: argparse.Namespace, default_bus: int | None = None) ->
 
         raise CommandError(f"this command drives one bus: a --device on bus "
                            f"{', '.join(others)} has nowhere to go (drop its :BUS)")
-    return buses_from_args(args, bus).get(bus, {})  # BMG160 family chips and StandinDevices
+    chips = buses_from_args(args, bus).get(bus, {})
+    # gyros first: the first device is a command's default chip (a script's, dump --after's)
+    return dict(sorted(chips.items(), key=lambda item: hasattr(item[1], "spec")))

@@ -57,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="dump only the chip at this address (one of --address; default: every chip)",
     )
     parser.add_argument("-o", "--output", type=Path, default=None, help="write to FILE")
-    add_chip_options(parser)
+    add_chip_options(parser, devices=True)
     parser.set_defaults(func=run)
 
 

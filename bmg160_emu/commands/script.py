@@ -58,7 +58,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--watch", action="store_true",
         help="make the session watchable live (bmg160-emu watch; best with --realtime)",
     )
-    add_chip_options(parser)
+    add_chip_options(parser, devices=True)
     parser.set_defaults(func=run)
 
 

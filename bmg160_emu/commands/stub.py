@@ -62,7 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_file_option(
         parser, "--ready-file", "FILE", "create FILE once the register map is preloaded (for scripts)"
     )
-    add_chip_options(parser, realtime=False)
+    add_chip_options(parser, realtime=False, devices=True)
     parser.set_defaults(func=run)
 
 
