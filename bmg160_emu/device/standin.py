@@ -24,7 +24,8 @@ from typing import Any
 
 from bmg160_emu.device import contract
 
-REGISTER_SPACE = 0x100  # an 8-bit register pointer: 0x00..0xFF
+REGISTER_SPACE = 1 << 8  # an 8-bit register pointer: 256 registers
+ALL_BITS = REGISTER_SPACE - 1  # every bit of a byte (a register's default write mask)
 
 
 @dataclass(frozen=True)
@@ -33,8 +34,8 @@ class StandinRegister:
     for a read-only register) and whether it reads back at all (a command register does
     not: ``write_only`` reads 0x00)."""
 
-    reset: int = 0x00
-    writable: int = 0xFF
+    reset: int = 0
+    writable: int = ALL_BITS
     write_only: bool = False
     name: str = ""
 
@@ -46,7 +47,7 @@ class SoftReset:
 
     register: int
     value: int
-    mask: int = 0xFF
+    mask: int = ALL_BITS
     keeps: tuple[int, ...] = ()
 
     def triggered_by(self, value: int) -> bool:
@@ -61,7 +62,7 @@ class PowerGate:
     register: int
     mask: int
     open: tuple[int, ...] = ()
-    closed_value: int = 0x00
+    closed_value: int = 0
 
     def is_open(self, regs: bytearray) -> bool:
         return bool(regs[self.register] & self.mask)
@@ -77,7 +78,7 @@ class StandinSpec:
     addresses: tuple[int, ...]  # where the chip can answer (its address pins); () : anywhere
     registers: Mapping[int, StandinRegister]
     description: str = ""
-    absent_value: int = 0x00  # what a register not declared reads (writes to it are ignored)
+    absent_value: int = 0  # what a register not declared reads (writes to it are ignored)
     no_increment: tuple[int, ...] = ()  # FIFO data registers: the pointer stays on them
     soft_reset: SoftReset | None = None
     power_gate: PowerGate | None = None
@@ -161,7 +162,7 @@ class StandinDevice:
             return self.spec.power_gate.closed_value  # type: ignore[union-attr]
         declared = self.spec.registers.get(reg)
         if declared is not None and declared.write_only:
-            return 0x00
+            return 0
         return self.regs[reg]
 
     def _store(self, reg: int, value: int) -> None:
@@ -178,7 +179,7 @@ class StandinDevice:
                 value &= ~reset.mask
                 self.regs[reg] = (self.regs[reg] & ~declared.writable) | (value & declared.writable)
             return
-        self.regs[reg] = (self.regs[reg] & ~declared.writable & 0xFF) | (value & declared.writable)
+        self.regs[reg] = (self.regs[reg] & ~declared.writable & ALL_BITS) | (value & declared.writable)
 
     def _next(self, reg: int) -> int:
         return reg if reg in self.spec.no_increment else (reg + 1) % REGISTER_SPACE
