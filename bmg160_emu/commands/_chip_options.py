@@ -264,16 +264,17 @@ def configs_from_args(args: argparse.Namespace) -> list[Any]:
     return configs
 
 
-def session_seed(args: argparse.Namespace) -> int | None:
-    """The session's master seed: ``--seed``, or one chosen now, printed to stderr and kept
-    in ``args`` (so the trace header and the record name it), as ``generate`` does."""
+def session_seed(args: argparse.Namespace, announce: bool = True) -> int | None:
+    """The session's master seed: ``--seed``, or one chosen now, kept in ``args`` (so the
+    trace header and the record name it) and printed to stderr as ``generate`` does
+    (``announce=False``: later, by :func:`announce_seed`, once the session is set up)."""
     if not hasattr(args, "seed"):
         return None
     if args.seed is None:
         args.seed = secrets.randbits(32)
-        command = getattr(args, "command", None) or "session"
-        print(f"bmg160-emu {command}: seed {args.seed} (random; --seed {args.seed} repeats it)",
-              file=sys.stderr)
+        args.seed_chosen = True
+        if announce:
+            announce_seed(args)
     elif args.seed < 0:
         from bmg160_emu.commands._common import CommandError
 
@@ -281,14 +282,25 @@ def session_seed(args: argparse.Namespace) -> int | None:
     return int(args.seed)
 
 
-def buses_from_args(args: argparse.Namespace, bus: int | None) -> dict[int | None, dict[int, Any]]:
+def announce_seed(args: argparse.Namespace) -> None:
+    """Print a seed chosen by :func:`session_seed` (once; nothing for a given ``--seed``)."""
+    if getattr(args, "seed_chosen", False):
+        args.seed_chosen = False
+        command = getattr(args, "command", None) or "session"
+        print(f"bmg160-emu {command}: seed {args.seed} (random; --seed {args.seed} repeats it)",
+              file=sys.stderr)
+
+
+def buses_from_args(args: argparse.Namespace, bus: int | None,
+                    announce: bool = True) -> dict[int | None, dict[int, Any]]:
     """Build ``{bus: {address: device}}`` from parsed options (devices without a bus go on
-    ``bus``); every device shares one clock."""
+    ``bus``); every device shares one clock. A chosen seed is printed now, or with
+    ``announce=False`` left to :func:`announce_seed`."""
     from bmg160_emu.clock import RealTimeClock, VirtualClock
     from bmg160_emu.commands._common import CommandError
 
     configs = configs_from_args(args)
-    seed = session_seed(args)
+    seed = session_seed(args, announce)
     clock = RealTimeClock() if getattr(args, "realtime", False) else VirtualClock()
     buses: dict[int | None, dict[int, Any]] = {}
     for config in configs:
@@ -304,7 +316,8 @@ def buses_from_args(args: argparse.Namespace, bus: int | None) -> dict[int | Non
     return buses
 
 
-def chips_from_args(args: argparse.Namespace, default_bus: int | None = None) -> dict[int, Any]:
+def chips_from_args(args: argparse.Namespace, default_bus: int | None = None,
+                    announce: bool = True) -> dict[int, Any]:
     """Build ``{address: device}`` from parsed options, for commands with one bus (``--bus``,
     else ``default_bus``); every device shares one clock. A device placed on another bus is
     refused (before a seed is chosen or anything is built)."""
@@ -317,6 +330,6 @@ def chips_from_args(args: argparse.Namespace, default_bus: int | None = None) ->
 
         raise CommandError(f"this command drives one bus: a --device on bus "
                            f"{', '.join(others)} has nowhere to go (drop its :BUS)")
-    chips = buses_from_args(args, bus).get(bus, {})
+    chips = buses_from_args(args, bus, announce).get(bus, {})
     # gyros first: the first device is a command's default chip (a script's, dump --after's)
     return dict(sorted(chips.items(), key=lambda item: hasattr(item[1], "spec")))

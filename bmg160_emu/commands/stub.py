@@ -7,7 +7,7 @@ import json
 import signal
 import sys
 
-from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
+from bmg160_emu.commands._chip_options import add_chip_options, announce_seed, chips_from_args
 from bmg160_emu.commands._common import (
     add_bus_option,
     add_command_parser,
@@ -103,7 +103,9 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise CommandError(f"cannot write {args.stats}: {exc.strerror}") from None
     args.realtime = True  # a kernel driver lives in real time
-    chip = chips_from_args(args)[address]  # --part or the --device part
+    # --part or the --device part; a chosen seed is printed once the adapter is open, so a
+    # setup error stays the one line of output
+    chip = chips_from_args(args, announce=False)[address]
     try:
         adapter = I2CStubAdapter(chip, args.bus, address)
         if args.max_refresh_hz is not None:
@@ -114,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"permission denied on /dev/i2c-{args.bus}: run as root") from None
     except OSError as exc:
         raise CommandError(f"cannot open /dev/i2c-{args.bus}: {exc.strerror}") from None
+    announce_seed(args)
 
     stop = []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
