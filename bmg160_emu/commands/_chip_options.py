@@ -18,6 +18,7 @@ import argparse
 import secrets
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from bmg160_emu.device.config import DEFAULT_PART, ChipConfig
@@ -74,7 +75,7 @@ def device_option(text: str) -> DeviceOption:
     from bmg160_emu.io.errors import FormatError
     from bmg160_emu.io.standin_file import builtin_names, load_standin
 
-    looks_like_file = "/" in name or "." in name
+    looks_like_file = "/" in name or "." in name or Path(name).exists()
     if name not in builtin_names() and not looks_like_file:
         raise argparse.ArgumentTypeError(
             f"{text}: unknown device {name!r}: a part ({', '.join(PART_NAMES)}), a stand-in "
