@@ -270,3 +270,25 @@ def test_a_rig_puts_scenario_stand_ins_on_its_buses(tmp_path):
     path.write_text('duration_s = 1.0\n[[gyro]]\npart = "bmi999_gyro"\n')
     with pytest.raises(ScenarioError, match="part must be one of"):
         GyroRig(load_scenario(path), seed=1)
+
+
+def test_a_part_gets_its_own_noise_profile_unless_one_is_given():
+    from bmg160_emu.device.parts import part_table
+
+    for part in PART_NAMES:
+        (config,) = configs_from_args(parse("--part", part))
+        assert config.profile == part_table(part).noise_profile
+        assert header_from_chip_args(parse("--part", part, "--seed", "1")).to_dict()[
+            "chips"][0]["settings"]["profile"] == config.profile
+    (config,) = configs_from_args(parse("--part", "bmi088_gyro", "--profile", "paper"))
+    assert config.profile == "paper"
+    assert configs_from_args(parse())[0].profile == "paper"  # the bmg160 as before
+
+
+def test_a_rig_gyro_of_a_part_gets_its_profile():
+    from bmg160_emu.adcs.rig import GyroSpec
+    from bmg160_emu.device.parts import part_table
+
+    assert GyroSpec(part="bmi055_gyro").profile == part_table("bmi055_gyro").noise_profile
+    assert GyroSpec().profile == "paper"
+    assert GyroSpec(part="bmi088_gyro", profile="paper").profile == "paper"

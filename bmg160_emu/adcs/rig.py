@@ -73,7 +73,7 @@ class GyroSpec:
     mounting: np.ndarray = field(default_factory=lambda: np.eye(3))  # body -> sensor
     scale_factor_error: np.ndarray = field(default_factory=lambda: np.zeros(3))  # per axis, 1 = +100 %
     misalignment_rad: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
-    profile: Any = "paper"  # a built-in name, a TOML path, a mapping or a Profile
+    profile: Any = None  # a built-in name, a TOML path, a mapping or a Profile; None: the part's
     noise: bool = True
     noise_mode: str = "physical"
     temperature_c: float = 23.0
@@ -89,6 +89,10 @@ class GyroSpec:
         if self.part not in PART_NAMES:
             raise ScenarioError(f"{self.name}: part must be one of {', '.join(PART_NAMES)}, "
                                 f"not {self.part!r}")
+        if self.profile is None:  # the part's data-sheet profile (paper for the bmg160)
+            from bmg160_emu.device.parts import part_table
+
+            self.profile = part_table(self.part).noise_profile
         if not _is_whole(self.address) or self.address not in VALID_ADDRESSES:
             shown = f"0x{self.address:02x}" if _is_whole(self.address) else repr(self.address)
             raise ScenarioError(f"{self.name}: address must be 0x68 or 0x69 (the BMG160 answers "

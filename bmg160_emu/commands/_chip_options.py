@@ -135,7 +135,11 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
 
     group = parser.add_argument_group("emulated chip")
     group.add_argument("--seed", type=int, default=None, help="master noise seed (default: random)")
-    group.add_argument("--profile", default="paper", help="noise profile name (default: paper)")
+    group.add_argument(
+        "--profile", default=None,
+        help="noise profile name or TOML (default: the part's own: paper for the bmg160, the "
+             "data-sheet profile of the others)",
+    )
     group.add_argument("--no-noise", action="store_true", help="noiseless chip")
     group.add_argument(
         "--noise-mode",
@@ -233,9 +237,14 @@ def configs_from_args(args: argparse.Namespace) -> list[Any]:
         [DEFAULT_ADDRESS] if not devices or part is not None else [])
 
     def gyro(address: int, part: str, bus: int | None) -> ChipConfig:
+        profile = getattr(args, "profile", None)
+        if profile is None:  # the part's own, named in the config so a trace carries it
+            from bmg160_emu.device.parts import part_table
+
+            profile = part_table(part).noise_profile
         return ChipConfig(
             address=address,
-            profile=getattr(args, "profile", "paper"),
+            profile=profile,
             noise=not getattr(args, "no_noise", False),
             noise_mode=getattr(args, "noise_mode", "physical"),
             sensitivity=getattr(args, "sensitivity", "binary"),
