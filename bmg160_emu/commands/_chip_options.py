@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import secrets
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,6 +42,26 @@ class DeviceOption:
     bus: int | None
     part: str | None = None
     standin: Any = None  # a StandinSpec
+
+
+class _PartNames(Sequence):
+    """``device.parts.PART_NAMES``, read when argparse first looks (a ``--part`` given, an
+    error, ``--help``): building the parsers of every command stays free of the chip model."""
+
+    @staticmethod
+    def _names() -> tuple[str, ...]:
+        from bmg160_emu.device.parts import PART_NAMES
+
+        return PART_NAMES
+
+    def __getitem__(self, index: Any) -> Any:
+        return self._names()[index]
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._names()
 
 
 def device_option(text: str) -> DeviceOption:
@@ -131,8 +152,6 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
     where the command fixes the clock itself (an option that did nothing is not offered),
     ``devices=True`` where the command's session takes other devices (``--device``: run,
     stub, dump, script; not where the session is one gyro's, as record's and demo's are)."""
-    from bmg160_emu.device.parts import PART_NAMES
-
     group = parser.add_argument_group("emulated chip")
     group.add_argument("--seed", type=int, default=None, help="master noise seed (default: random)")
     group.add_argument(
@@ -180,9 +199,9 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
              "unless --device is given)",
     )
     group.add_argument(
-        "--part", choices=PART_NAMES, default=None,
-        help=f"the part of the chips at --address (default {DEFAULT_PART}; given with "
-             "--device and no --address, one such chip at 0x68)",
+        "--part", choices=_PartNames(), default=None, metavar="PART",
+        help=f"the part of the chips at --address: %(choices)s (default {DEFAULT_PART}; "
+             "given with --device and no --address, one such chip at 0x68)",
     )
     if devices:
         group.add_argument(
