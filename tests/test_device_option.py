@@ -292,3 +292,14 @@ def test_a_rig_gyro_of_a_part_gets_its_profile():
     assert GyroSpec(part="bmi055_gyro").profile == part_table("bmi055_gyro").noise_profile
     assert GyroSpec().profile == "paper"
     assert GyroSpec(part="bmi088_gyro", profile="paper").profile == "paper"
+
+
+def test_a_noiseless_session_or_a_data_replay_prints_no_seed(tmp_path, capsys):
+    # nothing in them is drawn from the seed, so there is nothing to repeat
+    assert main(["dump", "--no-noise"]) == 0
+    assert not SEED_LINE.search(capsys.readouterr().err)
+    data = tmp_path / "a.csv"
+    assert main(["record", "--duration", "0.05", "--seed", "3", "-o", str(data)]) == 0
+    capsys.readouterr()
+    assert main(["replay", str(data), "--unit", "counts", "-o", str(tmp_path / "b.csv")]) == 0
+    assert not SEED_LINE.search(capsys.readouterr().err)

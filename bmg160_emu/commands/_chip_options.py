@@ -296,12 +296,14 @@ def configs_from_args(args: argparse.Namespace) -> list[Any]:
 def session_seed(args: argparse.Namespace, announce: bool = True) -> int | None:
     """The session's master seed: ``--seed``, or one chosen now, kept in ``args`` (so the
     trace header and the record name it) and printed to stderr as ``generate`` does
-    (``announce=False``: later, by :func:`announce_seed`, once the session is set up)."""
+    (``announce=False``: later, by :func:`announce_seed`, once the session is set up;
+    not at all with ``--no-noise``, where no draw depends on it)."""
     if not hasattr(args, "seed"):
         return None
     if args.seed is None:
         args.seed = secrets.randbits(32)
-        args.seed_chosen = True
+        # a noiseless session draws nothing from its seed: there is nothing to repeat
+        args.seed_chosen = not getattr(args, "no_noise", False)
         if announce:
             announce_seed(args)
     elif args.seed < 0:

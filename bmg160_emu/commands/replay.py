@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         data = load_replay_data(args.data, args.unit, lsb, args.max_gap_factor)
     except ReplayDataError as exc:  # the library's parameter, named as this command spells it
         raise CommandError(str(exc).replace("(max_gap_factor)", "(--max-gap-factor)")) from None
-    chips = chips_from_args(args)
+    chips = chips_from_args(args, announce=False)  # the data replaces the output: no seed to repeat
     chip = next(iter(chips.values()))
     ReplaySource(data, loop=args.loop).attach(chip)
     if args.output is not None:
