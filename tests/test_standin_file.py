@@ -151,3 +151,27 @@ def test_every_builtin_round_trips_through_its_plain_data():
         assert again.registers == spec.registers
         assert again.soft_reset == spec.soft_reset and again.power_gate == spec.power_gate
         assert again.no_increment == spec.no_increment and again.addresses == spec.addresses
+
+
+def test_every_key_of_the_wrong_type_is_a_format_error_never_another_exception():
+    base = load_standin("bmm150").to_dict()
+    wrong = [None, True, -1, 256, 1.5, "x", [], [1, "a"], {}, {"a": 1}, [[1]]]
+    for key in base:
+        for value in wrong:
+            data = {**base, key: value}
+            try:
+                spec_from_dict(data, "fuzz")
+            except StandinFormatError as exc:
+                assert str(exc).startswith("fuzz") and "\n" not in str(exc)
+    for table in ("soft_reset", "power_gate"):
+        for sub in base[table]:
+            for value in wrong:
+                data = {**base, table: {**base[table], sub: value}}
+                try:
+                    spec_from_dict(data, "fuzz")
+                except StandinFormatError as exc:
+                    assert str(exc).startswith("fuzz")
+    for value in wrong:
+        data = {**base, "registers": {"0x40": {"reset": value}}}
+        with pytest.raises(StandinFormatError):
+            spec_from_dict({**data, "registers": {"0x40": value}}, "fuzz")
