@@ -3,17 +3,21 @@
 Figures are built with matplotlib's object API (``matplotlib.figure.Figure``, no pyplot, so
 no GUI backend and no global state) and written as PNG or SVG by the file suffix.
 
-- time series (Fig. 1), histogram with the fitted Gaussian (Fig. 2)
+- time series (Fig. 1), histogram with the Gaussian of the mean and std (Fig. 2), its bins
+  on the record's LSB grid when the record is quantized
 - Allan deviation with its confidence band, the fitted model, the -1/2, 0 and +1/2 slope
   lines and the N, B, K read-off points (Fig. 3)
 - one-sided PSD with the fitted asymptotes (Figs. 4-5)
 - emulator against recording: Allan deviation, PSD, time series (Figs. 7-9)
+
+Legends sit below their axes, so they never hide a curve, a read-off point or an asymptote.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +26,6 @@ from matplotlib.figure import Figure
 from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar
 from bmg160_emu.noise.identification import AxisIdentification
 from bmg160_emu.noise.spectrum import (
-    PSD_CONVENTION,
     Spectrum,
     gauss_markov_psd,
     quantization_psd,
@@ -33,8 +36,40 @@ from bmg160_emu.noise.spectrum import (
 
 FIGURE_FORMATS = (".png", ".svg")
 _PSD_LABEL = "one-sided PSD [(deg/s)$^2$/Hz]"
+_PSD_CAPTION = "One-sided Welch PSD: white noise of density N reads 2 N$^2$ (IEEE 952 two-sided S = N$^2$)"
 _MAX_POINTS = 20_000  # a time series is drawn as a min/max envelope beyond this
 _OVERLAY_WINDOW = 2000  # samples of the time-domain overlay (10 s at 200 Hz)
+_OVERLAY_ZOOM = 100  # samples of its zoomed panel, where single LSB steps can be seen
+_UNIT = {"N": "deg/s/\u221aHz", "K": "deg/s/\u221as", "B": "deg/s"}  # profile.UNITS, as printed
+FIT_LABELS = {"wls": "WLS fit of the Allan variance", "gmwm": "GMWM fit of the wavelet variance"}
+_GRID_SAMPLES = 200_000  # values looked at to find a record's LSB grid (the grid is the same
+# over the whole record; 2e5 values hold every level of a 16-bit output within +-5 sigma)
+_GRID_TOLERANCE = 0.05  # of a step: a RESD file holds rates to 1e-5 rad/s, 0.9 % of an LSB
+# at 16.384 LSB/(deg/s), so its levels are off the LSB grid by less than 0.5 % of a step
+_TARGET_BINS = 100  # histogram bins of a quantized record (whole LSBs per bin)
+_MIN_BINS, _MAX_BINS = 20, 200  # of a record of real numbers (numpy's Freedman-Diaconis)
+_LSB_LINES = 60  # most LSB levels marked in the time overlay's zoom
+_PSD_DECADES_BELOW = 2.0  # an asymptote this far below the data is listed, not drawn
+_PSD_SEEN_DECADES = 0.5  # of frequency over which every asymptote drawn can be seen
+
+
+@dataclass(frozen=True)
+class OutputGrid:
+    """The values a quantized output can take: ``origin + k * step`` (step: one LSB, deg/s)."""
+
+    step: float
+    origin: float
+
+    def level(self, value: float) -> int:
+        return round((value - self.origin) / self.step)
+
+    def snap(self, values: np.ndarray) -> np.ndarray:
+        """``values`` rounded to the nearest level, as the chip's ADC rounds its output."""
+        k = np.rint((np.asarray(values, dtype=float) - self.origin) / self.step)
+        return self.origin + k * self.step
+
+    def levels_per_bin(self, low: float, high: float) -> int:
+        return max(1, math.ceil((self.level(high) - self.level(low) + 1) / _TARGET_BINS))
 
 
 def check_figure_path(path: str | Path) -> Path:
@@ -55,6 +90,26 @@ def _new(nrows: int = 1, ncols: int = 1, size=(8.0, 5.0)) -> tuple[Figure, np.nd
     fig = Figure(figsize=size, layout="constrained")
     axes = np.atleast_1d(fig.subplots(nrows, ncols, squeeze=False).ravel())
     return fig, axes
+
+
+def _with_legends(ncols: int, size, legend_share: float) -> tuple[Figure, list, list]:
+    """A row of ``ncols`` panels, each with a legend box of its own under it (``legend_share``
+    of the height): legends there cover nothing drawn, and constrained layout keeps each
+    panel's x label clear of its legend."""
+    fig = Figure(figsize=size, layout="constrained")
+    grid = fig.add_gridspec(2, ncols, height_ratios=(1.0 - legend_share, legend_share))
+    axes = [fig.add_subplot(grid[0, i]) for i in range(ncols)]
+    boxes = [fig.add_subplot(grid[1, i]) for i in range(ncols)]
+    for box in boxes:
+        box.set_axis_off()
+    return fig, axes, boxes
+
+
+def _legend_below(ax, box, ncols: int = 1) -> None:
+    """``ax``'s legend, drawn in its legend box ``box`` (see _with_legends)."""
+    handles, labels = ax.get_legend_handles_labels()
+    box.legend(handles, labels, loc="upper center", ncols=ncols, fontsize="x-small",
+               borderaxespad=0.0)
 
 
 def _envelope(x: np.ndarray, rate_hz: float):
@@ -94,21 +149,71 @@ def time_series_figure(record: np.ndarray, rate_hz: float, names: Sequence[str])
     return fig
 
 
+def output_grid(values: np.ndarray) -> OutputGrid | None:
+    """The grid a quantized record's values sit on (one LSB apart), or None for a record of
+    real numbers. Found from the data, so it holds for any source: ``record`` and a chip
+    (counts / sensitivity), the firmware's stream (whole mdps), a RESD file (1e-5 rad/s)."""
+    x = np.asarray(values, dtype=float).ravel()[:_GRID_SAMPLES]
+    x = x[np.isfinite(x)]
+    levels = np.unique(x)
+    if levels.size < 2 or x.size < 2 * levels.size:  # real numbers: nearly every value new
+        return None
+    step0 = float(np.median(np.diff(levels)))
+    index = np.rint((levels - levels[0]) / step0)
+    step = float(np.dot(levels - levels[0], index) / np.dot(index, index))  # least squares
+    if not step > 0:
+        return None
+    if np.abs(levels - levels[0] - index * step).max() > _GRID_TOLERANCE * step:
+        return None
+    return OutputGrid(step, float(levels[0]))
+
+
+def histogram_edges(values: np.ndarray, grid: OutputGrid | None) -> np.ndarray:
+    """Bin edges: half an LSB either side of whole numbers of grid levels when the record is
+    quantized (every bin holds the same number of levels: no comb), else numpy's rule."""
+    x = np.asarray(values, dtype=float)
+    low, high = float(x.min()), float(x.max())
+    if grid is None:
+        edges = np.histogram_bin_edges(x, bins="fd")
+        if not _MIN_BINS <= edges.size - 1 <= _MAX_BINS:
+            edges = np.histogram_bin_edges(x, bins=min(max(edges.size - 1, _MIN_BINS), _MAX_BINS))
+        return edges
+    first, last = grid.level(low), grid.level(high)
+    per = grid.levels_per_bin(low, high)
+    count = (last - first) // per + 1
+    return grid.origin + (first + per * np.arange(count + 1) - 0.5) * grid.step
+
+
 def histogram_figure(record: np.ndarray, names: Sequence[str]) -> Figure:
     """Fig. 2: histogram of each axis with the Gaussian of its mean and std."""
     data = np.asarray(record, dtype=float).reshape(record.shape[0], -1)
-    fig, axes = _new(1, data.shape[1], size=(4.0 * data.shape[1] + 0.5, 3.8))
-    for ax, col, name in zip(axes, data.T, names):
+    fig, axes, boxes = _with_legends(data.shape[1], (4.0 * data.shape[1] + 0.5, 4.6), 0.14)
+    for ax, box, col, name in zip(axes, boxes, data.T, names):
+        grid = output_grid(col)
+        edges = histogram_edges(col, grid)
         mu, sigma = float(col.mean()), float(col.std())
-        ax.hist(col, bins=200, density=True, alpha=0.6, label="samples")
+        if grid is None:
+            what = f"samples, {edges.size - 1} bins"
+            title = f"axis {name}"
+        else:
+            per = grid.levels_per_bin(float(col.min()), float(col.max()))
+            what = f"samples, bins of {per} LSB" if per > 1 else "samples, one bin per LSB"
+            title = f"axis {name}: quantized, LSB {grid.step:.4g} deg/s"
+        ax.hist(col, bins=edges, density=True, histtype="stepfilled", alpha=0.6, label=what)
         xs = np.linspace(mu - 5 * sigma, mu + 5 * sigma, 400)
         pdf = np.exp(-0.5 * ((xs - mu) / sigma) ** 2) / (sigma * math.sqrt(2 * math.pi))
-        ax.plot(xs, pdf, "r", label=f"Gaussian mu={mu:.4g}, sigma={sigma:.4g}")
-        ax.set_xlabel(f"axis {name} rate [deg/s]")
+        ax.plot(xs, pdf, "r", label=f"Gaussian: mean {mu:.4g} deg/s, std {sigma:.4g} deg/s")
+        ax.set_xlabel("rate [deg/s]")
         ax.set_ylabel("density [1/(deg/s)]")
-        ax.legend(fontsize="x-small")
-    fig.suptitle("Histogram and fitted Gaussian")
+        ax.set_title(title, fontsize="medium")
+        _legend_below(ax, box)
+    fig.suptitle("Histogram and the Gaussian of the sample mean and std")
     return fig
+
+
+def fit_label(method: str) -> str:
+    """How a figure names the fit that gave N, B, T, K (AxisIdentification.method)."""
+    return FIT_LABELS.get(method, f"{method.upper()} fit")
 
 
 def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = None) -> None:
@@ -129,10 +234,12 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
     tau = np.geomspace(c.taus[0], c.taus[-1], 300)
     N, K = result.N.value, result.K.value
     model = np.sqrt(result.fit.model_avar(tau))
-    ax.loglog(tau, model, "-", color="k", lw=1.2, label=f"fitted model ({result.model_text()})")
+    ax.loglog(tau, model, "-", color="k", lw=1.2,
+              label=f"{fit_label(result.method)}: {result.model_text()}")
     lo, _hi = result.fit_tau_range_s
-    ax.axvspan(c.taus[0] * 0.9, lo, color="0.85", lw=0, zorder=0,
-               label="not fitted (sensor filter)" if lo > c.taus[0] * 1.01 else None)
+    if lo > c.taus[0] * 1.01:
+        ax.axvspan(c.taus[0] * 0.9, lo, color="0.85", lw=0, zorder=0,
+                   label="not fitted (sensor filter)")
     for i, (B, T) in enumerate(result.fit.gauss_markov_terms()):
         if result.fit.flicker is None or i < len(result.terms):
             ax.loglog(tau, np.sqrt(gauss_markov_avar(B, T, tau)), ":", lw=0.8, color="0.4",
@@ -148,33 +255,40 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         lw=0.9,
         label="slope 0: minimum (flicker B x 0.664)",
     )
-    ax.plot([1.0], [N], "s", color="tab:blue", ms=7, label=f"N = {N:.4g} at tau = 1 s")
-    ax.plot([3.0], [K * 1.0], "^", color="tab:red", ms=7, label=f"K = {K:.4g} at tau = 3 s")
+    ax.plot([1.0], [N], "s", color="tab:blue", ms=7, label=f"N = {N:.4g} {_UNIT['N']} (tau 1 s)")
+    ax.plot([3.0], [K * 1.0], "^", color="tab:red", ms=7,
+            label=f"K = {K:.4g} {_UNIT['K']} (tau 3 s)")
     ax.plot(
         [ro["B_flicker"]["tau_s"]],
         [b_flick * FLICKER_ADEV_FACTOR],
         "D",
         color="tab:green",
         ms=7,
-        label=f"B flicker = {b_flick:.4g} (min / 0.664)",
+        label=f"flicker B = {b_flick:.4g} deg/s (minimum / 0.664)",
     )
     ax.set_xlabel("tau [s]")
     ax.set_ylabel("Allan deviation [deg/s]")
     ax.grid(alpha=0.3, which="both")
 
 
+def adev_title(result: AxisIdentification) -> str:
+    """Panel title: the axis, the fit, and N, K, (B, T) each with its unit."""
+    terms = "; ".join(
+        f"B = {t.B.value:.3g} {_UNIT['B']}, T = {t.T.value:.3g} s" for t in result.terms
+    )
+    return (f"axis {result.axis}, {fit_label(result.method)}\n"
+            f"N = {result.N.value:.3g} {_UNIT['N']}, K = {result.K.value:.3g} {_UNIT['K']}\n"
+            f"{terms or 'no Gauss-Markov term'}")
+
+
 def adev_figure(results: Sequence[AxisIdentification]) -> Figure:
     """Fig. 3: one panel per axis."""
-    fig, axes = _new(1, len(results), size=(6.0 * len(results) + 0.5, 5.0))
-    for ax, r in zip(axes, results):
+    fig, axes, boxes = _with_legends(len(results), (6.0 * len(results) + 0.5, 8.5), 0.27)
+    for ax, box, r in zip(axes, boxes, results):
         draw_adev(ax, r)
-        terms = ", ".join(f"({t.B.value:.2g}, {t.T.value:.3g} s)" for t in r.terms)
-        ax.set_title(
-            f"axis {r.axis}: N {r.N.value:.3g}, K {r.K.value:.3g}, (B, T) {terms or 'none'}",
-            fontsize="small",
-        )
-        ax.legend(fontsize="x-small", loc="lower left")
-    fig.suptitle("Overlapping Allan deviation, fitted composite model and IEEE 952 read-offs")
+        ax.set_title(adev_title(r), fontsize="medium")
+        _legend_below(ax, box)
+    fig.suptitle("Overlapping Allan deviation, fitted model and IEEE 952 read-offs")
     return fig
 
 
@@ -198,35 +312,22 @@ def draw_psd(
     label: str | None = None,
     asymptotes: bool = True,
 ) -> None:
-    """One-sided PSD (log-binned) with the fitted model's one-sided asymptotes."""
+    """One-sided PSD (log-binned) with the fitted model's one-sided asymptotes.
+
+    The y range is the data's (and the fitted total's where it meets the data); an asymptote
+    that would lie wholly under it is named in the legend, not drawn out of sight."""
     if result.spectrum is None:  # identified from an Allan curve: no spectrum to draw
         return
     f, p = _log_binned(result.spectrum)
     name = label or f"axis {result.axis}"
     ax.loglog(f, p, lw=0.9, color=color, label=f"{name}: Welch PSD")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel(_PSD_LABEL)
+    ax.grid(alpha=0.3, which="both")
     if not asymptotes:
         return
     N, K = result.N.value, result.K.value
     terms = result.fit.gauss_markov_terms()
-    ax.loglog(f, white_psd(N, f), "--", color="tab:blue", lw=0.9, label="white 2 N$^2$")
-    for i, (B, T) in enumerate(terms):
-        ax.loglog(
-            f,
-            gauss_markov_psd(B, T, f),
-            "--",
-            color="tab:green",
-            lw=0.9,
-            label="Gauss-Markov 4 B$^2$ T / (1 + (2 pi f T)$^2$)" if i == 0 else None,
-        )
-    if K > 0:
-        ax.loglog(
-            f,
-            random_walk_psd(K, f),
-            "--",
-            color="tab:red",
-            lw=0.9,
-            label="random walk 2 (K / 2 pi)$^2$ / f$^2$",
-        )
     total = white_psd(N, f) + random_walk_psd(K, f)
     for B, T in terms:
         total = total + gauss_markov_psd(B, T, f)
@@ -234,21 +335,39 @@ def draw_psd(
         total = total + quantization_psd(result.Q.value, f, rate_hz)
     if result.R:
         total = total + ramp_psd(result.R.value, f)
-    ax.loglog(f, total, "-", color="k", lw=1.1, label="fitted model, one-sided")
-    ax.set_ylim(bottom=max(float(p.min()) * 0.3, 1e-12))
-    ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel(_PSD_LABEL)
-    ax.grid(alpha=0.3, which="both")
+    bottom = float(p.min()) / 3.0
+    top = 3.0 * max(float(p.max()), min(float(total.max()), 30.0 * float(p.max())))
+    lines = [(white_psd(N, f), "tab:blue", f"white 2N$^2$ = {2 * N * N:.3g}")]
+    for i, (B, T) in enumerate(terms):
+        lines.append((gauss_markov_psd(B, T, f), "tab:green",
+                      f"Gauss-Markov $4B^2T/(1+(2\\pi fT)^2)$, T = {T:.3g} s"))
+    if K > 0:
+        lines.append((random_walk_psd(K, f), "tab:red", "random walk $2(K/2\\pi)^2/f^2$"))
+    floor = bottom / 10**_PSD_DECADES_BELOW
+    # each asymptote drawn is seen over the lowest _PSD_SEEN_DECADES of frequency at least
+    # (where it is largest): the y range is lowered to its value there, down to ``floor``
+    seen_f = f[0] * 10**_PSD_SEEN_DECADES
+    for values, colour, text in lines:
+        reach = float(np.interp(math.log10(seen_f), np.log10(f), values))
+        if not reach >= floor:
+            ax.plot([], [], " ", label=f"{text}: below {floor:.1g}")
+            continue
+        bottom = min(bottom, reach / 1.5)
+        ax.loglog(f, values, "--", color=colour, lw=0.9, label=text)
+    ax.loglog(f, total, "-", color="k", lw=1.1, label=f"{fit_label(result.method)}, one-sided")
+    ax.set_ylim(bottom=max(bottom, 1e-300), top=top)
+    ax.set_xlim(f[0], f[-1])
 
 
 def psd_figure(results: Sequence[AxisIdentification], rate_hz: float) -> Figure:
-    """Figs. 4-5: one panel per axis, convention in the caption."""
-    fig, axes = _new(1, len(results), size=(6.0 * len(results) + 0.5, 5.0))
-    for ax, r in zip(axes, results):
+    """Figs. 4-5: one panel per axis, the one-sided convention in the caption."""
+    fig, axes, boxes = _with_legends(len(results), (6.0 * len(results) + 0.5, 6.5), 0.19)
+    for ax, box, r in zip(axes, boxes, results):
         draw_psd(ax, r, rate_hz)
-        ax.set_title(f"axis {r.axis}", fontsize="small")
-        ax.legend(fontsize="x-small", loc="lower left")
-    fig.suptitle(f"PSD with fitted asymptotes ({PSD_CONVENTION})", fontsize="small")
+        ax.set_title(f"axis {r.axis}", fontsize="medium")
+        _legend_below(ax, box)
+    fig.suptitle("PSD and fitted asymptotes")
+    fig.supxlabel(_PSD_CAPTION, fontsize="small")
     return fig
 
 
@@ -259,42 +378,72 @@ def overlay_figures(
     rec_result: AxisIdentification,
     emu_result: AxisIdentification,
 ) -> dict[str, Figure]:
-    """Figs. 7-9 for one axis: Allan deviation, PSD and time series, emulator vs recording."""
+    """Figs. 7-9 for one axis: Allan deviation, PSD and time series, emulator vs recording.
+
+    The time series compares like with like: a quantized recording (a chip's counts, the
+    firmware's mdps) is set beside the emulator record rounded to the same LSB grid, as the
+    chip's ADC would round it. The Allan deviation and PSD use the emulator record as
+    generated: the N identified from a quantized record already holds the quantization's
+    white noise (LSB^2 / 12), and rounding the emulator again would count it twice."""
     figs = {}
-    fig, (ax,) = _new()
+    fig, (ax,), (box,) = _with_legends(1, (8.0, 6.0), 0.1)
     for res, lab, col in (
         (rec_result, "recording", "tab:blue"),
         (emu_result, "emulator", "tab:orange"),
     ):
         c = res.allan
         ax.loglog(c.taus, c.adev, "o-", ms=3, color=col, label=f"{lab}: ADEV")
-        ax.fill_between(c.taus, c.ci_low, c.ci_high, color=col, alpha=0.2, lw=0)
+        ax.fill_between(c.taus, c.ci_low, c.ci_high, color=col, alpha=0.2, lw=0,
+                        label=f"{lab}: {c.ci * 100:.0f} % confidence band")
     ax.set_xlabel("tau [s]")
     ax.set_ylabel("Allan deviation [deg/s]")
     ax.grid(alpha=0.3, which="both")
-    ax.legend()
-    ax.set_title(f"axis {rec_result.axis}: emulator against recording (Allan deviation)")
+    _legend_below(ax, box, ncols=2)
+    ax.set_title(f"axis {rec_result.axis}: emulator against recording, Allan deviation")
     figs["overlay_adev"] = fig
 
-    fig, (ax,) = _new()
+    fig, (ax,), (box,) = _with_legends(1, (8.0, 6.0), 0.06)
     draw_psd(ax, rec_result, rate_hz, color="tab:blue", label="recording", asymptotes=False)
     draw_psd(ax, emu_result, rate_hz, color="tab:orange", label="emulator", asymptotes=False)
-    ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel(_PSD_LABEL)
-    ax.grid(alpha=0.3, which="both")
-    ax.legend()
-    ax.set_title(f"emulator against recording ({PSD_CONVENTION})", fontsize="small")
+    _legend_below(ax, box, ncols=2)
+    ax.set_title(f"axis {rec_result.axis}: emulator against recording, PSD")
+    fig.supxlabel(_PSD_CAPTION, fontsize="small")
     figs["overlay_psd"] = fig
 
-    fig, (ax,) = _new(size=(9.0, 4.0))
-    window = min(recording.shape[0], _OVERLAY_WINDOW)  # raw samples, as the paper's Fig. 9
-    t = np.arange(window) / rate_hz
-    ax.plot(t, recording[:window], lw=0.6, color="tab:blue", label="recording")
-    ax.plot(t, emulated[:window], lw=0.6, color="tab:orange", alpha=0.8, label="emulator")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("rate [deg/s]")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize="small")
-    ax.set_title(f"axis {rec_result.axis}: emulator against recording, first {window} samples")
-    figs["overlay_time"] = fig
+    figs["overlay_time"] = _overlay_time(recording, emulated, rate_hz, rec_result.axis)
     return figs
+
+
+def _overlay_time(recording: np.ndarray, emulated: np.ndarray, rate_hz: float,
+                  axis: str) -> Figure:
+    recording = np.asarray(recording, dtype=float)
+    grid = output_grid(recording)
+    emulator = np.asarray(emulated, dtype=float)
+    if grid is not None:
+        emulator = grid.snap(emulator)
+        how = f"emulator rounded to the recording's LSB, {grid.step:.4g} deg/s"
+    else:
+        how = "neither is quantized"
+    window = min(recording.shape[0], emulator.shape[0], _OVERLAY_WINDOW)
+    zoom = min(window, _OVERLAY_ZOOM)
+    fig, axes = _new(2, 1, size=(9.0, 6.5))
+    t = np.arange(window) / rate_hz
+    for ax, n, style in ((axes[0], window, "-"), (axes[1], zoom, ".-")):
+        ax.plot(t[:n], recording[:n], style, lw=0.6, ms=3, color="tab:blue", label="recording")
+        ax.plot(t[:n], emulator[:n], style, lw=0.6, ms=3, color="tab:orange", alpha=0.8,
+                label="emulator")
+        ax.set_ylabel("rate [deg/s]")
+        ax.grid(alpha=0.3)
+        ax.set_title(f"first {n} samples ({n / rate_hz:.3g} s)", fontsize="medium")
+    if grid is not None:  # the zoom's minor grid: one line per LSB level, where few enough
+        low = min(recording[:zoom].min(), emulator[:zoom].min())
+        high = max(recording[:zoom].max(), emulator[:zoom].max())
+        if grid.level(high) - grid.level(low) <= _LSB_LINES:
+            levels = np.arange(grid.level(low), grid.level(high) + 1)
+            axes[1].set_yticks(grid.origin + levels * grid.step, minor=True)
+            axes[1].grid(which="minor", axis="y", alpha=0.15)
+    axes[1].set_xlabel("time [s]")
+    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
+                   borderaxespad=0.0)
+    fig.suptitle(f"axis {axis}: emulator against recording ({how})")
+    return fig
