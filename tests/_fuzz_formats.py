@@ -125,6 +125,13 @@ def seed_folder() -> Path:
          "3", "-o", str(folder / "recording.csv"))
     _cli("record", "--duration", "0.2s", "--rate", "200", "--seed", "2", "-o",
          str(folder / "recording.npz"))
+    _cli("generate", "--profile", "paper", "--rate", "200", "--duration", "2s", "--seed", "1",
+         "-o", str(folder / "noise.resd"))
+    _cli("record", "--duration", "0.2s", "--rate", "200", "--seed", "2", "--true-rate", "1", "2",
+         "3", "-o", str(folder / "recording.resd"))
+    # the firmware's UART stream: a recorded capture (the AVR toolchain is not needed here)
+    (folder / "stream.txt").write_bytes(
+        (Path(__file__).parent / "data" / "firmware_capture.txt").read_bytes())
     _cli("script", str(folder / "bringup.script"), "--seed", "3", "-q", "--trace",
          str(folder / "session.jsonl"))
     from bmg160_emu.cli import main
@@ -260,6 +267,12 @@ FORMATS: tuple[FuzzFormat, ...] = (
                _errors("bmg160_emu.io.rates.RateFileError")),
     FuzzFormat("recording-npz", "recording.npz", load_recording,
                _errors("bmg160_emu.io.rates.RateFileError"), text=False),
+    FuzzFormat("rates-resd", "noise.resd", load_rate_file,
+               _errors("bmg160_emu.io.rates.RateFileError"), text=False),
+    FuzzFormat("recording-resd", "recording.resd", load_rate_file,
+               _errors("bmg160_emu.io.rates.RateFileError"), text=False),
+    FuzzFormat("uart-stream", "stream.txt", load_rate_file,
+               _errors("bmg160_emu.io.rates.RateFileError")),
     FuzzFormat("scenario", "scenario.toml", load_scenario_file,
                _errors("bmg160_emu.adcs.scenarios.ScenarioError")),
     FuzzFormat("profile", "profile.toml", load_profile_file,

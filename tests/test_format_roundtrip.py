@@ -188,7 +188,7 @@ def test_the_registry_gives_the_reader_and_writer_of_the_suffix(case):
 
 
 def test_an_unknown_suffix_names_the_known_ones():
-    with pytest.raises(FormatError, match=r"rates file must end in \.csv, \.npz or \.npy, not 'a\.txt'"):
+    with pytest.raises(FormatError, match=r"rates file must end in \.csv, \.npz, \.npy or \.resd, not 'a\.txt'"):
         format_for("rates", Path("a.txt"))
 
 

@@ -92,7 +92,7 @@ def test_npy_and_npz_inputs(tmp_path, samples):
 @pytest.mark.parametrize(
     ("name", "content", "message"),
     [
-        ("x.json", "{}", r"must end in \.csv, \.npy or \.npz"),
+        ("x.json", "{}", r"must end in \.csv, \.npy, \.npz, \.resd"),
         ("e.csv", "# only a comment\n", "no data rows"),
         ("w.csv", "1,2,3,4\n5,6,7,8\n", "1 to 3 axes"),
         ("s.csv", "t,x\n0,1\n0.1,abc\n", r"s\.csv:3: not a number: 'abc'"),

@@ -192,6 +192,7 @@ def test_time_overlay_rounds_the_emulator_to_a_quantized_recordings_lsb(counts_r
                                 axis)["overlay_time"]
     top = fig.axes[0]
     recording_line, emulator_line = top.get_lines()
+    np.testing.assert_array_equal(recording_line.get_ydata(), counts_record[:2000, 0])
     steps = emulator_line.get_ydata() / LSB_DPS
     np.testing.assert_allclose(steps, np.rint(steps), atol=1e-9)  # on the chip's grid
     assert np.abs(emulator_line.get_ydata() - emulated[:2000, 0]).max() <= LSB_DPS / 2 + 1e-12

@@ -19,9 +19,10 @@ examples:
   bmg160-emu identify adev.csv --curve --rate 100 --duration 2.8h --profile-out mine.toml
 
 Inputs: CSV (one column per axis, optional time column t/t_s/time, '#' comments, the layout
-of `bmg160-emu record` and `generate`), .npy (n or n x k array), .npz; with --curve, an Allan
-deviation CSV (tau, then adev [low high] per axis; allan_variance_ros's 7 columns) and the
-record's --samples or --duration. The rate comes from --rate or from the time column.
+of `bmg160-emu record` and `generate`), .npy (n or n x k array), .npz, .resd (Renode, channel
+0), the firmware's UART stream (.txt from `firmware capture` or a board's serial port, whose
+ODR --rate gives); with --curve, an Allan deviation CSV (tau, then adev [low high] per
+axis; allan_variance_ros's 7 columns) and the record's --samples or --duration. The rate comes from --rate or from the time column.
 
 The fit (docs/identification.md): weighted least squares of the closed-form Allan variance
 of white noise + Gauss-Markov terms (B_i, T_i) + random walk; the number of terms is chosen
@@ -42,7 +43,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "and write a profile the generator loads back.",
         EPILOG,
     )
-    parser.add_argument("file", type=Path, help="record: .csv, .npy or .npz (deg/s)")
+    parser.add_argument("file", type=Path, help="record: .csv, .npy, .npz, .resd (deg/s) or "
+                        "the firmware's UART stream (.txt)")
     parser.add_argument(
         "--rate",
         type=float,

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from bmg160_emu.firmware.params_header import render_params_header
 from bmg160_emu.firmware.register_table import REGISTERS_HEADER, render_registers_header
+from bmg160_emu.io.uart_stream import CAPTURE_LINE
 
 # The sources: the copy a wheel ships (setup.py puts firmware/ there), else the checkout's
 # firmware/ folder (editable installs). Builds of a shipped copy go to the user's cache, not
@@ -193,7 +194,9 @@ def capture_uart(
     build: FirmwareBuild, seconds: float, output: str | Path, odr_hz: int = 200
 ) -> Path:
     """Run the firmware in simavr for ``seconds`` of simulated time at ``odr_hz`` and write
-    its UART stream to ``output`` (the BW register is set over I2C after boot)."""
+    its UART stream to ``output`` (the BW register is set over I2C after boot), after a first
+    ``#`` line that names the ODR: the firmware's own banner cannot (the ODR is chosen over
+    I2C after it is sent), and with it ``identify`` needs no --rate (io/uart_stream.py)."""
     if odr_hz not in BW_CODE_FOR_ODR:
         raise ValueError(f"ODR must be one of {sorted(BW_CODE_FOR_ODR)} Hz, not {odr_hz!r}")
     if not seconds > 0:
@@ -205,4 +208,8 @@ def capture_uart(
          str(output), "--bw", str(BW_CODE_FOR_ODR[odr_hz]), "--address", hex(address)],
         "firmware capture",
     )  # fmt: skip
-    return Path(output)
+    path = Path(output)
+    stream = path.read_bytes()
+    line = CAPTURE_LINE.format(odr_hz=odr_hz, seconds=float(seconds))
+    path.write_bytes(line.encode("ascii") + b"\n" + stream)
+    return path

@@ -29,7 +29,6 @@ import numpy as np
 
 from bmg160_emu.io.errors import FileFormat, FormatError, format_for, register_format
 
-# What numpy raises for a damaged .npy/.npz (a cut zip member is EOFError or zlib.error).
 # what numpy and zipfile raise on a damaged file: np.load's header parser (tokenize), a zip
 # member with an unknown compression method, a cut or corrupt archive
 ARRAY_ERRORS = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
@@ -420,16 +419,22 @@ def load_rate_record(
       z_dps (the ``record`` and ``generate`` layout) those are the axes.
     - .npy: an (n,) or (n, k) array, k <= 3, no time.
     - .npz: a single array, or rate_dps (n, 3) and t_s, or x, y, z with an optional t.
+    - .resd: Renode sensor data, angular-rate channel 0; .txt or .log holding the firmware's
+      UART stream (told from a CSV by its first line): io/resd.py, io/uart_stream.py.
     """
     path = Path(path)
     if not path.is_file():
         raise RateFileError(f"no such record file: {path}")
     suffix = path.suffix.lower()
-    if columns and suffix not in (".csv", ".txt"):
+    from bmg160_emu.io import uart_stream
+
+    stream = suffix in uart_stream.SUFFIXES and uart_stream.looks_like_uart_stream(path)
+    if columns and (suffix not in (".csv", ".txt") or stream):
         raise RateFileError("--columns applies to CSV files with a header row", path=path)
-    if suffix not in (".csv", ".txt", ".npy", ".npz"):
-        raise RateFileError(f"record file must end in .csv, .npy or .npz, not {path.name!r}")
-    table = _READERS[".csv" if suffix == ".txt" else suffix](path, columns)
+    if suffix not in _READERS:
+        raise RateFileError("record file must end in .csv, .npy, .npz, .resd or .txt (a UART "
+                            f"stream), not {path.name!r}")
+    table = uart_stream.uart_rate_table(path, rate_hz) if stream else _READERS[suffix](path, columns)
     data = table.values
     if data.ndim == 1:
         data = data[:, None]
@@ -548,7 +553,13 @@ def _read_record_csv(path: Path, columns: list[str] | None) -> RateTable:
     return table
 
 
-_READERS = {".csv": _read_record_csv, ".npy": _read_record_npy, ".npz": _read_record_npz}
+def _read_record_resd(path: Path, columns: list[str] | None) -> RateTable:
+    from bmg160_emu.io.resd import resd_rate_table
+    return resd_rate_table(path)
+
+
+_READERS = {".csv": _read_record_csv, ".txt": _read_record_csv, ".log": _read_record_csv,
+            ".npy": _read_record_npy, ".npz": _read_record_npz, ".resd": _read_record_resd}
 
 
 def write_rates(path: str | Path, t_s: np.ndarray | None, rate_dps: np.ndarray,
@@ -556,13 +567,17 @@ def write_rates(path: str | Path, t_s: np.ndarray | None, rate_dps: np.ndarray,
     """Write a rate record that :func:`load_rate_record` reads back exactly.
 
     CSV: ``#`` comments, header ``t_s,x_dps,...``; NPZ: ``t_s`` and ``rate_dps``; NPY: the
-    (n, k) array alone (no time: the reader is given the rate).
+    (n, k) array alone (no time: the reader is given the rate); RESD: io/resd.py, channel 0.
     """
     rate_dps = np.asarray(rate_dps, dtype=float)
     rate_dps = rate_dps.reshape(len(rate_dps), -1)
     names = ("x_dps", "y_dps", "z_dps")[: rate_dps.shape[1]]
     fmt = format_for("rates", path, RateFileError)
-    if fmt.suffix == ".npy":
+    if fmt.suffix == ".resd":
+        from bmg160_emu.io.resd import write_resd_rates
+
+        write_resd_rates(path, t_s, rate_dps)
+    elif fmt.suffix == ".npy":
         np.save(path, rate_dps)
     elif fmt.suffix == ".npz":
         arrays = {"rate_dps": rate_dps}
@@ -577,7 +592,7 @@ def write_rates(path: str | Path, t_s: np.ndarray | None, rate_dps: np.ndarray,
 def _register() -> None:
     for suffix, description in ((".csv", "header row, optional time column"),
                                 (".npz", "rate_dps (n, k) and t_s, or x, y, z and t"),
-                                (".npy", "(n, k) array, no time")):
+                                (".npy", "(n, k) array, no time"), (".resd", "Renode, channel 0")):
         register_format(FileFormat("rates", suffix, load_rate_record, write_rates, description))
 
 

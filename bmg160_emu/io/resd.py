@@ -48,6 +48,7 @@ _CONSTANT_FREQUENCY = struct.Struct("<QQQ")  # start time ns, period ns, metadat
 _SAMPLE = np.dtype("<i4")
 _SAMPLE_BYTES = 3 * _SAMPLE.itemsize
 _INT32 = np.iinfo(np.int32)
+_LAST_NS = 2**63 - 1
 
 
 class ResdFormatError(FormatError):
@@ -202,7 +203,10 @@ class ResdBlock:
 def iter_blocks(path: str | Path) -> Iterator[ResdBlock]:
     """The constant-frequency blocks of a RESD file; errors name the file and the byte."""
     path = Path(path)
-    data = path.read_bytes()
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ResdFormatError(f"{path}: cannot read the file ({exc.strerror})") from None
     if data[:4] != RESD_MAGIC:
         raise ResdFormatError(f"{path}: byte 0: not a RESD file (starts {data[:4]!r})")
     if len(data) < len(FILE_HEADER) or data[4] != RESD_VERSION:
@@ -250,6 +254,9 @@ def _constant_frequency_block(
             )
         if period_ns == 0 and len(block.data) > _SAMPLE_BYTES:
             raise ResdFormatError(f"{path}: byte {body + 8}: period 0 with several samples")
+        last_ns = start_ns + period_ns * max(len(block.data) // _SAMPLE_BYTES - 1, 0)
+        if last_ns > _LAST_NS:  # u64 fields: the times must fit numpy's int64 nanoseconds
+            raise ResdFormatError(f"{path}: byte {body}: sample times beyond 2**63 ns")
     return block
 
 
@@ -263,3 +270,29 @@ def read_angular_rate(path: str | Path, channel: int = 0) -> tuple[np.ndarray, n
     if not times:
         raise ResdFormatError(f"{path}: no angular-rate channel {channel}")
     return np.concatenate(times), np.concatenate(rates)
+
+
+def resd_rate_table(path: str | Path):
+    """Channel 0 as the rate reader's table (``identify`` and ``load_rate_record``): times
+    from the blocks' start and period, errors as :class:`~bmg160_emu.io.rates.RateFileError`."""
+    from bmg160_emu.io.rates import RateFileError, RateTable
+
+    try:
+        t_s, rate_dps = read_angular_rate(path, channel=0)
+    except ResdFormatError as exc:
+        raise RateFileError(str(exc)) from None
+    return RateTable(Path(path), ["x", "y", "z"], t_s, rate_dps)
+
+
+def write_resd_rates(path: str | Path, t_s: np.ndarray | None, rate_dps: np.ndarray) -> None:
+    """``write_rates`` for .resd: evenly spaced times and three axes, as channel 0."""
+    from bmg160_emu.io.rates import RateFileError
+
+    rate_dps = np.asarray(rate_dps, dtype=float)
+    if t_s is None or rate_dps.ndim != 2 or rate_dps.shape[1] != 3:
+        raise RateFileError("RESD holds times and three axes: give t_s and (n, 3) rates",
+                            path=path)
+    try:
+        write_resd(path, np.asarray(t_s, dtype=float), {0: rate_dps})
+    except ResdFormatError as exc:
+        raise RateFileError(exc.detail, path=path) from None

@@ -197,7 +197,8 @@ def histogram_figure(record: np.ndarray, names: Sequence[str]) -> Figure:
             title = f"axis {name}"
         else:
             per = grid.levels_per_bin(float(col.min()), float(col.max()))
-            what = f"samples, bins of {per} LSB" if per > 1 else "samples, one bin per LSB"
+            what = (f"samples, bins of {per} LSB ({per * grid.step:.3g} deg/s)" if per > 1
+                    else "samples, one bin per LSB")
             title = f"axis {name}: quantized, LSB {grid.step:.4g} deg/s"
         ax.hist(col, bins=edges, density=True, histtype="stepfilled", alpha=0.6, label=what)
         xs = np.linspace(mu - 5 * sigma, mu + 5 * sigma, 400)
