@@ -127,7 +127,8 @@ def test_viewer_in_a_real_terminal_shows_a_script_session(tmp_path, runtime_dir)
         announce = session.stderr.readline()  # printed once the socket listens
         assert "watch this session with: bmg160-emu watch --socket " in announce, announce
         socket_path = announce.rsplit(" ", 1)[1].strip()
-        viewer = f"{sys.executable} -m bmg160_emu watch --socket {socket_path}; sleep 30"
+        viewer = (f"{sys.executable} -m bmg160_emu watch --socket {socket_path}; "
+                  "echo viewer-exit-status=$?; sleep 30")
         subprocess.run(
             ["tmux", "new-session", "-d", "-s", name, "-x", "120", "-y", "50", viewer],
             check=True, env=env,
@@ -149,10 +150,76 @@ def test_viewer_in_a_real_terminal_shows_a_script_session(tmp_path, runtime_dir)
         assert "RANGE = 0x0" in screen, screen  # a change, decoded
         assert any(ch in screen for ch in "▁▂▃▄▅▆▇█"), screen  # the rate sparklines
         assert "INT1" in screen and "FIFO" in screen, screen
+        assert "q quits the view" in screen, screen
+        # q leaves the view: the viewer process exits with 0, the session goes on
+        subprocess.run(["tmux", "send-keys", "-t", name, "q"], check=True)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and "viewer-exit-status=" not in screen:
+            time.sleep(0.2)
+            screen = subprocess.run(
+                ["tmux", "capture-pane", "-p", "-t", name], capture_output=True, text=True,
+                check=True,
+            ).stdout  # fmt: skip
+        assert "viewer-exit-status=0" in screen, screen
+        assert "left the view; the session goes on" in screen, screen
+        assert session.poll() is None  # the watched script is still running
     finally:
         subprocess.run(["tmux", "kill-session", "-t", name], check=False, capture_output=True)
         session.kill()
         session.wait(timeout=10)
+
+
+def _pty_keys():
+    import pty
+
+    main, secondary = pty.openpty()
+    return os.fdopen(main, "wb", buffering=0), os.fdopen(secondary, "r")
+
+
+def test_q_on_the_terminal_leaves_the_view_and_the_session_goes_on(runtime_dir):
+    import io
+    import threading
+
+    from rich.console import Console
+
+    from bmg160_emu.watch.view import run_viewer
+
+    chip = BMG160(seed=1)
+    press, keys = _pty_keys()
+    out = io.StringIO()
+    with press, keys, WatchServer({0x68: chip}, [], title="q test") as server:
+        done = threading.Event()
+        status = []
+        viewer = threading.Thread(target=lambda: (status.append(run_viewer(
+            server.path, Console(file=out, width=120), keys=keys)), done.set()), daemon=True)
+        viewer.start()
+        time.sleep(0.5)  # the view has drawn a snapshot or two
+        assert not done.is_set()  # it would go on while the session does
+        press.write(b"x")  # any other key does nothing
+        time.sleep(0.3)
+        assert not done.is_set()
+        press.write(b"q")
+        assert done.wait(5.0), "q did not end the viewer"
+        assert server.path.exists()  # the session is untouched
+    assert status == [0]
+    text = out.getvalue()
+    assert "BMG160 0x68" in text and "left the view; the session goes on" in text
+
+
+def test_the_view_ends_when_the_session_does(runtime_dir):
+    import io
+
+    from rich.console import Console
+
+    from bmg160_emu.watch.view import run_viewer
+
+    server = WatchServer({0x68: BMG160(seed=1)}, [], title="short").start()
+    import threading
+
+    threading.Timer(0.5, server.stop).start()
+    out = io.StringIO()
+    assert run_viewer(server.path, Console(file=out, width=120), keys=io.StringIO()) == 0
+    assert f"the session behind {server.path} ended" in out.getvalue()
 
 
 def _umockdev_missing() -> str | None:

@@ -18,8 +18,8 @@ A session started with --watch (run, script) serves snapshots on a Unix socket i
 directory only you can enter ($XDG_RUNTIME_DIR/bmg160-emu, else /tmp/bmg160-emu-UID, mode
 0700); nothing listens on a network port. The view shows the 64 registers (changes
 highlighted and decoded), the three rates as sparklines, the FIFO level, INT1/INT2,
-transactions per second and the last transactions. Ctrl-C leaves the view; the session
-goes on. Needs the rich package (pip install 'bmg160-emu[watch]').
+transactions per second and the last transactions. q (or Ctrl-C) leaves the view; the
+session goes on. Needs the rich package (pip install 'bmg160-emu[watch]').
 """
 
 

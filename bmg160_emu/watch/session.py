@@ -228,30 +228,68 @@ class WatchServer:
         }
 
 
-def read_snapshots(path: Path, timeout_s: float = 5.0) -> Any:
-    """Connect to a watch socket and yield its snapshots (dicts) until the session ends."""
-    check_private_dir(path.parent)
-    client = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-    try:
-        client.connect(str(path))
-    except OSError as exc:
-        client.close()
-        raise WatchError(f"cannot attach to {path}: {exc.strerror or exc}") from None
-    client.settimeout(timeout_s)
-    with client, client.makefile("rb") as stream:
+class SnapshotConnection:
+    """A viewer's end of a watch socket: ``fileno`` for ``select`` (so a viewer can wait on the
+    socket and its keyboard at once), ``read`` the snapshots that have arrived."""
+
+    def __init__(self, path: Path) -> None:
+        check_private_dir(path.parent)
+        self.path = path
+        self._socket = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            self._socket.connect(str(path))
+        except OSError as exc:
+            self._socket.close()
+            raise WatchError(f"cannot attach to {path}: {exc.strerror or exc}") from None
+        self._socket.setblocking(False)
+        self._pending = b""
+
+    def fileno(self) -> int:
+        return self._socket.fileno()
+
+    def read(self) -> list[dict[str, Any]] | None:
+        """The whole snapshots received so far ([] when none is complete yet), or None once
+        the session has ended (closed or reset its end)."""
+        chunks: list[bytes] = []
         while True:
             try:
-                raw = stream.readline()
-            except TimeoutError:
-                raise WatchError(f"{path}: the session stopped answering") from None
+                chunk = self._socket.recv(1 << 16)
+            except (BlockingIOError, InterruptedError):
+                break
             except OSError:
-                return  # the session ended (closed or reset its end)
-            if not raw:
+                return None
+            if not chunk:
+                if chunks:
+                    break  # what came before the end is shown; the end is seen next time
+                return None
+            chunks.append(chunk)
+        *lines, self._pending = (self._pending + b"".join(chunks)).split(b"\n")
+        try:
+            return [json.loads(line) for line in lines if line]
+        except json.JSONDecodeError:
+            raise WatchError(f"{self.path}: not a bmg160-emu watch socket") from None
+
+    def close(self) -> None:
+        self._socket.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def read_snapshots(path: Path, timeout_s: float = 5.0) -> Any:
+    """Connect to a watch socket and yield its snapshots (dicts) until the session ends."""
+    with SnapshotConnection(path) as connection:
+        while True:
+            ready, _, _ = select.select([connection], [], [], timeout_s)
+            if not ready:
+                raise WatchError(f"{path}: the session stopped answering")
+            snapshots = connection.read()
+            if snapshots is None:
                 return
-            try:
-                yield json.loads(raw)
-            except json.JSONDecodeError:
-                raise WatchError(f"{path}: not a bmg160-emu watch socket") from None
+            yield from snapshots
 
 
 @contextlib.contextmanager

@@ -8,10 +8,15 @@ second and the last transactions.
 
 from __future__ import annotations
 
+import contextlib
+import os
+import select
+import sys
 import time
 from collections import deque
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from rich.console import Console, Group, RenderableType
 from rich.live import Live
@@ -26,6 +31,7 @@ HIGHLIGHT_S = 2.0  # how long a changed register stays highlighted
 DECODED_CHANGES = 6
 FIFO_CAPACITY = 100  # frames (spec 6.5)
 SPARK = "▁▂▃▄▅▆▇█"
+QUIT_KEYS = frozenset("qQ")  # leave the view (the session goes on)
 CHANGED = "bold black on yellow"
 LIVE = "cyan"
 # Output and status registers change by themselves, with every sample: they are shown as
@@ -94,7 +100,7 @@ class WatchView:
         head = Text.assemble(
             ("bmg160-emu watch", "bold"), f"  {snap.get('title') or 'session'}",
             f"  pid {snap.get('pid')}  ", (f"{snap['transactions_per_s']:.0f} tx/s", "bold cyan"),
-            f"  ({snap['transactions']} transactions)",
+            f"  ({snap['transactions']} transactions)", ("   q quits the view", "dim"),
         )  # fmt: skip
         parts: list[RenderableType] = [head]
         for chip in snap["chips"]:
@@ -168,15 +174,63 @@ class WatchView:
         return text
 
 
-def run_viewer(path: Path, console: Console | None = None) -> int:
-    """Show the session behind the socket ``path`` until it ends (or Ctrl-C)."""
-    from bmg160_emu.watch.session import read_snapshots
+@contextlib.contextmanager
+def keyboard(stream: IO[str] | None) -> Iterator[int | None]:
+    """The terminal's keys one at a time, unechoed (cbreak mode; Ctrl-C still interrupts),
+    as a file descriptor to ``select`` on; the terminal's mode is restored on the way out.
+    None when ``stream`` is not a terminal (the view then ends with the session or Ctrl-C)."""
+    if stream is None or not stream.isatty():
+        yield None
+        return
+    import termios
+    import tty
+
+    fd = stream.fileno()
+    saved = termios.tcgetattr(fd)
+    tty.setcbreak(fd)
+    try:
+        yield fd
+    finally:
+        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+
+
+def run_viewer(path: Path, console: Console | None = None, keys: IO[str] | None = None,
+               timeout_s: float = 5.0) -> int:
+    """Show the session behind the socket ``path`` until it ends, ``q`` is pressed on ``keys``
+    (default: standard input, when it is a terminal) or Ctrl-C; the session goes on."""
+    from bmg160_emu.watch.session import SnapshotConnection, WatchError
 
     console = console or Console()
     view = WatchView()
-    with Live(view.render(), console=console, auto_refresh=False, screen=False) as live:
-        for snapshot in read_snapshots(path):
-            view.update(snapshot)
-            live.update(view.render(), refresh=True)
-    console.print(f"bmg160-emu watch: the session behind {path} ended")
+    ended = False
+    with SnapshotConnection(path) as connection, keyboard(keys or sys.stdin) as key_fd, \
+            Live(view.render(), console=console, auto_refresh=False, screen=False) as live:
+        waiting = [connection] + ([key_fd] if key_fd is not None else [])
+        heard = time.monotonic()
+        try:
+            while True:
+                ready, _, _ = select.select(waiting, [], [], 0.25)
+                if key_fd is not None and key_fd in ready:
+                    pressed = os.read(key_fd, 64).decode(errors="replace")
+                    if QUIT_KEYS & set(pressed):
+                        break
+                    if not pressed:  # the terminal hung up: the view ends with the session
+                        waiting.remove(key_fd)
+                if connection in ready:
+                    snapshots = connection.read()
+                    if snapshots is None:
+                        ended = True
+                        break
+                    if snapshots:
+                        heard = time.monotonic()
+                        view.update(snapshots[-1])
+                        live.update(view.render(), refresh=True)
+                elif time.monotonic() - heard > timeout_s:
+                    raise WatchError(f"{path}: the session stopped answering")
+        except KeyboardInterrupt:
+            pass
+    if ended:
+        console.print(f"bmg160-emu watch: the session behind {path} ended")
+    else:
+        console.print("bmg160-emu watch: left the view; the session goes on")
     return 0
