@@ -176,12 +176,39 @@ def test_psd_legends_cover_no_curve_and_every_listed_asymptote_is_seen(result):
     assert len(title) <= 40 and fig._suptitle.get_fontsize() >= 11
 
 
-def test_adev_legends_cover_no_curve_or_read_off_point(result):
+def test_adev_legends_cover_no_curve_and_every_listed_point_and_line_is_seen(result):
     fig = plots.adev_figure(result.axes)
     renderer = _drawn(fig)
     for legend in (ax.get_legend() for ax in fig.axes if ax.get_legend() is not None):
         for ax in _plot_axes(fig):
             assert not legend.get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
+    points = 0
+    for ax in _plot_axes(fig):
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        for line in ax.get_lines():
+            if line.get_label().startswith("_") or line.get_transform() != ax.transData:
+                continue  # unlabelled, or the flicker line (drawn across the axes)
+            x, y = (np.asarray(v, dtype=float) for v in line.get_data())
+            if x.size == 0:  # a legend note: K too small to be drawn, or 0
+                assert line.get_label().startswith("K = "), line.get_label()
+                continue
+            seen = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+            assert seen.any(), (ax.get_title(), line.get_label())
+            points += x.size == 1
+    assert points == 3 * 3 or points >= 6  # N, flicker B (and K when drawn) on each axis
+
+
+def test_a_random_walk_of_zero_or_far_below_the_curve_is_named_not_drawn(result):
+    axes = [dataclasses.replace(result.axes[0], fit=dataclasses.replace(
+        result.axes[0].fit, K=dataclasses.replace(result.axes[0].fit.K, value=k)))
+        for k in (0.0, 1e-9)]
+    fig = plots.adev_figure(axes)
+    notes = [[line.get_label() for line in ax.get_lines() if not np.size(line.get_xdata())]
+             for ax in _plot_axes(fig)]
+    assert notes[0] == ["K = 0: no +1/2 slope (random walk) in this record"]
+    assert len(notes[1]) == 1 and notes[1][0].startswith("K = 1e-09 deg/s/\u221as: its +1/2 line")
+    for ax in _plot_axes(fig):  # the axes keep to the curve: 2 decades under it at most
+        assert ax.get_ylim()[0] >= np.nanmin(result.axes[0].allan.adev) / 100 * (1 - 1e-9)
 
 
 def test_time_overlay_rounds_the_emulator_to_a_quantized_recordings_lsb(counts_record, record,

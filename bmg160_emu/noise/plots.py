@@ -49,6 +49,7 @@ _GRID_TOLERANCE = 0.05  # of a step: a RESD file holds rates to 1e-5 rad/s, 0.9 
 _TARGET_BINS = 100  # histogram bins of a quantized record (whole LSBs per bin)
 _MIN_BINS, _MAX_BINS = 20, 200  # of a record of real numbers (numpy's Freedman-Diaconis)
 _LSB_LINES = 60  # most LSB levels marked in the time overlay's zoom
+_ADEV_DECADES_BELOW = 2.0  # of the Allan axes' range under the curve's lowest point
 _PSD_DECADES_BELOW = 2.0  # an asymptote this far below the data is listed, not drawn
 _PSD_SEEN_DECADES = 0.5  # of frequency over which every asymptote drawn can be seen
 
@@ -241,12 +242,14 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
     if lo > c.taus[0] * 1.01:
         ax.axvspan(c.taus[0] * 0.9, lo, color="0.85", lw=0, zorder=0,
                    label="not fitted (sensor filter)")
+    lowest = [float(np.nanmin(c.adev)), float(model.min())]  # what sets the bottom of the axes
     for i, (B, T) in enumerate(result.fit.gauss_markov_terms()):
         if result.fit.flicker is None or i < len(result.terms):
-            ax.loglog(tau, np.sqrt(gauss_markov_avar(B, T, tau)), ":", lw=0.8, color="0.4",
+            term = np.sqrt(gauss_markov_avar(B, T, tau))
+            ax.loglog(tau, term, ":", lw=0.8, color="0.4",
                       label="Gauss-Markov terms" if i == 0 else None)
+            lowest.append(float(term.max()))
     ax.loglog(tau, N / np.sqrt(tau), "--", color="tab:blue", lw=0.9, label="slope -1/2: N")
-    ax.loglog(tau, K * np.sqrt(tau / 3.0), "--", color="tab:red", lw=0.9, label="slope +1/2: K")
     ro = result.readoffs
     b_flick = ro["B_flicker"]["value"]
     ax.axhline(
@@ -257,8 +260,6 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         label="slope 0: minimum (flicker B x 0.664)",
     )
     ax.plot([1.0], [N], "s", color="tab:blue", ms=7, label=f"N = {N:.4g} {_UNIT['N']} (tau 1 s)")
-    ax.plot([3.0], [K * 1.0], "^", color="tab:red", ms=7,
-            label=f"K = {K:.4g} {_UNIT['K']} (tau 3 s)")
     ax.plot(
         [ro["B_flicker"]["tau_s"]],
         [b_flick * FLICKER_ADEV_FACTOR],
@@ -267,6 +268,22 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         ms=7,
         label=f"flicker B = {b_flick:.4g} deg/s (minimum / 0.664)",
     )
+    lowest.append(b_flick * FLICKER_ADEV_FACTOR)
+    # the bottom: the lowest of the curve, the model, the terms' peaks and the K point, but
+    # no more than _ADEV_DECADES_BELOW under the curve; a K point under that is named only
+    floor = float(np.nanmin(c.adev)) / 10**_ADEV_DECADES_BELOW
+    if K > 0 and K >= floor:
+        ax.loglog(tau, K * np.sqrt(tau / 3.0), "--", color="tab:red", lw=0.9,
+                  label="slope +1/2: K")
+        ax.plot([3.0], [K], "^", color="tab:red", ms=7, label=f"K = {K:.4g} {_UNIT['K']} (tau 3 s)")
+        lowest.append(K)
+    elif K > 0:
+        ax.plot([], [], " ", label=f"K = {K:.3g} {_UNIT['K']}: its +1/2 line is far under "
+                f"the curve (below {floor:.1g} deg/s)")
+    else:
+        ax.plot([], [], " ", label="K = 0: no +1/2 slope (random walk) in this record")
+    top = float(np.nanmax(np.where(np.isfinite(c.ci_high), c.ci_high, c.adev))) * 2.0
+    ax.set_ylim(bottom=max(min(lowest) / 2.0, floor), top=top)
     ax.set_xlabel("tau [s]")
     ax.set_ylabel("Allan deviation [deg/s]")
     ax.grid(alpha=0.3, which="both")
