@@ -127,36 +127,15 @@ def _drawn_parts(fig, renderer):
     return [b for b in boxes if b is not None and b.width > 0]
 
 
-@pytest.mark.parametrize("name", ["histogram", "adev", "psd", "timeseries"])
-def test_everything_drawn_is_inside_the_figure(name, result, counts_record):
-    fig = {
-        "histogram": lambda: plots.histogram_figure(counts_record, "xyz"),
-        "adev": lambda: plots.adev_figure(result.axes),
-        "psd": lambda: plots.psd_figure(result.axes, RATE_HZ),
-        "timeseries": lambda: plots.time_series_figure(counts_record, RATE_HZ, "xyz"),
-    }[name]()
-    renderer = _drawn(fig)
-    page = fig.bbox
-    parts = _drawn_parts(fig, renderer)
-    assert len(parts) > len(fig.axes)
-    for box in parts:
-        assert _inside(box, page), (box, page)
-
-
 def _plot_axes(fig):
     return [ax for ax in fig.axes if ax.axison]
 
 
-def test_psd_legends_cover_no_curve_and_every_listed_asymptote_is_seen(result):
+def test_psd_every_listed_asymptote_is_seen(result):
     fig = plots.psd_figure(result.axes, RATE_HZ)
-    renderer = _drawn(fig)
+    _drawn(fig)
     axes = _plot_axes(fig)
-    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
-    assert len(axes) == 3 and len(legends) == 3
-    for legend in legends:
-        box = legend.get_window_extent(renderer)
-        for ax in axes:  # the plots' own areas: no legend over any line or point
-            assert not box.overlaps(ax.get_window_extent(renderer)), legend
+    assert len(axes) == 3
     asymptotes = 0
     for ax in axes:
         (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
@@ -176,12 +155,34 @@ def test_psd_legends_cover_no_curve_and_every_listed_asymptote_is_seen(result):
     assert len(title) <= 40 and fig._suptitle.get_fontsize() >= 11
 
 
-def test_adev_legends_cover_no_curve_and_every_listed_point_and_line_is_seen(result):
-    fig = plots.adev_figure(result.axes)
+@pytest.mark.parametrize("name", ["histogram", "adev", "psd", "timeseries", "overlay_adev",
+                                  "overlay_psd", "overlay_time"])
+def test_no_legend_covers_a_plot_and_all_is_inside_the_figure(name, result, counts_record):
+    if name.startswith("overlay"):
+        fig = plots.overlay_figures(counts_record[:, 0], counts_record[::-1, 0], RATE_HZ,
+                                    result.axes[0], result.axes[0])[name]
+    else:
+        fig = {
+            "histogram": lambda: plots.histogram_figure(counts_record, "xyz"),
+            "adev": lambda: plots.adev_figure(result.axes),
+            "psd": lambda: plots.psd_figure(result.axes, RATE_HZ),
+            "timeseries": lambda: plots.time_series_figure(counts_record, RATE_HZ, "xyz"),
+        }[name]()
     renderer = _drawn(fig)
-    for legend in (ax.get_legend() for ax in fig.axes if ax.get_legend() is not None):
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    assert legends
+    for legend in legends:  # beside or under the plots, never over a line or a point
         for ax in _plot_axes(fig):
             assert not legend.get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
+    parts = _drawn_parts(fig, renderer)  # and nothing is cut off by the figure's edge
+    assert len(parts) >= len(fig.axes)
+    for box in parts:
+        assert _inside(box, fig.bbox), (box, fig.bbox)
+
+
+def test_adev_every_listed_point_and_line_is_seen(result):
+    fig = plots.adev_figure(result.axes)
+    _drawn(fig)
     points = 0
     for ax in _plot_axes(fig):
         (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()

@@ -113,6 +113,11 @@ def _legend_below(ax, box, ncols: int = 1) -> None:
                borderaxespad=0.0)
 
 
+def _legend_right(ax) -> None:
+    """The legend beside the axes, at their top right corner (outside: it covers nothing)."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0.0)
+
+
 def _envelope(x: np.ndarray, rate_hz: float):
     """Time axis and (low, mid, high) of a long series reduced to at most _MAX_POINTS bins."""
     n = x.size
@@ -143,7 +148,7 @@ def time_series_figure(record: np.ndarray, rate_hz: float, names: Sequence[str])
     for ax, col, name in zip(axes, data.T, names):
         _draw_series(ax, col, rate_hz, f"axis {name}")
         ax.set_ylabel("rate [deg/s]")
-        ax.legend(loc="upper right", fontsize="small")
+        _legend_right(ax)
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Static record, time domain")
@@ -461,7 +466,6 @@ def _overlay_time(recording: np.ndarray, emulated: np.ndarray, rate_hz: float,
             axes[1].set_yticks(grid.origin + levels * grid.step, minor=True)
             axes[1].grid(which="minor", axis="y", alpha=0.15)
     axes[1].set_xlabel("time [s]")
-    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
-                   borderaxespad=0.0)
+    _legend_right(axes[0])
     fig.suptitle(f"axis {axis}: emulator against recording ({how})")
     return fig
