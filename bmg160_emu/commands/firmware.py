@@ -17,7 +17,7 @@ examples:
 bmg160.elf and bmg160.hex with Debian's gcc-avr. Flash the HEX onto an Arduino Uno/Nano:
   avrdude -p m328p -c arduino -P /dev/ttyUSB0 -b 115200 -U flash:w:bmg160.hex:i
 (-b 57600 for a Nano with the old bootloader). 'capture' runs the firmware in simavr and
-writes its UART sample stream (docs/firmware.md).
+writes its UART sample stream (docs/firmware.md), which `bmg160-emu identify` reads.
 """
 
 
