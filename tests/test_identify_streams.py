@@ -189,3 +189,20 @@ def test_firmware_capture_then_identify(tmp_path, capsys):
     # 400 Hz in physical mode: the same N (a density); ~2380 samples, 2 sigma ~ 3 %
     for axis in out["axes"].values():
         assert axis["N"]["value"] == pytest.approx(PAPER_N, rel=0.10)
+
+
+def test_the_whole_stream_parser_and_the_line_parser_agree(monkeypatch):
+    # a well-formed stream is parsed at C speed (np.fromstring); the line-by-line parser,
+    # which names errors, must give the same result
+    from bmg160_emu.io import uart_stream
+
+    for data in (CAPTURE.read_bytes(), CAPTURE.read_bytes()[:-5],  # cut inside a line
+                 CAPTURE.read_bytes().replace(b"\n", b"\r\n")):
+        fast = uart_stream.parse_uart_stream(data)
+        assert uart_stream._parse_whole(data, True) is not None
+        with monkeypatch.context() as patch:
+            patch.setattr(uart_stream, "_parse_whole", lambda *args: None)
+            slow = uart_stream.parse_uart_stream(data)
+        for name in ("index", "rate_dps", "line_of"):
+            np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name))
+        assert (fast.banner, fast.odr_hz) == (slow.banner, slow.odr_hz)
