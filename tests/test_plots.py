@@ -229,3 +229,22 @@ def test_time_overlay_rounds_the_emulator_to_a_quantized_recordings_lsb(counts_r
     fig = plots.overlay_figures(record[:, 0], emulated[:, 0], RATE_HZ, axis, axis)["overlay_time"]
     np.testing.assert_array_equal(fig.axes[0].get_lines()[1].get_ydata(), emulated[:2000, 0])
     assert "neither is quantized" in fig.get_suptitle()
+
+
+def test_identify_figures_of_a_firmware_capture_are_written_whole(tmp_path, capsys):
+    from pathlib import Path
+
+    from bmg160_emu import cli
+
+    capture = Path(__file__).parent / "data" / "firmware_capture.txt"
+    folder = tmp_path / "figs"
+    assert cli.main(["identify", str(capture), "--figures", str(folder), "--compare",
+                     "--seed", "1"]) == 0
+    out = capsys.readouterr().out
+    names = sorted(p.name for p in folder.iterdir())
+    assert names == sorted(["adev.png", "histogram.png", "psd.png", "timeseries.png"]
+                           + [f"overlay_{k}_{a}.png" for k in ("adev", "psd", "time")
+                              for a in "xyz"])
+    for name in names:  # each a whole PNG, announced, no temporary file left beside it
+        assert (folder / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert f"wrote {folder / name}" in out

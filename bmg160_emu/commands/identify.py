@@ -474,4 +474,11 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
             )
             for key, fig in overlays.items():
                 figs[f"{key}_{axis.axis}"] = fig
-    return [plots.save(fig, folder / f"{key}{ext}") for key, fig in figs.items()]
+    from bmg160_emu.io.atomic import atomic_path
+
+    written = []
+    for key, fig in figs.items():  # each complete or absent, as every output (docs/outputs.md)
+        with atomic_path(folder / f"{key}{ext}") as partial:
+            plots.save(fig, partial)
+        written.append(folder / f"{key}{ext}")
+    return written
