@@ -248,3 +248,23 @@ def test_identify_figures_of_a_firmware_capture_are_written_whole(tmp_path, caps
     for name in names:  # each a whole PNG, announced, no temporary file left beside it
         assert (folder / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert f"wrote {folder / name}" in out
+
+
+def test_several_gauss_markov_terms_take_one_legend_line(result):
+    # a 1/f bank adds many poles: the PSD legend names the kind once (and the hidden ones
+    # once), not one line a pole
+    axis = result.axes[0]
+    poles = ((0.004, 0.5), (0.004, 5.0), (0.004, 50.0), (1e-6, 0.05), (1e-6, 0.5))
+    axis = dataclasses.replace(axis, fit=dataclasses.replace(axis.fit, flicker_poles=poles))
+    terms = axis.fit.gauss_markov_terms()
+    fig = plots.psd_figure([axis], RATE_HZ)
+    ax = fig.axes[0]
+    labels = [label for label in ax.get_legend_handles_labels()[1]
+              if label.startswith("Gauss-Markov")]
+    drawn = [line for line in ax.get_lines() if line.get_color() == "tab:green"]
+    hidden = [label for label in labels if "below" in label]
+    shown = [label for label in labels if "below" not in label]
+    assert len(shown) == 1 and len(hidden) == 1
+    assert shown[0].endswith(f"and {len(drawn) - 1} more terms")
+    assert hidden[0].split(" and ")[1].startswith("1 more")  # the two 1e-6 poles
+    assert len(drawn) + 2 == len(terms)

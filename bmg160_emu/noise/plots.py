@@ -360,23 +360,34 @@ def draw_psd(
         total = total + ramp_psd(result.R.value, f)
     bottom = float(p.min()) / 3.0
     top = 3.0 * max(float(p.max()), min(float(total.max()), 30.0 * float(p.max())))
-    lines = [(white_psd(N, f), "tab:blue", f"white 2N$^2$ = {2 * N * N:.3g}")]
-    for i, (B, T) in enumerate(terms):
-        lines.append((gauss_markov_psd(B, T, f), "tab:green",
+    lines = [(white_psd(N, f), "tab:blue", "white", f"white 2N$^2$ = {2 * N * N:.3g}")]
+    for B, T in terms:
+        lines.append((gauss_markov_psd(B, T, f), "tab:green", "gm",
                       f"Gauss-Markov $4B^2T/(1+(2\\pi fT)^2)$, T = {T:.3g} s"))
     if K > 0:
-        lines.append((random_walk_psd(K, f), "tab:red", "random walk $2(K/2\\pi)^2/f^2$"))
+        lines.append((random_walk_psd(K, f), "tab:red", "rw", "random walk $2(K/2\\pi)^2/f^2$"))
     floor = bottom / 10**_PSD_DECADES_BELOW
     # each asymptote drawn is seen over the lowest _PSD_SEEN_DECADES of frequency at least
     # (where it is largest): the y range is lowered to its value there, down to ``floor``
     seen_f = f[0] * 10**_PSD_SEEN_DECADES
-    for values, colour, text in lines:
+    drawn: dict[str, list[str]] = {}
+    hidden: dict[str, list[str]] = {}
+    for values, colour, group, text in lines:
         reach = float(np.interp(math.log10(seen_f), np.log10(f), values))
         if not reach >= floor:
-            ax.plot([], [], " ", label=f"{text}: below {floor:.1g}")
+            hidden.setdefault(group, []).append(text)
             continue
         bottom = min(bottom, reach / 1.5)
-        ax.loglog(f, values, "--", color=colour, lw=0.9, label=text)
+        first = group not in drawn
+        drawn.setdefault(group, []).append(text)
+        ax.loglog(f, values, "--", color=colour, lw=0.9, label=text if first else None)
+    for group, texts in hidden.items():  # one legend line a kind (a 1/f bank has many terms)
+        more = f" and {len(texts) - 1} more" if len(texts) > 1 else ""
+        ax.plot([], [], " ", label=f"{texts[0]}{more}: below {floor:.1g}")
+    for line in ax.get_lines():  # several Gauss-Markov terms drawn: one legend line says so
+        if drawn.get("gm") and line.get_label() == drawn["gm"][0] and len(drawn["gm"]) > 1:
+            extra = len(drawn["gm"]) - 1
+            line.set_label(f"{drawn['gm'][0]} and {extra} more term{'s' if extra > 1 else ''}")
     ax.loglog(f, total, "-", color="k", lw=1.1, label=f"{fit_label(result.method)}, one-sided")
     ax.set_ylim(bottom=max(bottom, 1e-300), top=top)
     ax.set_xlim(f[0], f[-1])
