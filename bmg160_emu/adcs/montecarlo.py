@@ -180,7 +180,8 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
             n_workers=workers or os.cpu_count() or 1,
             threads_per_worker=1,  # the runs are CPU-bound Python: one process per core
             processes=True,
-            dashboard_address=None,
+            # None still binds :8787 (distributed 2026.8): a busy port gave a warning on stderr
+            dashboard_address=":0",
         )
         client = Client(cluster)
     else:
