@@ -115,8 +115,42 @@ def record_value(record: dict, *names: str, default: Any = None) -> Any:
     return default
 
 
-def describe_transaction(record: dict) -> str:
-    """One line for a person from a transaction dictionary (``Transaction.to_dict()``)."""
+def _standin_label(spec: Any, reg: int) -> str:
+    declared = spec.registers.get(reg)
+    return f"0x{reg:02X} {declared.name}" if declared is not None and declared.name else f"0x{reg:02X}"
+
+
+def _describe_standin(spec: Any, register: int, read: bytes, written: bytes) -> str:
+    """A stand-in's traffic with its own register names (a BMG160 name would mislead):
+    bursts advance one register a byte except on its FIFO registers (``no_increment``)."""
+    def span(data: bytes, start: int) -> list[int]:
+        regs, reg = [], start
+        for _ in data:
+            regs.append(reg)
+            if reg not in spec.no_increment:
+                reg = (reg + 1) & 0xFF
+        return regs
+
+    if read and written:  # a process call: write from register on, then read on from there
+        regs = span(written, register)
+        after = regs[-1] if regs[-1] in spec.no_increment else (regs[-1] + 1) & 0xFF
+        return (_describe_standin(spec, register, b"", written) + "; then "
+                + _describe_standin(spec, after, read, b""))
+    data, verb, arrow = (read, "read", "->") if read else (written, "write", "<-")
+    if len(data) == 1:
+        if read:
+            return f"read {_standin_label(spec, register)} -> 0x{data[0]:02x}"
+        return f"write {_standin_label(spec, register)} <- 0x{data[0]:02x}"
+    parts = [f"{_standin_label(spec, reg)}{'=' if read else ' <- '}0x{value:02x}"
+             for reg, value in zip(span(data, register), data)]
+    return f"burst {verb} 0x{register:02X} x{len(data)} {arrow} " + ", ".join(parts)
+
+
+def describe_transaction(record: dict, standins: dict[int, Any] | None = None) -> str:
+    """One line for a person from a transaction dictionary (``Transaction.to_dict()``).
+
+    ``standins`` maps an address to its stand-in declaration (a trace header's), whose
+    traffic is told with the stand-in's register names rather than the BMG160's."""
     time_s = record_value(record, "time", "time_s", default=float("nan"))
     bus = record_value(record, "bus", default="?")
     address = record_value(record, "address")
@@ -140,6 +174,9 @@ def describe_transaction(record: dict) -> str:
     if error:
         target = f" {register_label(register)}" if isinstance(register, int) and register < REGISTER_COUNT else ""
         return head + f"{kind}{target} failed: {error}"
+    standin = (standins or {}).get(address) if isinstance(address, int) else None
+    if standin is not None and isinstance(register, int) and (read or written):
+        return head + _describe_standin(standin, register, read, written) + f"  [{kind}]"
     if isinstance(register, int):
         if read and written:  # process calls: write from register on, then read on from there
             after = min(register + len(written), FIFO_DATA) if register < FIFO_DATA else register

@@ -43,7 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.decode import describe_transaction
-    from bmg160_emu.io.trace import TraceFormatError, read_trace
+    from bmg160_emu.io.trace import TraceFormatError, TraceHeader, read_trace
     from bmg160_emu.replay import replay_trace
 
     try:
@@ -53,9 +53,14 @@ def run(args: argparse.Namespace) -> int:
     except (TraceFormatError, UnicodeDecodeError) as exc:
         raise CommandError(str(exc)) from None
     if not args.replay:
+        try:
+            standins = {config.address: config.spec for config in TraceHeader.from_dict(header).configs()
+                        if hasattr(config, "spec")}
+        except (TraceFormatError, ValueError) as exc:
+            raise CommandError(f"{args.file}: {exc}") from None
         for record in records:
             try:
-                text = describe_transaction(record)
+                text = describe_transaction(record, standins)
             except (ValueError, TypeError, KeyError) as exc:
                 raise CommandError(f"{args.file}:{record['_line']}: cannot decode: {exc}") from None
             try:
