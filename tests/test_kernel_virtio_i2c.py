@@ -188,6 +188,16 @@ def test_the_trace_shows_the_guest_drivers_reads(session):
         assert {f[:3] for f in frames} <= {struct.unpack("<3h", bytes(r["read"])) for r in bursts}
 
 
+def _rate_reads(session, address: int) -> list[tuple[float, tuple[int, int, int]]]:
+    """(chip time, counts) of every 6-byte rate read of ``address`` in the trace."""
+    from bmg160_emu.io.trace import read_trace
+
+    _, records = read_trace(session["work"] / "trace.jsonl")
+    return [(r["time"], struct.unpack("<3h", bytes(r["read"]))) for r in records
+            if r["address"] == address and r["kind"] == "read_i2c_block_data"
+            and r["register"] == 0x02 and len(r["read"]) == 6]
+
+
 def _frames(session, name: str) -> list[tuple[int, int, int, int]]:
     data = (session["out"] / name).read_bytes()
     return [struct.unpack_from("<hhhxxq", data, i) for i in range(0, len(data) - 15, 16)]
@@ -215,14 +225,34 @@ def test_triggered_buffer_with_the_drivers_data_ready_trigger(session, odr_hz, n
     stamps = [f[3] for f in frames]
     assert all(b > a for a, b in itertools.pairwise(stamps)), "timestamps not monotonic"
     span_s = (stamps[-1] - stamps[0]) * 1e-9
+    # The frames are the driver's capture reads, in order, in the back end's trace: their
+    # chip times give the span of the chip's own time the capture covered.
+    reads = _rate_reads(session, int(address, 16))
+    values = [v for _, v in reads]
+    triples = [f[:3] for f in frames]
+    starts = [i for i in range(len(values) - len(triples) + 1)
+              if values[i] == triples[0] and values[i:i + len(triples)] == triples]
+    assert len(starts) == 1, "the capture is not one run of the driver's reads in the trace"
+    chip_span_s = reads[starts[0] + len(frames) - 1][0] - reads[starts[0]][0]
+    samples = odr_hz * chip_span_s + 1
+    # Issue 14: the frame count within 1 % of ODR x time. On the chip's time axis (the
+    # samples the model produced while the capture ran) this holds: the back end paces the
+    # chips (--pace guest) so that a guest stalled by its host misses no data-ready sample.
+    # What is still lost are edges IIO drops because the handler of the previous one has not
+    # finished (measured 0.5 % at 100 Hz and 1.1 % at 200 Hz with a 0.3 ms guard on a host
+    # at load 10; the 1 ms guard is there for them) and edges given up after 50 ms.
+    assert samples * 0.99 <= len(frames) <= samples + 1, (len(frames), samples, chip_span_s)
+    # On the guest's clock (wall time under TCG) the chips' time lags when the guest cannot
+    # take 300 interrupts and reads a second: a paced clock never runs ahead (never more
+    # frames than wall time allows) and makes up its lag at twice wall speed when it can.
+    # The lower bound is what this project's 2-core host gave at load 10 (87 %, with the lag
+    # the back end reports in --stats), with a margin; on a quiet machine it is ~100 %.
     expected = odr_hz * span_s + 1
-    # Issue 14 asks for the frame count within 1 % of ODR x time. Not met yet: this machine
-    # kept 98.3 % at 100 Hz and 86.7 % at 200 Hz on a loaded run (92.4 % and 70.4 % under
-    # heavier load); the rest are triggers IIO drops while the previous read is in flight
-    # under QEMU's software emulation (docs/virtio-i2c.md). Checked here: never more frames
-    # than samples (no sample delivered twice), and at least 60 % of them.
     assert len(frames) <= expected + 1, (len(frames), expected, span_s)
     assert len(frames) >= 0.6 * expected, (len(frames), expected, span_s)
+    print(f"{odr_hz} Hz: {len(frames)} frames, {len(frames) / samples:.2%} of the chip's "
+          f"samples, {len(frames) / expected:.2%} of ODR x guest time; back end "
+          f"{stats(session).get('paced')}")
     # No sample repeated. Two consecutive samples can agree on all three axes by chance (the
     # filtered noise moves a few counts per sample): the expected number of such pairs is
     # (N - 1) * prod_axis P(consecutive values equal), P taken from the record itself. A

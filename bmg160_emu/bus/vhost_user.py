@@ -276,6 +276,12 @@ class VirtQueue:
             mapping, base = ring.used  # type: ignore[misc]
             _U16.pack_into(mapping, base + 4 + 8 * ring.num, ring.last_avail)
 
+    def used_event(self) -> int:
+        """EVENT_IDX: the used index the driver has consumed up to (it writes it as it takes
+        used buffers, when it wants interrupts)."""
+        mapping, base = self.ring.avail  # type: ignore[misc]
+        return _U16.unpack_from(mapping, base + 4 + 2 * self.ring.num)[0]
+
     def notify(self, old_used: int) -> None:
         """Call the driver if it wants an interrupt for the entries used since ``old_used``."""
         ring = self.ring
@@ -332,6 +338,10 @@ class VhostUserDevice:
         """Take every available chain of ``queue``, answer it, push it used."""
         raise NotImplementedError
 
+    def answered(self, index: int) -> None:
+        """The driver has been told about the chains just used: work that can wait for
+        that (it is off the guest's round trip) goes here."""
+
     def ring_started(self, index: int) -> None:
         """A ring became ready (kick fd received and enabled)."""
 
@@ -352,6 +362,7 @@ class VhostUserDevice:
             if not queue.pending():  # re-check after avail_event: no kick can be lost
                 break
         queue.notify(old_used)
+        self.answered(index)
 
     def kick_fds(self) -> dict[int, int]:
         """{kick fd: ring index} of the rings that are started."""

@@ -99,6 +99,7 @@ class Server:
         self.listeners: list[tuple[socket.socket, str]] = []
         self.connections: dict[VhostUserDevice, Connection] = {}
         self._kicks: dict[VhostUserDevice, dict[int, int]] = {}
+        self._deadlines: dict[Poller, float] = {}  # {poller: monotonic time to call it}
 
     def add(self, path: str, device: VhostUserDevice) -> None:
         sock = listen(path)
@@ -144,22 +145,37 @@ class Server:
         self._update_kicks(device)
         log.info("%s: front end disconnected", device.name)
 
+    def schedule(self, poller: Poller, at_s: float | None) -> None:
+        """Call ``poller`` at monotonic time ``at_s`` or before (None: no change)."""
+        if at_s is None:
+            return
+        current = self._deadlines.get(poller)
+        if current is None or at_s < current:
+            self._deadlines[poller] = at_s
+
     def run(self, duration_s: float | None = None) -> None:
+        """Serve until :meth:`stop` (or ``duration_s``). A poller returns the monotonic
+        time it wants to be called again, or None: only when :meth:`schedule` asks."""
         end = None if duration_s is None else time.monotonic() + duration_s
-        deadlines: dict[int, float | None] = {}
+        deadlines = self._deadlines
+        for poller in self.pollers:
+            deadlines.setdefault(poller, 0.0)
+        select = self.selector.select
         while not self._stop:
             now = time.monotonic()
-            for i, poller in enumerate(self.pollers):
-                deadline = deadlines.get(i)
-                if deadline is None or deadline <= now:
-                    deadlines[i] = poller(now)
-            pending = [d for d in deadlines.values() if d is not None]
+            timeout = None
+            if deadlines:
+                for poller, deadline in list(deadlines.items()):
+                    if deadline <= now:
+                        del deadlines[poller]
+                        self.schedule(poller, poller(now))
+                if deadlines:
+                    timeout = max(min(deadlines.values()) - now, 0.0)
             if end is not None:
                 if now >= end:
                     break
-                pending.append(end)
-            timeout = max(min(pending) - now, 0.0) if pending else None
-            for key, _ in self.selector.select(timeout):
+                timeout = end - now if timeout is None else min(timeout, end - now)
+            for key, _ in select(timeout):
                 kind, target = key.data
                 if kind == "kick":
                     device, index = target

@@ -23,16 +23,26 @@ polls every chip just after each expected sample (the server's pollers) and afte
 transfer (a read can clear a latched status). A data-ready pulse (300 us, spec_choices)
 between two polls is known from the chip's per-sample hook, so no pulse is missed however
 late the poll runs.
+
+Pacing (with a :class:`~bmg160_emu.bus.guest_pace.GuestPacedClock`): while a chip's
+data-ready interrupt reaches a line with a trigger, the chips' time is held just before
+that chip's next sample until the driver has read the rate registers after the last one
+(and a guard has passed, so the next edge does not find the driver's handler still
+running), then it catches up. A guest stalled by its host thus loses no sample; an edge the
+guest never answers (its handler dropped it) is given up after ``HOLD_TIMEOUT_S``.
 """
 
 from __future__ import annotations
 
 import struct
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from bmg160_emu.bus.guest_pace import NEVER, GuestPacedClock
 from bmg160_emu.bus.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
+from bmg160_emu.clock import NS_PER_S
 from bmg160_emu.device.registers import address_of
 
 VIRTIO_GPIO_F_IRQ = 0
@@ -70,6 +80,16 @@ DATA_EN = 0x80  # INT_EN_0 bit 7: data_en (4.14)
 INT1_DATA, INT2_DATA = 0x01, 0x80  # INT_MAP_1 bits 0 and 7 (4.16)
 POLL_IDLE_S = 0.005  # no sample expected (suspend, no ODR): look again this often
 POLL_MARGIN_S = 50e-6  # wake just after the sample is due
+# Pacing. The driver's read is over for the guest when it has taken the transfer's answer
+# (EVENT_IDX shows it); its handler then still pushes the frame and re-arms the trigger, and
+# an edge before that is dropped by IIO: the guard. That is tens of us of guest code, but
+# the host may stall the guest's vCPU just then: with 0.3 ms, 1.1 % of the 200 Hz edges
+# were dropped on a loaded host. At most a quarter period (a 2000 Hz chip keeps its ODR).
+GUARD_S = 1e-3
+TAKE_POLL_S = 0.2e-3  # while held: how often to look whether the guest took the answer
+# An edge unanswered this long was dropped by the guest (or its driver reads no data): the
+# sample is given up and the chip runs on wall time until the driver reads again.
+HOLD_TIMEOUT_S = 0.05
 
 
 class _SampleCounter:
@@ -78,10 +98,23 @@ class _SampleCounter:
     def __init__(self) -> None:
         self.count = 0
         self.last_t_s: float | None = None
+        self.last_ns: int | None = None
 
     def __call__(self, _chip: Any, t_s: float, _rate: Any) -> None:
         self.count += 1
         self.last_t_s = t_s
+        self.last_ns = round(t_s * NS_PER_S)
+
+
+@dataclass
+class _Pace:
+    """Pacing state of one chip: its last sample seen and whether the driver read it."""
+
+    last_ns: int = -1
+    seen_s: float = 0.0  # wall time (monotonic) the back end saw that sample
+    read_s: float | None = None  # wall time the driver's read of it was seen
+    suspended: bool = False  # given up: wall time until the driver reads again
+    held: bool = False  # the chips' time waited at this sample
 
 
 @dataclass
@@ -112,12 +145,22 @@ class VirtioGPIODevice(VhostUserDevice):
     device_features = 1 << VIRTIO_GPIO_F_IRQ
     name = "virtio-gpio"
 
-    def __init__(self, chips: dict[int, Any], rate_reads: dict[int, float] | None = None) -> None:
+    def __init__(self, chips: dict[int, Any], rate_reads: dict[int, float] | None = None,
+                 clock: Any = None, read_taken: Callable[[int], bool] | None = None) -> None:
         super().__init__()
         self.lines: list[GpioLine] = []
         # {address: chip time of the last rate read} (VirtioI2CDevice.rate_reads)
         self.rate_reads: dict[int, float] = rate_reads if rate_reads is not None else {}
         self.stale_edges = 0  # data-ready edges dropped: the driver had read their sample
+        # pacing only when the chips run on a GuestPacedClock
+        self.clock = clock if isinstance(clock, GuestPacedClock) else None
+        # read_taken(address): the guest has the answer to its last rate read (virtio-i2c)
+        self.read_taken = read_taken
+        self._pace: dict[int, _Pace] = {}
+        self.given_up = 0  # samples whose edge the guest never answered (paced)
+        self.held_samples = 0  # samples the chips' time waited for (paced)
+        # the server's "look again at" (monotonic s); set by whoever runs the loop
+        self.wake: Callable[[float | None], None] | None = None
         for address in sorted(chips):
             chip = chips[address]
             counter = _SampleCounter()  # hooked in while a line of the chip has a trigger
@@ -131,6 +174,9 @@ class VirtioGPIODevice(VhostUserDevice):
         if index == EVENT_QUEUE:
             for line in self.lines:
                 line.buffer = None  # the front end takes the ring back as it stands
+            if self.clock is not None:
+                self.clock.limit_ns = NEVER  # no guest to wait for
+                self._pace.clear()
 
     # ---------------------------------------------------------------- requests
 
@@ -138,7 +184,7 @@ class VirtioGPIODevice(VhostUserDevice):
         if queue.ring.index == EVENT_QUEUE:
             while (chain := queue.pop()) is not None:
                 self._queue_event_buffer(chain)
-            self.poll(time.monotonic())
+            self.look()
             return
         while (chain := queue.pop()) is not None:
             request = b"".join(self.memory.read(a, n) for a, n in chain.readable)
@@ -147,6 +193,7 @@ class VirtioGPIODevice(VhostUserDevice):
             kind, gpio, value = _REQUEST.unpack_from(request)
             response = self._answer(kind, gpio, value)
             queue.push(chain.head, self._scatter(chain, response))
+        self.look()  # a trigger type may have changed
 
     def _answer(self, kind: int, gpio: int, value: int) -> bytes:
         if kind == MSG_GET_NAMES:
@@ -285,24 +332,104 @@ class VirtioGPIODevice(VhostUserDevice):
     def poll(self, now_s: float) -> float | None:
         """Update every line with a trigger set; the monotonic time of the next look."""
         deadline: float | None = None
+        clock = self.clock
         for line in self.lines:
             if line.irq_type == IRQ_TYPE_NONE:
                 continue
             self._update(line)
             chip = line.chip
-            last = line.counter.last_t_s
+            last = line.counter.last_ns
             odr = chip.odr_hz
             wait = POLL_IDLE_S
             if last is not None and odr and chip.power_mode == "normal":
-                wait = min(max(last + 1.0 / odr - chip.time, 0.0) + POLL_MARGIN_S, POLL_IDLE_S)
+                due = last + NS_PER_S // odr
+                until = (clock.wall_s_until(due) if clock is not None
+                         else max(due / NS_PER_S - chip.time, 0.0))
+                wait = min(until + POLL_MARGIN_S, POLL_IDLE_S)
             candidate = now_s + wait
             deadline = candidate if deadline is None else min(deadline, candidate)
+        if clock is not None:
+            held = self._pace_chips(now_s)
+            if held is not None:
+                deadline = held if deadline is None else min(deadline, held)
+        return deadline
+
+    def look(self) -> None:
+        """Poll now and tell the server when to look next (after a transfer or a kick)."""
+        if not self.rings[EVENT_QUEUE].ready:
+            if self.clock is not None:
+                self.clock.limit_ns = NEVER  # no guest to wait for
+            return
+        deadline = self.poll(time.monotonic())
+        if self.wake is not None:
+            self.wake(deadline)
+
+    def _paced_lines(self) -> dict[int, GpioLine]:
+        """{address: a line} of the chips whose data-ready reaches a line with a trigger."""
+        paced: dict[int, GpioLine] = {}
+        for line in self.lines:
+            chip = line.chip
+            if line.irq_type == IRQ_TYPE_NONE or chip.address in paced:
+                continue
+            data_bit = INT1_DATA if line.pin == 1 else INT2_DATA
+            if (chip.peek(INT_EN_0) & DATA_EN and chip.peek(INT_MAP_1) & data_bit
+                    and chip.odr_hz and chip.power_mode == "normal"):
+                paced[chip.address] = line
+        return paced
+
+    def _pace_chips(self, now_s: float) -> float | None:
+        """Set the clock's limit from every paced chip; the time a hold expires, if any."""
+        clock = self.clock
+        assert clock is not None
+        limit = NEVER
+        deadline: float | None = None
+        paced = self._paced_lines()
+        for address in [a for a in self._pace if a not in paced]:
+            del self._pace[address]
+        for address, line in paced.items():
+            last = line.counter.last_ns
+            if last is None:
+                continue
+            state = self._pace.setdefault(address, _Pace())
+            if state.last_ns != last:
+                state.last_ns, state.seen_s, state.read_s, state.held = last, now_s, None, False
+            period = NS_PER_S // line.chip.odr_hz
+            read_t = self.rate_reads.get(address)
+            read = read_t is not None and round(read_t * NS_PER_S) >= last
+            if read:
+                state.suspended = False
+                if state.read_s is None and (self.read_taken is None
+                                             or self.read_taken(address)):
+                    state.read_s = now_s
+            guard = min(GUARD_S, period / 4e9)
+            held = clock.now_ns() >= last + period - 1
+            # never past a sample the back end has not looked at (no two at once) ...
+            hold = last + 2 * period
+            expires = None
+            if state.read_s is None and not state.suspended:
+                # ... nor past the next one until the driver has this one
+                expires = state.seen_s + HOLD_TIMEOUT_S
+                if now_s >= expires:
+                    state.suspended = True
+                    self.given_up += 1
+                    expires = None
+                elif read and held:
+                    expires = min(expires, now_s + TAKE_POLL_S)
+            elif state.read_s is not None and now_s < state.read_s + guard:
+                expires = state.read_s + guard
+            if expires is not None:
+                hold = last + period
+                if held and not state.held:
+                    state.held = True
+                    self.held_samples += 1
+                deadline = expires if deadline is None else min(deadline, expires)
+            limit = min(limit, hold)
+        clock.limit_ns = limit
         return deadline
 
     def after_transfer(self) -> None:
         """Hook for the I2C device: a transfer may have changed a line (clear-on-read...)."""
-        if self.rings[EVENT_QUEUE].ready:
-            self.poll(time.monotonic())
+        self.look()
 
     def line_summary(self) -> list[dict[str, Any]]:
         return [{"line": i, "name": line.name, "irq_type": line.irq_type,

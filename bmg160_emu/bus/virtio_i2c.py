@@ -71,15 +71,20 @@ class VirtioI2CDevice(VhostUserDevice):
         super().__init__()
         self.bus = bus
         self.stats = I2CStats()
-        self.after_transfer: list[Callable[[], None]] = []  # e.g. the GPIO lines' update
+        # run after the guest has been told its transfers are done (off its round trip):
+        # e.g. the GPIO lines' update, the trace file
+        self.after_transfer: list[Callable[[], None]] = []
+        self._served = False
         # {address: chip time of the last read of the rate registers}: the GPIO device drops
         # a data-ready edge whose sample the driver has already read (see virtio_gpio)
         self.rate_reads: dict[int, float] = {}
+        self._rate_read_used: dict[int, int] = {}  # {address: used index after that read}
         self._group: list[_Request] = []
 
     def reset(self) -> None:
         super().reset()
         self._group = []
+        self._rate_read_used.clear()
 
     def process(self, queue: VirtQueue) -> None:
         started = time.perf_counter()
@@ -93,6 +98,11 @@ class VirtioI2CDevice(VhostUserDevice):
                 served = True
         if served:
             self.stats.busy_s += time.perf_counter() - started
+            self._served = True
+
+    def answered(self, index: int) -> None:
+        if self._served:
+            self._served = False
             for hook in self.after_transfer:
                 hook()
 
@@ -139,6 +149,7 @@ class VirtioI2CDevice(VhostUserDevice):
             ok = [True, True]
             if w.data[0] <= 0x07 and w.data[0] + r.length > 0x02:  # RATE_X_LSB..RATE_Z_MSB
                 self.rate_reads[w.address] = bus.devices[w.address].time
+                self._rate_read_used[w.address] = (queue.ring.used_idx + 2) & 0xFFFF
         elif not bus.transaction_hooks and all(m.address in bus.devices for m in messages):
             try:  # the common case: every address answers and no fault is armed
                 bus.i2c_transfer(messages)
@@ -163,6 +174,15 @@ class VirtioI2CDevice(VhostUserDevice):
             data = parsed.data if good and parsed is not None and parsed.read else b""
             written = self._scatter(request.chain, data, MSG_OK if good else MSG_ERR)
             queue.push(request.chain.head, written)
+
+    def guest_took_rate_read(self, address: int) -> bool:
+        """Has the guest's driver taken the answer to its last rate read of ``address``?
+        With EVENT_IDX it writes, as it takes used buffers, how far it has taken them."""
+        mark = self._rate_read_used.get(address)
+        queue = self.queues[0]
+        if mark is None or queue is None or not queue.event_idx or not self.rings[0].ready:
+            return True
+        return (queue.used_event() - mark) & 0xFFFF < 0x8000
 
     def _scatter(self, chain: Chain, data: bytes, status: int) -> int:
         """Write read data (may be empty) and the status byte; return the bytes written."""

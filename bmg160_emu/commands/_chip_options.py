@@ -322,17 +322,18 @@ def announce_seed(args: argparse.Namespace) -> None:
               file=sys.stderr)
 
 
-def buses_from_args(args: argparse.Namespace, bus: int | None,
-                    announce: bool = True) -> dict[int | None, dict[int, Any]]:
+def buses_from_args(args: argparse.Namespace, bus: int | None, announce: bool = True,
+                    clock: Any = None) -> dict[int | None, dict[int, Any]]:
     """Build ``{bus: {address: device}}`` from parsed options (devices without a bus go on
-    ``bus``); every device shares one clock. A chosen seed is printed now, or with
-    ``announce=False`` left to :func:`announce_seed`."""
+    ``bus``); every device shares one clock (``clock`` when given). A chosen seed is printed
+    now, or with ``announce=False`` left to :func:`announce_seed`."""
     from bmg160_emu.clock import RealTimeClock, VirtualClock
     from bmg160_emu.commands._common import CommandError
 
     configs = configs_from_args(args)
     seed = session_seed(args, announce)
-    clock = RealTimeClock() if getattr(args, "realtime", False) else VirtualClock()
+    if clock is None:
+        clock = RealTimeClock() if getattr(args, "realtime", False) else VirtualClock()
     buses: dict[int | None, dict[int, Any]] = {}
     for config in configs:
         try:
@@ -348,10 +349,10 @@ def buses_from_args(args: argparse.Namespace, bus: int | None,
 
 
 def chips_from_args(args: argparse.Namespace, default_bus: int | None = None,
-                    announce: bool = True) -> dict[int, Any]:
+                    announce: bool = True, clock: Any = None) -> dict[int, Any]:
     """Build ``{address: device}`` from parsed options, for commands with one bus (``--bus``,
-    else ``default_bus``); every device shares one clock. A device placed on another bus is
-    refused (before a seed is chosen or anything is built)."""
+    else ``default_bus``); every device shares one clock (``clock`` when given). A device
+    placed on another bus is refused (before a seed is chosen or anything is built)."""
     bus = getattr(args, "bus", None)
     if bus is None:
         bus = default_bus
@@ -361,6 +362,6 @@ def chips_from_args(args: argparse.Namespace, default_bus: int | None = None,
 
         raise CommandError(f"this command drives one bus: a --device on bus "
                            f"{', '.join(others)} has nowhere to go (drop its :BUS)")
-    chips = buses_from_args(args, bus, announce).get(bus, {})
+    chips = buses_from_args(args, bus, announce, clock).get(bus, {})
     # gyros first: the first device is a command's default chip (a script's, dump --after's)
     return dict(sorted(chips.items(), key=lambda item: hasattr(item[1], "spec")))

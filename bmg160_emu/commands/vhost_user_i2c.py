@@ -67,6 +67,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_file_option(parser, "--true-rate-file", "FILE",
                     "read 'X Y Z' deg/s from FILE whenever it changes and make it the true "
                     "rate of every chip (drives events from a script)")
+    parser.add_argument(
+        "--pace", choices=("guest", "wall"), default="guest",
+        help="guest (default): the chips' time waits, just before a chip's next sample, "
+             "for the driver to read the last one whose data-ready interrupt it got, then "
+             "catches up with wall time, so a guest slowed by its host loses no sample; "
+             "wall: the chips run on wall time whatever the guest does")
     parser.add_argument("--verbose", action="store_true", help="log vhost-user messages")
     add_chip_options(parser)
     parser.set_defaults(func=run)
@@ -134,10 +140,16 @@ def run(args: argparse.Namespace) -> int:
             except OSError as exc:
                 raise CommandError(f"cannot write {path}: {exc.strerror}") from None
     args.realtime = True  # a guest kernel lives in real time
-    chips = chips_from_args(args)
+    clock = None
+    if args.pace == "guest" and args.gpio_socket is not None:  # pacing needs the interrupts
+        from bmg160_emu.bus.guest_pace import GuestPacedClock
+
+        clock = GuestPacedClock()
+    chips = chips_from_args(args, clock=clock)
     bus = I2CBus(args.bus, chips)
     i2c = VirtioI2CDevice(bus)
-    gpio = VirtioGPIODevice(chips, i2c.rate_reads) if args.gpio_socket is not None else None
+    gpio = (VirtioGPIODevice(chips, i2c.rate_reads, clock, i2c.guest_took_rate_read)
+            if args.gpio_socket is not None else None)
     writer = None
     if args.trace is not None:
         from bmg160_emu.commands.trace import header_from_chip_args
@@ -147,7 +159,16 @@ def run(args: argparse.Namespace) -> int:
             writer = TraceWriter(args.trace, header_from_chip_args(args))
         except OSError as exc:
             raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
-        bus.log.sinks.append(writer)
+        # written after the guest has its answer (i2c.after_transfer), not inside the
+        # transfer: the JSON line and its flush cost ~10 us a transaction
+        pending: list[Any] = []
+        bus.log.sinks.append(pending.append)
+
+        def write_pending(writer: TraceWriter = writer) -> None:
+            writer.write_all(pending)
+            pending.clear()
+
+        i2c.after_transfer.append(write_pending)
     server = Server()
     rate_file = None
     try:
@@ -162,7 +183,8 @@ def run(args: argparse.Namespace) -> int:
                                f"{exc.strerror}") from None
         if gpio is not None:
             server.pollers.append(gpio.poll)
-            i2c.after_transfer.append(gpio.after_transfer)
+            gpio.wake = lambda at_s: server.schedule(gpio.poll, at_s)
+            i2c.after_transfer.insert(0, gpio.after_transfer)  # before the trace
         if args.true_rate_file is not None:
             rate_file = _RateFile(args.true_rate_file, chips)
             server.pollers.append(rate_file)
@@ -178,6 +200,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         server.close()
         if writer is not None:
+            write_pending()
             writer.close()
     if "log" in outputs:
         with outputs["log"] as handle:
@@ -186,6 +209,11 @@ def run(args: argparse.Namespace) -> int:
         report = {"elapsed_s": round(elapsed, 3), "i2c": i2c.stats.as_dict(),
                   "gpio": gpio.line_summary() if gpio is not None else [],
                   "stale_data_ready_edges": gpio.stale_edges if gpio is not None else 0,
+                  "pace": args.pace if clock is not None else "wall",
+                  "paced": ({"held_samples": gpio.held_samples, "given_up": gpio.given_up,
+                             "max_lag_s": round(clock.max_lag_ns / 1e9, 6),
+                             "final_lag_s": round(clock.lag_s, 6)}
+                            if clock is not None and gpio is not None else None),
                   "true_rate_changes": rate_file.changes if rate_file else [],
                   "final": {f"0x{a:02x}": {"odr_hz": c.odr_hz, "power_mode": c.power_mode,
                                            "registers": c.dump().hex()}

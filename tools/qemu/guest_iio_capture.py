@@ -6,6 +6,8 @@ Why not ``cat`` and ``kill``: i2c-virtio (6.1) waits for its requests interrupti
 process that dies by a signal while the driver talks I2C on its behalf (closing the
 device) abandons a transfer the device still completes into freed memory. This reader
 ends on its own, so the shell can disable the buffers afterwards with no signal about.
+It wakes when a buffer holds its watermark (set by the caller), and drains what is left
+before it ends.
 """
 
 from __future__ import annotations
@@ -29,6 +31,15 @@ def main() -> int:
                 data[fd].append(os.read(fd, 16 * 512))
             except BlockingIOError:
                 pass
+    for fd in fds:  # what the watermark held back: a non-blocking read returns it
+        while True:
+            try:
+                chunk = os.read(fd, 16 * 512)
+            except BlockingIOError:
+                break
+            if not chunk:
+                break
+            data[fd].append(chunk)
     for fd, out in fds.items():
         with open(out, "wb") as handle:
             handle.write(b"".join(data[fd]))
