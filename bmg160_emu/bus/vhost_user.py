@@ -110,6 +110,9 @@ class GuestMemory:
 
     def __init__(self) -> None:
         self.regions: list[MemoryRegion] = []
+        # (guest start, guest end, mapping, mapping offset - guest start) per region: the
+        # descriptor lookups of every request go through this (no attribute walks)
+        self._spans: list[tuple[int, int, mmap.mmap, int]] = []
 
     def set_table(self, payload: bytes, fds: list[int]) -> None:
         """Map the regions of a SET_MEM_TABLE message (each fd once; it is closed after)."""
@@ -125,6 +128,8 @@ class GuestMemory:
                 mapping = mmap.mmap(fds[i], size + offset, mmap.MAP_SHARED,
                                     mmap.PROT_READ | mmap.PROT_WRITE)
                 self.regions.append(MemoryRegion(gpa, size, uva, mapping, offset))
+            self._spans = [(r.guest_addr, r.guest_addr + r.size, r.mapping,
+                            r.offset - r.guest_addr) for r in self.regions]
         finally:
             for fd in fds:
                 os.close(fd)
@@ -133,6 +138,7 @@ class GuestMemory:
         for region in self.regions:
             region.mapping.close()
         self.regions = []
+        self._spans = []
 
     def _find(self, address: int, length: int, user: bool) -> tuple[mmap.mmap, int]:
         for region in self.regions:
@@ -144,22 +150,36 @@ class GuestMemory:
 
     def guest(self, address: int, length: int) -> tuple[mmap.mmap, int]:
         """(mapping, offset) of a guest-physical range (descriptor buffers)."""
-        return self._find(address, length, user=False)
+        end = address + length
+        for start, stop, mapping, delta in self._spans:
+            if start <= address and end <= stop:
+                return mapping, address + delta
+        return self._find(address, length, user=False)  # raises
 
     def user(self, address: int, length: int) -> tuple[mmap.mmap, int]:
         """(mapping, offset) of a QEMU-virtual range (the ring addresses of SET_VRING_ADDR)."""
         return self._find(address, length, user=True)
 
     def read(self, address: int, length: int) -> bytes:
-        mapping, offset = self.guest(address, length)
-        return mapping[offset:offset + length]
+        end = address + length
+        for start, stop, mapping, delta in self._spans:
+            if start <= address and end <= stop:
+                offset = address + delta
+                return mapping[offset:offset + length]
+        self._find(address, length, user=False)  # raises
+        return b""
 
     def write(self, address: int, data: bytes) -> None:
-        mapping, offset = self.guest(address, len(data))
-        mapping[offset:offset + len(data)] = data
+        end = address + len(data)
+        for start, stop, mapping, delta in self._spans:
+            if start <= address and end <= stop:
+                offset = address + delta
+                mapping[offset:offset + len(data)] = data
+                return
+        self._find(address, len(data), user=False)  # raises
 
 
-@dataclass
+@dataclass(slots=True)
 class Chain:
     """One descriptor chain taken from the available ring: its head and its buffers as
     (guest address, length) lists, device-readable first, then device-writable."""
@@ -238,8 +258,9 @@ class VirtQueue:
         index = head
         seen = 0
         indirect_done = False
+        unpack = _DESC.unpack_from
         while True:
-            addr, length, flags, nxt = _DESC.unpack_from(table, table_base + 16 * index)
+            addr, length, flags, nxt = unpack(table, table_base + 16 * index)
             if flags & VRING_DESC_F_INDIRECT:
                 # 2.7.5.3: an indirect table replaces the chain; it cannot nest or chain on
                 if indirect_done or flags & VRING_DESC_F_NEXT or length % 16 or not length:

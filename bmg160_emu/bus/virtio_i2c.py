@@ -35,6 +35,7 @@ FLAG_M_RD = 2
 MSG_OK = 0
 MSG_ERR = 1
 _HEADER = struct.Struct("<HHI")
+_STATUS = (bytes([MSG_OK]), bytes([MSG_ERR]))
 
 
 @dataclass
@@ -110,8 +111,13 @@ class VirtioI2CDevice(VhostUserDevice):
         """The request of a chain; a malformed one (5.19.6.2: a header, then the buffer in
         the direction M_RD says, then the status) is failed, not executed."""
         memory = self.memory
-        out = b"".join(memory.read(a, n) for a, n in chain.readable)
-        room = sum(n for _, n in chain.writable)
+        readable = chain.readable
+        if len(readable) == 1:
+            out = memory.read(*readable[0])
+        else:
+            out = b"".join([memory.read(a, n) for a, n in readable])
+        writable = chain.writable
+        room = writable[0][1] if len(writable) == 1 else sum(n for _, n in writable)
         if room < 1:
             raise VhostUserError("virtio-i2c request without a status byte")
         if len(out) < _HEADER.size:
@@ -187,8 +193,12 @@ class VirtioI2CDevice(VhostUserDevice):
     def _scatter(self, chain: Chain, data: bytes, status: int) -> int:
         """Write read data (may be empty) and the status byte; return the bytes written."""
         memory = self.memory
-        rest = data
         segments = chain.writable
+        if len(segments) == 2 and segments[0][1] == len(data):  # the driver's read: data, status
+            memory.write(segments[0][0], data)
+            memory.write(segments[1][0] + segments[1][1] - 1, _STATUS[status])
+            return len(data) + 1
+        rest = data
         for i, (addr, length) in enumerate(segments):
             last = i == len(segments) - 1
             room = length - 1 if last else length
@@ -196,5 +206,5 @@ class VirtioI2CDevice(VhostUserDevice):
                 memory.write(addr, rest[:room])
                 rest = rest[room:]
             if last:
-                memory.write(addr + length - 1, bytes([status]))
+                memory.write(addr + length - 1, _STATUS[status])
         return len(data) + 1
