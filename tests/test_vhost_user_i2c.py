@@ -147,6 +147,25 @@ def test_transaction_log_shows_the_guest_reads(rig):
     assert kinds == [("i2c_write", 0x0F, b"\x02", b""), ("i2c_read", None, b"", b"\x80")]
 
 
+def test_a_register_read_split_over_two_kicks_is_one_transfer(rig):
+    fe, device, _, bus = rig
+    w = fe.add(0, [header(0x68, FLAG_FAIL_NEXT), bytes([0x00])], [1])
+    device.kick(0)  # the driver kicked before it queued the read
+    assert fe.used(0) == [] and len(bus.log) == 0
+    r = fe.add(0, [header(0x68, FLAG_M_RD)], [1, 1])
+    device.kick(0)
+    assert dict(fe.used(0)) == {w: 1, r: 2}
+    assert fe.read_back(0, r, [1, 1]) == [b"\x0f", b"\x00"]
+    assert [(e.kind, e.register) for e in bus.log] == [("read_i2c_block_data", 0x00)]
+
+
+def test_a_register_read_too_long_for_a_block_read_is_plain_i2c(rig):
+    fe, device, chip, bus = rig
+    _, _, status_w, status_r, data = register_read(fe, device, 0x68, 0x00, 40)
+    assert (status_w, status_r) == (0, 0) and data == chip.dump()[:40]
+    assert [e.kind for e in bus.log] == ["i2c_write", "i2c_read"]
+
+
 def test_a_fault_hook_sees_each_message_as_its_own_transaction(rig):
     fe, device, _, bus = rig
     seen = []

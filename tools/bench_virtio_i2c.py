@@ -19,7 +19,7 @@ While each guest loop runs, the CPU time of QEMU's threads (the vCPU runs the gu
 main loop delivers the back end's interrupts) and of the back end is taken from /proc: the
 CPU per read says where a read's time goes; what the wall time adds is waiting for a core.
 
-    python tools/bench_virtio_i2c.py [--count 20000]
+    python tools/bench_virtio_i2c.py [--count 20000] [--trace]
 """
 
 from __future__ import annotations
@@ -185,6 +185,8 @@ def _fields(text: str) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--count", type=int, default=20000, help="reads per client")
+    parser.add_argument("--trace", action="store_true",
+                        help="the full back end writes a --trace file (as the kernel test's)")
     parser.add_argument("--serve-bare", nargs=2, metavar=("SOCKET", "READY"),
                         help=argparse.SUPPRESS)  # the bare back end (run by this benchmark)
     args = parser.parse_args(argv)
@@ -214,7 +216,8 @@ def main(argv: list[str] | None = None) -> int:
         backend = subprocess.Popen(
             [sys.executable, "-m", "bmg160_emu", "vhost-user-i2c", "--socket",
              str(sockets / "i2c.sock"), "--seed", "7", "--bandwidth", "6",
-             "--stats", str(work / "vu_stats.json"), "--ready-file", str(work / "ready")],
+             "--stats", str(work / "vu_stats.json"), "--ready-file", str(work / "ready"),
+             *(["--trace", str(work / "trace.jsonl")] if args.trace else [])],
             env=env)
         bare = subprocess.Popen(
             [sys.executable, __file__, "--serve-bare", str(sockets / "bare.sock"),

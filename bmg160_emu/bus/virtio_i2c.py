@@ -91,6 +91,9 @@ class VirtioI2CDevice(VhostUserDevice):
         started = time.perf_counter()
         served = False
         while (chain := queue.pop()) is not None:
+            if not self._group and self._register_read(queue, chain):
+                served = True
+                continue
             request = self._parse(chain)
             self._group.append(request)
             if not request.flags & FLAG_FAIL_NEXT:
@@ -106,6 +109,53 @@ class VirtioI2CDevice(VhostUserDevice):
             self._served = False
             for hook in self.after_transfer:
                 hook()
+
+    def _register_read(self, queue: VirtQueue, first: Chain) -> bool:
+        """The drivers' most common transfer, served without building its messages: write
+        [register] with FAIL_NEXT, then a read of 1..32 bytes from the same address, both
+        well formed, no fault hook armed. Anything else (or a read not queued yet) goes to
+        the general path with ``first`` (and the chain after it) in the group."""
+        memory = self.memory
+        readable, writable = first.readable, first.writable
+        if len(readable) != 2 or readable[0][1] != _HEADER.size or readable[1][1] != 1 \
+                or len(writable) != 1 or writable[0][1] != 1:
+            return False
+        raw_address, _, flags = _HEADER.unpack(memory.read(*readable[0]))
+        bus = self.bus
+        chip = bus.devices.get(raw_address >> 1)
+        if flags != FLAG_FAIL_NEXT or chip is None or bus.transaction_hooks:
+            return False
+        second = queue.pop()
+        if second is None:  # the read is not on the ring yet: the general path waits for it
+            self._group.append(self._parse(first))
+            return True
+        r_readable, r_writable = second.readable, second.writable
+        length = r_writable[0][1] if len(r_writable) == 2 else 0
+        good = (0 < length <= I2C_SMBUS_BLOCK_MAX and r_writable[1][1] == 1
+                and len(r_readable) == 1 and r_readable[0][1] == _HEADER.size
+                and _HEADER.unpack(memory.read(*r_readable[0])) == (raw_address, 0, FLAG_M_RD))
+        if not good:
+            self._group.append(self._parse(first))
+            self._group.append(request := self._parse(second))
+            if not request.flags & FLAG_FAIL_NEXT:
+                self._transfer(queue, self._group)
+                self._group = []
+            return True
+        address = raw_address >> 1
+        register = memory.read(*readable[1])[0]
+        # on the wire the SMBus I2C block read, and logged as one (as from i2c-dev)
+        data = bus.read_i2c_block_data(address, register, length)
+        self.stats.transfers += 1
+        self.stats.requests += 2
+        if register <= 0x07 and register + length > 0x02:  # RATE_X_LSB..RATE_Z_MSB
+            self.rate_reads[address] = chip.time
+            self._rate_read_used[address] = (queue.ring.used_idx + 2) & 0xFFFF
+        memory.write(writable[0][0], _STATUS[MSG_OK])
+        queue.push(first.head, 1)
+        memory.write(r_writable[0][0], data)
+        memory.write(r_writable[1][0], _STATUS[MSG_OK])
+        queue.push(second.head, length + 1)
+        return True
 
     def _parse(self, chain: Chain) -> _Request:
         """The request of a chain; a malformed one (5.19.6.2: a header, then the buffer in
