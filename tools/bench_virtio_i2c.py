@@ -8,7 +8,8 @@ after. The same C program (tools/qemu/i2c_read_loop.c: I2C_RDWR write [0x02] + r
 timed one by one) runs
 
 - in the guest on the full virtio-i2c adapter: every read reaches the model as it is made;
-- in the guest on the bare adapter, same run;
+- in the guest on the bare adapter, same run (three rounds of each, interleaved; the best
+  round of each is compared, as the host's load changes within a minute);
 - in the guest on the i2c-stub adapter: reads of kernel memory, which the stub adapter
   refreshes from the model at most once per output period (its refresh rate is printed;
   i2c-stub is SMBus only, so the loop uses the SMBus I2C block read there);
@@ -61,8 +62,10 @@ timed() {  # $1 name, then the loop's arguments
     "$LOOP" "$@" > "$GUEST_OUT/$name.txt" 2>&1
     echo > "$GUEST_OUT/$name.end"; sleep 0.2
 }
-timed full "$VBUS" 0x68 0x02 6 "$COUNT"
-timed bare "$BBUS" 0x68 0x02 6 "$COUNT"
+for r in 1 2 3; do  # interleaved: the host's load changes within a minute
+    timed "full$r" "$VBUS" 0x68 0x02 6 "$COUNT"
+    timed "bare$r" "$BBUS" 0x68 0x02 6 "$COUNT"
+done
 "$PY" -m bmg160_emu stub --bus "$SBUS" --address 0x68 --bandwidth 6 --seed 7 \
     --stats "$GUEST_OUT/stub_stats.json" --ready-file /run/stub.ready > /dev/null 2>&1 &
 STUB=$!
@@ -233,7 +236,8 @@ def main(argv: list[str] | None = None) -> int:
             f"export PY={shlex.quote(sys.executable)} PYTHONPATH={shlex.quote(str(REPO))}\n"
             f"export KMOD={shlex.quote(str(kmod))} LOOP={shlex.quote(str(loop))}\n"
             f"export COUNT={args.count}\n" + GUEST_SCRIPT)
-        watch = _CpuWatch(out, str(sockets / "i2c.sock"), ["full", "bare"],
+        rounds = [f"{name}{r}" for r in (1, 2, 3) for name in ("full", "bare")]
+        watch = _CpuWatch(out, str(sockets / "i2c.sock"), rounds,
                           {"back end": backend.pid, "bare back end": bare.pid})
         watch.start()
         qemu_args = [*guest.vhost_user_args(sockets / "i2c.sock"),
@@ -249,13 +253,18 @@ def main(argv: list[str] | None = None) -> int:
             sys.stdout.write(result.console)
             print("the guest did not finish", file=sys.stderr)
             return 1
-        full = _fields((out / "full.txt").read_text())
-        bare_loop = _fields((out / "bare.txt").read_text())
+        loops = {name: _fields((out / f"{name}.txt").read_text()) for name in rounds}
+        # the least disturbed of three interleaved rounds of each (the host is shared)
+        best = {kind: max((n for n in rounds if n.startswith(kind)),
+                          key=lambda n: loops[n]["per_s"]) for kind in ("full", "bare")}
+        full, bare_loop = loops[best["full"]], loops[best["bare"]]
         stub = _fields((out / "stub.txt").read_text())
         refresh = json.loads((out / "stub_stats.json").read_text())["summary"]
         served = json.loads((work / "vu_stats.json").read_text())["i2c"]
     print(f"umockdev (host, reference):  {reference['per_s']:8.0f} reads/s  "
           f"p50 {reference['p50_us']:.0f} us  p99 {reference['p99_us']:.0f} us")
+    print("virtio-i2c rounds (reads/s): " + ", ".join(
+        f"{n} {loops[n]['per_s']:.0f}" for n in rounds) + "; best of each below")
     print(f"virtio-i2c, full model:      {full['per_s']:8.0f} reads/s  "
           f"p50 {full['p50_us']:.0f} us  p99 {full['p99_us']:.0f} us  "
           f"= {full['per_s'] / reference['per_s']:.2f}x umockdev, "
@@ -263,7 +272,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{served['us_per_request']:.1f} us per request")
     print(f"virtio-i2c, bare back end:   {bare_loop['per_s']:8.0f} reads/s  "
           f"p50 {bare_loop['p50_us']:.0f} us  p99 {bare_loop['p99_us']:.0f} us")
-    for name in ("full", "bare"):
+    for name in (best["full"], best["bare"]):
         shares = watch.results.get(name)
         if not shares:
             continue
