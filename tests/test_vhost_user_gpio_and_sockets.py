@@ -20,7 +20,12 @@ from _vhost_front_end import FakeFrontEnd
 
 from bmg160_emu.bus import vhost_user as vu
 from bmg160_emu.bus import virtio_gpio as vg
-from bmg160_emu.bus.vhost_user_server import Server, SocketPathError, check_socket_path
+from bmg160_emu.bus.vhost_user_server import (
+    Connection,
+    Server,
+    SocketPathError,
+    check_socket_path,
+)
 from bmg160_emu.device.chip import BMG160
 
 REPO = Path(__file__).resolve().parents[1]
@@ -31,7 +36,7 @@ def gpio():
     chips = {0x68: BMG160(seed=5), 0x69: BMG160(seed=6)}
     device = vg.VirtioGPIODevice(chips)
     front, back = socket.socketpair()
-    connection = vu.Connection(back, device)
+    connection = Connection(back, device)
     fe = FakeFrontEnd(front, connection.receive)
     fe.handshake(num_queues=2)
     yield fe, device, chips

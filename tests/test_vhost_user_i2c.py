@@ -16,6 +16,7 @@ from _vhost_front_end import FakeFrontEnd
 
 from bmg160_emu.bus import vhost_user as vu
 from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.bus.vhost_user_server import Connection
 from bmg160_emu.bus.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
 from bmg160_emu.device.chip import BMG160
 
@@ -26,7 +27,7 @@ def rig():
     bus = I2CBus(0, {0x68: chip})
     device = VirtioI2CDevice(bus)
     front, back = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
-    connection = vu.Connection(back, device)
+    connection = Connection(back, device)
     fe = FakeFrontEnd(front, connection.receive)
     fe.handshake()
     yield fe, device, chip, bus
@@ -190,7 +191,7 @@ def test_without_event_idx_the_no_interrupt_flag_is_honoured():
     chip = BMG160(seed=1)
     device = VirtioI2CDevice(I2CBus(0, {0x68: chip}))
     front, back = socket.socketpair()
-    connection = vu.Connection(back, device)
+    connection = Connection(back, device)
     fe = FakeFrontEnd(front, connection.receive)
     fe.handshake(features=device.offered_features & ~(1 << vu.VIRTIO_RING_F_EVENT_IDX))
     try:

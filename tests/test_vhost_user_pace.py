@@ -14,9 +14,9 @@ import time
 import pytest
 from _vhost_front_end import FakeFrontEnd
 
-from bmg160_emu.bus import vhost_user as vu
 from bmg160_emu.bus import virtio_gpio as vg
 from bmg160_emu.bus.guest_pace import NEVER, GuestPacedClock
+from bmg160_emu.bus.vhost_user_server import Connection
 from bmg160_emu.device.chip import BMG160
 
 MS = 1_000_000  # ns
@@ -79,7 +79,7 @@ def paced(wall):
     taken = {"yes": True}
     device = vg.VirtioGPIODevice({0x68: chip}, {}, clock, lambda _address: taken["yes"])
     front, back = socket.socketpair()
-    connection = vu.Connection(back, device)
+    connection = Connection(back, device)
     fe = FakeFrontEnd(front, connection.receive)
     fe.handshake(num_queues=2)
     chip.write(0x10, b"\x07")  # ODR 100 Hz

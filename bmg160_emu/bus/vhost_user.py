@@ -21,7 +21,6 @@ import errno
 import logging
 import mmap
 import os
-import socket
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -161,22 +160,12 @@ class GuestMemory:
         return self._find(address, length, user=True)
 
     def read(self, address: int, length: int) -> bytes:
-        end = address + length
-        for start, stop, mapping, delta in self._spans:
-            if start <= address and end <= stop:
-                offset = address + delta
-                return mapping[offset:offset + length]
-        self._find(address, length, user=False)  # raises
-        return b""
+        mapping, offset = self.guest(address, length)
+        return mapping[offset:offset + length]
 
     def write(self, address: int, data: bytes) -> None:
-        end = address + len(data)
-        for start, stop, mapping, delta in self._spans:
-            if start <= address and end <= stop:
-                offset = address + delta
-                mapping[offset:offset + len(data)] = data
-                return
-        self._find(address, len(data), user=False)  # raises
+        mapping, offset = self.guest(address, len(data))
+        mapping[offset:offset + len(data)] = data
 
 
 @dataclass(slots=True)
@@ -537,77 +526,3 @@ def _u64(payload: bytes) -> int:
     if len(payload) < 8:
         raise VhostUserError("message payload shorter than its u64")
     return _U64.unpack_from(payload)[0]
-
-
-class Connection:
-    """One front end (QEMU) on a connected socket, for one device."""
-
-    def __init__(self, sock: socket.socket, device: VhostUserDevice) -> None:
-        self.sock = sock
-        self.device = device
-        self.messages = 0
-
-    def receive(self) -> bool:
-        """Read and answer one message; False when the front end has gone."""
-        try:
-            head, fds, _flags, _addr = socket.recv_fds(self.sock, HEADER.size, MAX_FDS)
-        except ConnectionResetError:
-            return False
-        if not head:
-            return False
-        try:
-            if len(head) < HEADER.size:
-                head += self._exactly(HEADER.size - len(head))
-            request, flags, size = HEADER.unpack(head)
-            if flags & 0x3 != VERSION:
-                raise VhostUserError(f"vhost-user version {flags & 3}, expected {VERSION}")
-            if size > MAX_PAYLOAD:
-                raise VhostUserError(f"message {request} of {size} bytes is too long")
-            payload = self._exactly(size) if size else b""
-        except BaseException:
-            for fd in fds:
-                os.close(fd)
-            raise
-        self.messages += 1
-        self.answer(request, flags, payload, fds)
-        return True
-
-    def _exactly(self, size: int) -> bytes:
-        data = b""
-        while len(data) < size:
-            chunk = self.sock.recv(size - len(data))
-            if not chunk:
-                raise VhostUserError("front end closed the socket inside a message")
-            data += chunk
-        return data
-
-    def answer(self, request: int, flags: int, payload: bytes, fds: list[int]) -> None:
-        device = self.device
-        name = MESSAGE_NAMES.get(request, str(request))
-        log.debug("%s: %s (%d bytes, %d fds)", device.name, name, len(payload), len(fds))
-        status = 0
-        reply: bytes | None = None
-        try:
-            reply = device.handle(request, payload, fds)
-        except OSError as exc:
-            for fd in fds:  # fds the handler did not take
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
-            log.warning("%s: %s failed: %s", device.name, name, exc)
-            status = exc.errno or errno.EIO
-        except struct.error as exc:
-            raise VhostUserError(f"{name}: malformed payload ({exc})") from None
-        if reply is not None:
-            self._send(request, reply)
-        elif flags & FLAG_NEED_REPLY and device.protocol_features >> PROTOCOL_F_REPLY_ACK & 1:
-            self._send(request, _U64.pack(status))
-
-    def _send(self, request: int, payload: bytes) -> None:
-        self.sock.sendall(HEADER.pack(request, VERSION | FLAG_REPLY, len(payload)) + payload)
-
-    def close(self) -> None:
-        self.device.reset()
-        self.sock.close()
-

@@ -4,24 +4,112 @@ Why one thread: the model is not re-entrant across devices (a GPIO line follows 
 chip the I2C requests reach), and a single ``selectors`` loop keeps every guest transfer
 ordered with the interrupt lines' updates without locks on the hot path.
 
-Sockets live in a directory of the user's own, closed to others (created 0700 when
-missing); the back end refuses a directory or socket another user owns, and a socket some
-back end still listens on.
+:class:`Connection` reads each vhost-user message (header, payload, file descriptors) from
+the socket, has the device answer it, and sends the reply. Sockets live in a directory of
+the user's own, closed to others (created 0700 when missing); the back end refuses a
+directory or socket another user owns, and a socket some back end still listens on.
 """
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
 import selectors
 import socket
 import stat
+import struct
 import time
 from collections.abc import Callable
 
-from bmg160_emu.bus.vhost_user import Connection, VhostUserDevice, VhostUserError
+from bmg160_emu.bus.vhost_user import (
+    _U64,
+    FLAG_NEED_REPLY,
+    FLAG_REPLY,
+    HEADER,
+    MAX_FDS,
+    MAX_PAYLOAD,
+    MESSAGE_NAMES,
+    PROTOCOL_F_REPLY_ACK,
+    VERSION,
+    VhostUserDevice,
+    VhostUserError,
+)
 
 log = logging.getLogger(__name__)
+
+class Connection:
+    """One front end (QEMU) on a connected socket, for one device."""
+
+    def __init__(self, sock: socket.socket, device: VhostUserDevice) -> None:
+        self.sock = sock
+        self.device = device
+        self.messages = 0
+
+    def receive(self) -> bool:
+        """Read and answer one message; False when the front end has gone."""
+        try:
+            head, fds, _flags, _addr = socket.recv_fds(self.sock, HEADER.size, MAX_FDS)
+        except ConnectionResetError:
+            return False
+        if not head:
+            return False
+        try:
+            if len(head) < HEADER.size:
+                head += self._exactly(HEADER.size - len(head))
+            request, flags, size = HEADER.unpack(head)
+            if flags & 0x3 != VERSION:
+                raise VhostUserError(f"vhost-user version {flags & 3}, expected {VERSION}")
+            if size > MAX_PAYLOAD:
+                raise VhostUserError(f"message {request} of {size} bytes is too long")
+            payload = self._exactly(size) if size else b""
+        except BaseException:
+            for fd in fds:
+                os.close(fd)
+            raise
+        self.messages += 1
+        self.answer(request, flags, payload, fds)
+        return True
+
+    def _exactly(self, size: int) -> bytes:
+        data = b""
+        while len(data) < size:
+            chunk = self.sock.recv(size - len(data))
+            if not chunk:
+                raise VhostUserError("front end closed the socket inside a message")
+            data += chunk
+        return data
+
+    def answer(self, request: int, flags: int, payload: bytes, fds: list[int]) -> None:
+        device = self.device
+        name = MESSAGE_NAMES.get(request, str(request))
+        log.debug("%s: %s (%d bytes, %d fds)", device.name, name, len(payload), len(fds))
+        status = 0
+        reply: bytes | None = None
+        try:
+            reply = device.handle(request, payload, fds)
+        except OSError as exc:
+            for fd in fds:  # fds the handler did not take
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+            log.warning("%s: %s failed: %s", device.name, name, exc)
+            status = exc.errno or errno.EIO
+        except struct.error as exc:
+            raise VhostUserError(f"{name}: malformed payload ({exc})") from None
+        if reply is not None:
+            self._send(request, reply)
+        elif flags & FLAG_NEED_REPLY and device.protocol_features >> PROTOCOL_F_REPLY_ACK & 1:
+            self._send(request, _U64.pack(status))
+
+    def _send(self, request: int, payload: bytes) -> None:
+        self.sock.sendall(HEADER.pack(request, VERSION | FLAG_REPLY, len(payload)) + payload)
+
+    def close(self) -> None:
+        self.device.reset()
+        self.sock.close()
+
 
 class SocketPathError(Exception):
     """A socket path the back end will not serve on (one line, for the command line)."""

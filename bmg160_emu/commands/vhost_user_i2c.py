@@ -72,7 +72,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="guest (default): the chips' time waits, just before a chip's next sample, "
              "for the driver to read the last one whose data-ready interrupt it got, then "
              "catches up with wall time, so a guest slowed by its host loses no sample; "
-             "wall: the chips run on wall time whatever the guest does")
+             "wall: the chips run on wall time whatever the guest does (also without "
+             "--gpio-socket: pacing follows the data-ready interrupts)")
     parser.add_argument("--verbose", action="store_true", help="log vhost-user messages")
     add_chip_options(parser)
     parser.set_defaults(func=run)
