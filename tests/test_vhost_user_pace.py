@@ -137,11 +137,23 @@ def test_the_next_sample_waits_for_the_drivers_read_of_the_last(paced, wall):
     assert device.given_up == 0 and device.stale_edges == 0
 
 
+def test_a_guest_that_has_not_handled_the_interrupt_is_waited_for(paced, wall):
+    fe, device, _, clock, _ = paced
+    queue_event(fe, device)
+    device.poll(wall.move(PERIOD - MS))
+    last = device.lines[0].counter.last_ns
+    device.poll(wall.move(round(vg.HOLD_TIMEOUT_S * 4e9)))  # no buffer back: stalled
+    assert device.given_up == 0 and clock.limit_ns == last + PERIOD
+    device.poll(wall.move(round(vg.STALL_LIMIT_S * 1e9)))
+    assert device.given_up == 1
+
+
 def test_an_edge_never_answered_is_given_up(paced, wall):
     fe, device, chip, clock, _ = paced
     queue_event(fe, device)
     device.poll(wall.move(PERIOD - MS))
     last = device.lines[0].counter.last_ns
+    queue_event(fe, device)  # the guest handled the interrupt, and its driver reads nothing
     device.poll(wall.move(round(vg.HOLD_TIMEOUT_S * 1e9) - MS))
     assert clock.limit_ns == last + PERIOD and device.given_up == 0
     device.poll(wall.move(2 * MS))

@@ -29,7 +29,8 @@ data-ready interrupt reaches a line with a trigger, the chips' time is held just
 that chip's next sample until the driver has read the rate registers after the last one
 (and a guard has passed, so the next edge does not find the driver's handler still
 running), then it catches up. A guest stalled by its host thus loses no sample; an edge the
-guest never answers (its handler dropped it) is given up after ``HOLD_TIMEOUT_S``.
+guest never answers (its handler dropped it) is given up ``HOLD_TIMEOUT_S`` after the
+guest handled the interrupt.
 """
 
 from __future__ import annotations
@@ -87,9 +88,12 @@ POLL_MARGIN_S = 50e-6  # wake just after the sample is due
 # were dropped on a loaded host. At most a quarter period (a 2000 Hz chip keeps its ODR).
 GUARD_S = 1e-3
 TAKE_POLL_S = 0.2e-3  # while held: how often to look whether the guest took the answer
-# An edge unanswered this long was dropped by the guest (or its driver reads no data): the
-# sample is given up and the chip runs on wall time until the driver reads again.
+# An edge unanswered this long after the guest handled the interrupt (its buffer is back)
+# was dropped by IIO (or the driver reads no data): the sample is given up and the chip
+# runs on wall time until the driver reads again. A guest that does not even handle the
+# interrupt is waited for up to STALL_LIMIT_S.
 HOLD_TIMEOUT_S = 0.05
+STALL_LIMIT_S = 1.0
 
 
 class _SampleCounter:
@@ -112,6 +116,7 @@ class _Pace:
 
     last_ns: int = -1
     seen_s: float = 0.0  # wall time (monotonic) the back end saw that sample
+    ready_s: float = 0.0  # since when the guest has had its interrupt buffer back
     read_s: float | None = None  # wall time the driver's read of it was seen
     suspended: bool = False  # given up: wall time until the driver reads again
     held: bool = False  # the chips' time waited at this sample
@@ -393,6 +398,11 @@ class VirtioGPIODevice(VhostUserDevice):
             state = self._pace.setdefault(address, _Pace())
             if state.last_ns != last:
                 state.last_ns, state.seen_s, state.read_s, state.held = last, now_s, None, False
+                state.ready_s = now_s
+            if line.buffer is None:
+                # the guest has not handled the interrupt yet (it re-queues the buffer when
+                # it does): stalled, not deaf; the timeout counts from when it is back
+                state.ready_s = now_s
             period = NS_PER_S // line.chip.odr_hz
             read_t = self.rate_reads.get(address)
             read = read_t is not None and round(read_t * NS_PER_S) >= last
@@ -408,7 +418,7 @@ class VirtioGPIODevice(VhostUserDevice):
             expires = None
             if state.read_s is None and not state.suspended:
                 # ... nor past the next one until the driver has this one
-                expires = state.seen_s + HOLD_TIMEOUT_S
+                expires = min(state.ready_s + HOLD_TIMEOUT_S, state.seen_s + STALL_LIMIT_S)
                 if now_s >= expires:
                     state.suspended = True
                     self.given_up += 1
