@@ -245,11 +245,13 @@ def test_triggered_buffer_with_the_drivers_data_ready_trigger(session, odr_hz, n
     # On the guest's clock (wall time under TCG) the chips' time lags when the guest cannot
     # take 300 interrupts and reads a second: a paced clock never runs ahead (never more
     # frames than wall time allows) and makes up its lag at twice wall speed when it can.
-    # The lower bound is what this project's 2-core host gave at load 10 (87 %, with the lag
-    # the back end reports in --stats), with a margin; on a quiet machine it is ~100 %.
+    # How much it lags is the host's doing: this project's 2-core host gave 93 %, 82 % and
+    # 71 % at load 8-10, and 64 % with the in-process test suite running beside it; a quiet
+    # machine gives ~100 %. The lower bound only says the pacing never stalls the chips
+    # (a hold that always ran to its 50 ms timeout would give < 10 %).
     expected = odr_hz * span_s + 1
     assert len(frames) <= expected + 1, (len(frames), expected, span_s)
-    assert len(frames) >= 0.6 * expected, (len(frames), expected, span_s)
+    assert len(frames) >= 0.5 * expected, (len(frames), expected, span_s)
     print(f"{odr_hz} Hz: {len(frames)} frames, {len(frames) / samples:.2%} of the chip's "
           f"samples, {len(frames) / expected:.2%} of ODR x guest time; back end "
           f"{stats(session).get('paced')}")
