@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
 from bmg160_emu.bus.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
+from bmg160_emu.device.registers import address_of
 
 log = logging.getLogger(__name__)
 
@@ -36,6 +37,8 @@ MSG_OK = 0
 MSG_ERR = 1
 _HEADER = struct.Struct("<HHI")
 _STATUS = (bytes([MSG_OK]), bytes([MSG_ERR]))
+RATE_FIRST = address_of("RATE_X_LSB")  # a read touching these is a read of the rates
+RATE_LAST = address_of("RATE_Z_MSB")
 
 
 @dataclass
@@ -147,7 +150,7 @@ class VirtioI2CDevice(VhostUserDevice):
         data = bus.read_i2c_block_data(address, register, length)
         self.stats.transfers += 1
         self.stats.requests += 2
-        if register <= 0x07 and register + length > 0x02:  # RATE_X_LSB..RATE_Z_MSB
+        if register <= RATE_LAST and register + length > RATE_FIRST:
             self.rate_reads[address] = chip.time
             self._rate_read_used[address] = (queue.ring.used_idx + 2) & 0xFFFF
         memory.write(writable[0][0], _STATUS[MSG_OK])
@@ -203,7 +206,7 @@ class VirtioI2CDevice(VhostUserDevice):
             # read_i2c_block_data, as the same transfer from i2c-dev is)
             r.data = bus.read_i2c_block_data(w.address, w.data[0], r.length)
             ok = [True, True]
-            if w.data[0] <= 0x07 and w.data[0] + r.length > 0x02:  # RATE_X_LSB..RATE_Z_MSB
+            if w.data[0] <= RATE_LAST and w.data[0] + r.length > RATE_FIRST:
                 self.rate_reads[w.address] = bus.devices[w.address].time
                 self._rate_read_used[w.address] = (queue.ring.used_idx + 2) & 0xFFFF
         elif not bus.transaction_hooks and all(m.address in bus.devices for m in messages):
