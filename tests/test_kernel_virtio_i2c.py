@@ -242,15 +242,17 @@ def test_triggered_buffer_with_the_drivers_data_ready_trigger(session, odr_hz, n
     # finished (measured 0.5 % at 100 Hz and 1.1 % at 200 Hz with a 0.3 ms guard on a host
     # at load 10; the 1 ms guard is there for them) and edges given up after 50 ms.
     assert samples * 0.99 <= len(frames) <= samples + 1, (len(frames), samples, chip_span_s)
-    # On the guest's clock (wall time under TCG) the chips' time lags when the guest cannot
-    # take 300 interrupts and reads a second: a paced clock never runs ahead (never more
-    # frames than wall time allows) and makes up its lag at twice wall speed when it can.
-    # How much it lags is the host's doing: this project's 2-core host gave 93 %, 82 % and
-    # 71 % at load 8-10, and 64 % with the in-process test suite running beside it; a quiet
-    # machine gives ~100 %. The lower bound only says the pacing never stalls the chips
-    # (a hold that always ran to its 50 ms timeout would give < 10 %).
+    # On the guest's clock the chips' time lags when the guest cannot take 300 interrupts
+    # and reads a second: a paced clock never runs ahead of the host's wall time and makes
+    # up its lag at twice wall speed when it can. The guest's clock is not the host's: under
+    # TCG its TSC is calibrated at boot, and a quiet run (no lag) kept 100.07 % and 100.13 %
+    # of ODR x guest time, the guest's clock 0.07-0.14 % slow; 0.5 % bounds that. How much
+    # the chips lag is the host's doing: this project's 2-core host gave 93 %, 82 % and 71 %
+    # at load 8-10, and 64 % with the in-process test suite running beside it. The lower
+    # bound only says the pacing never stalls the chips (a hold that always ran to its 50 ms
+    # timeout would give < 10 %).
     expected = odr_hz * span_s + 1
-    assert len(frames) <= expected + 1, (len(frames), expected, span_s)
+    assert len(frames) <= expected * 1.005 + 1, (len(frames), expected, span_s)
     assert len(frames) >= 0.5 * expected, (len(frames), expected, span_s)
     print(f"{odr_hz} Hz: {len(frames)} frames, {len(frames) / samples:.2%} of the chip's "
           f"samples, {len(frames) / expected:.2%} of ODR x guest time; back end "
