@@ -243,3 +243,60 @@ def simulate(
         else:
             out += p[0] * dt * np.arange(1, n + 1)
     return out
+
+
+# -- second sums of the (generalized) autocovariance, for the exact finite-record Omega ------
+
+
+def _linear_p(s2: float) -> Spectrum:  # white noise: gamma = s2 delta(j)
+    return lambda j: 0.5 * s2 * np.abs(j)
+
+
+def _impulse_p(s2: float) -> Spectrum:  # quantization: gamma = s2 (2, -1 at lags 0, +-1)
+    return lambda j: np.where(j == 0, -s2, 0.0)
+
+
+def _ar1_p(c: float, alpha: float, a: float) -> Spectrum:  # gamma = B^2 e^(-a |j|)
+    return lambda j: c * np.exp(-a * np.abs(j)) + alpha * np.abs(j)
+
+
+def _cubic_p(q: float) -> Spectrum:  # random walk: generalized gamma = -q |j| / 2
+    return lambda j: -q * (np.abs(j) ** 3 - np.abs(j)) / 12.0
+
+
+def _second_sum_terms(model: Sequence[str], params: Params, dt: float):
+    """P(j) with P(j+1) - 2 P(j) + P(j-1) = gamma(j), gamma the autocovariance of each
+    process (for the random walk its generalized one, -q |j| / 2, which zero-sum filters
+    such as Haar's see as the covariance), as (P, decay in samples or None)."""
+    terms: list[tuple[Spectrum, float | None]] = []
+    for comp, p in zip(model, _split(model, params)):
+        if comp == "WN":
+            terms.append((_linear_p(p[0] ** 2 / dt), None))
+        elif comp == "QN":
+            terms.append((_impulse_p((p[0] / dt) ** 2), None))
+        elif comp == "GM":
+            B, T = p
+            a = dt / T
+            phi, omp = math.exp(-a), -math.expm1(-a)
+            # c phi^|j| matches gamma off lag 0, alpha |j| adds what lag 0 lacks
+            c = B * B * phi / (omp * omp)
+            alpha = 0.5 * B * B * (1.0 + phi) / omp
+            terms.append((_ar1_p(c, alpha, a), T / dt))
+        elif comp == "RW":
+            terms.append((_cubic_p(p[0] ** 2 * dt), None))
+        # DR is deterministic: no variance (as in the spectra above)
+    return terms
+
+
+def model_second_sum(model: Sequence[str], params: Params, dt: float):
+    """(P, shortest decay in samples or None) of the model's sum (see _second_sum_terms)."""
+    terms = _second_sum_terms(model, params, dt)
+    decays = [d for _, d in terms if d is not None]
+
+    def P(j: np.ndarray) -> np.ndarray:
+        total = np.zeros(np.shape(j))
+        for term, _ in terms:
+            total = total + term(j)
+        return total
+
+    return P, (min(decays) if decays else None)

@@ -24,6 +24,8 @@ times a finite-record factor 1 - m / (3 M) for the larger scale (FINITE_KAPPA be
 
 which is what `wv_covariance` integrates (the two sin^4 factors are averaged exactly over each
 cell of a log-spaced grid, so the fast oscillations of the large scales need no fine grid).
+That limit is 1.8x off at the top dyadic scale of a record (M < 2m); `wv_covariance_finite`
+is the exact finite-record covariance from the autocovariance (below), which the GMWM uses.
 """
 
 from __future__ import annotations
@@ -207,3 +209,95 @@ def _sin4_product_cell_mean(mi: float, mj: float, f: np.ndarray, half: np.ndarra
             minus = abs(p * mi - q * mj)
             osc += 0.5 * ap * aq * (_cell_mean_cos(plus, f, half) + _cell_mean_cos(minus, f, half))
     return osc
+
+
+# -- exact finite-record covariance ----------------------------------------------------------
+#
+# The estimate at scale m is the mean of W_m(t)^2 over the M = n - 2m + 1 boundary-free t, so
+# for a Gaussian process, exactly (no large-sample limit),
+#
+#     cov(nu_i, nu_j) = 2 / (M_i M_j) sum_h count_ij(h) c_ij(h)^2,
+#
+# c_ij(h) = cov(W_i(t), W_j(t + h)) and count_ij(h) the number of pairs (t, t + h) of the two
+# index ranges. The Haar filters are two boxes each, so c_ij(h) is a signed sum of 16 box-box
+# sums of the autocovariance gamma, each four values of its second sum P (P(j + 1) - 2 P(j) +
+# P(j - 1) = gamma(j): gmwm_processes.model_second_sum). P is a polynomial (white noise,
+# random walk) or a polynomial plus an exponential (Gauss-Markov) between the lags where one
+# of its arguments changes sign; around those lags the sum over h is taken term by term, and
+# between them, where the summand is smooth, by Gauss-Legendre quadrature of the integral
+# over the cells [h - 1/2, h + 1/2] (exact for the polynomials' degree; pieces growing
+# geometrically away from the breaks for the exponentials).
+
+_EXACT_HALF_WIDTH = 2  # lags summed term by term on each side of a break
+_EXACT_GAP = 64  # gaps shorter than this are summed term by term too
+_GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(16)  # exact to degree 31
+
+
+def _box_terms(mi: int, mj: int) -> tuple[np.ndarray, np.ndarray]:
+    """Offsets c_k and weights w_k with c_ij(h) = sum_k w_k P(h + c_k)."""
+    offs, wts = [], []
+    for a0, sa in ((0, 1.0), (mi, -1.0)):
+        for b0, sb in ((0, 1.0), (mj, -1.0)):
+            e = a0 - b0
+            for c, s in ((e + mi, 1.0), (e + mi - mj, -1.0), (e, -1.0), (e - mj, 1.0)):
+                offs.append(c)
+                wts.append(sa * sb * s / (4.0 * mi * mj))
+    return np.array(offs, dtype=float), np.array(wts)
+
+
+def _graded(a: float, b: float, decay: float | None) -> np.ndarray:
+    """Piece edges of [a, b]: one piece, or pieces doubling away from both ends."""
+    if decay is None or b - a <= 2.0 * decay:
+        return np.array([a, b])
+    steps = decay * (2.0 ** np.arange(0, 64) - 1.0) / 2.0
+    steps = steps[steps < (b - a) / 2.0]
+    return np.unique(np.concatenate((a + steps, b - steps, [a, b])))
+
+
+def wv_covariance_finite(
+    m: np.ndarray,
+    n_samples: int,
+    second_sum: Callable[[np.ndarray], np.ndarray],
+    decay: float | None = None,
+) -> np.ndarray:
+    """Exact covariance matrix of the Haar WV estimates of a record of n_samples samples of a
+    Gaussian process, given the second sum P of its (generalized) autocovariance and the
+    shortest correlation length in samples (None: P is piecewise polynomial). See above."""
+    m = np.asarray(m, dtype=np.int64)
+    n = int(n_samples)
+    J = m.size
+    out = np.empty((J, J))
+    hi = n - 1
+    for i in range(J):
+        for j in range(i, J):
+            mi, mj = int(m[i]), int(m[j])
+            offs, wts = _box_terms(mi, mj)
+            lo_i, lo_j = 2 * mi - 1, 2 * mj - 1
+            h_lo, h_hi = lo_j - hi, hi - lo_i  # where count_ij > 0
+            if decay is None:  # W_i(t), W_j(t + h) share no sample (or, for quantization
+                # noise, no draw) outside this range
+                h_lo, h_hi = max(h_lo, -2 * mi - 1), min(h_hi, 2 * mj + 1)
+            breaks = np.concatenate((-offs, [0.0, lo_j - lo_i, h_lo, h_hi]))
+            breaks = np.unique(np.clip(breaks, h_lo, h_hi)).astype(np.int64)
+            exact = [np.arange(b - _EXACT_HALF_WIDTH, b + _EXACT_HALF_WIDTH + 1) for b in breaks]
+            pts = np.unique(np.clip(np.concatenate(exact), h_lo, h_hi))
+            nodes, weights = [pts.astype(float)], [np.ones(pts.size)]
+            gaps = np.flatnonzero(np.diff(pts) > 1)
+            for g in gaps:
+                u, v = int(pts[g]) + 1, int(pts[g + 1]) - 1
+                if v - u + 1 < _EXACT_GAP:
+                    nodes.append(np.arange(u, v + 1, dtype=float))
+                    weights.append(np.ones(v - u + 1))
+                    continue
+                edges = _graded(u - 0.5, v + 0.5, decay)
+                mid, half = 0.5 * (edges[1:] + edges[:-1]), 0.5 * (edges[1:] - edges[:-1])
+                nodes.append((mid[:, None] + half[:, None] * _GAUSS_X[None, :]).ravel())
+                weights.append((half[:, None] * _GAUSS_W[None, :]).ravel())
+            h = np.concatenate(nodes)
+            wq = np.concatenate(weights)
+            c = second_sum(h[:, None] + offs[None, :]) @ wts
+            count = np.minimum(hi, hi - h) - np.maximum(lo_i, lo_j - h) + 1.0
+            total = float(np.einsum("i,i,i,i->", wq, np.maximum(count, 0.0), c, c))
+            M_i, M_j = n - 2 * mi + 1, n - 2 * mj + 1
+            out[i, j] = out[j, i] = 2.0 * total / (M_i * M_j)
+    return out
