@@ -36,8 +36,9 @@ import numpy as np
 
 from bmg160_emu.noise import gmwm
 from bmg160_emu.noise.allan import allan_confidence, noise_alpha_from_slope
-from bmg160_emu.noise.identification import IdentificationError, fit_allan_variance, ieee_readoffs
+from bmg160_emu.noise.fit import FitError, fit_curve
 from bmg160_emu.noise.profile import load_profile
+from bmg160_emu.noise.readoffs import ieee_readoffs
 from bmg160_emu.noise.wavelet import MIN_COEFFS_FRACTION, haar_wv
 
 RATE_HZ = 200.0
@@ -67,14 +68,25 @@ def one_record(truth: str, hours: float, seed: int) -> dict:
     alphas = noise_alpha_from_slope(wv.taus_s, adev)
     curve = allan_confidence(wv.taus_s, adev, wv.n_coeffs, alphas, n, RATE_HZ, 0.683)
     out["ieee"] = _ieee(curve, n)
-    try:
-        est, _, _ = fit_allan_variance(curve, RATE_HZ, n)
-        out["allan"] = {k: [e.value, e.ci_low, e.ci_high] for k, e in est.items()}
-    except IdentificationError:
-        out["allan"] = {}
+    out["allan"] = _allan(curve, n, model.count("GM"))
     n_min = MIN_COEFFS_FRACTION * n
     fit = gmwm.gmwm_fit(wv.up_to(int((n + 1 - n_min) // 2)), model)
     out["gmwm"] = {k: [e.value, e.ci_low, e.ci_high] for k, e in fit.estimates.items()}
+    return out
+
+
+def _allan(curve, n: int, poles: int) -> dict:
+    """Today's fit (fit.fit_curve) with the truth's number of poles, as GMWM gets the truth's
+    model; several poles are numbered in T order like GMWM's."""
+    try:
+        fit = fit_curve(curve, RATE_HZ, n, poles=poles)
+    except FitError:
+        return {}
+    out = {k: [e.value, e.ci_low, e.ci_high] for k, e in (("N", fit.N), ("K", fit.K))}
+    for i, term in enumerate(fit.terms, start=1):
+        suffix = str(i) if poles > 1 else ""
+        for name, e in (("B", term.B), ("T", term.T)):
+            out[name + suffix] = [e.value, e.ci_low, e.ci_high]
     return out
 
 
