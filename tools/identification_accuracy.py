@@ -3,16 +3,18 @@
 Methods, all on the same records (the Haar wavelet variance is computed once per record; the
 overlapping Allan variance is twice it, so the Allan methods get exactly allantools' curve):
 
-    ieee   IEEE Std 952 slope read-offs (noise/identification.py ieee_readoffs): N on the
+    ieee   IEEE Std 952 slope read-offs (noise/readoffs.py ieee_readoffs): N on the
            -1/2 line at 1 s, K on the +1/2 line at 3 s, B = min ADEV / 0.664, T = tau at the
            minimum; intervals from the read point's 95 % Greenhall chi-square bounds
-    allan  today's weighted least-squares fit of the composite Allan variance
-           (fit_allan_variance, Greenhall-edf weights) with its widened Jacobian intervals
-    gmwm   GMWM, two-step efficient weighting (noise/gmwm.py), asymptotic intervals
+    allan  today's weighted least-squares fit of the composite Allan variance (noise/fit.py
+           fit_curve, Greenhall-edf weights, every octave tau) with the truth's number of
+           poles, and its widened Jacobian intervals
+    gmwm   GMWM with the truth's model, iterated efficient weighting with the exact
+           finite-record Omega (noise/gmwm.py), asymptotic intervals
 
 Truths: "paper" (white + Gauss-Markov + random walk, the paper profile's N, B, T, K) and
-"twopole" (white + two Gauss-Markov poles + random walk; the Allan methods, which have one
-pole, are scored on N and K only). Records are drawn directly with numpy (gmwm.simulate, the
+"twopole" (white + two Gauss-Markov poles + random walk; the read-offs, which see one pole,
+are scored on N and K only). Records are drawn directly with numpy (gmwm.simulate, the
 generator's discretization) at 200 Hz, seed by seed; each finished record is appended to the
 checkpoint file (JSON lines), so an interrupted run continues where it stopped.
 
