@@ -304,9 +304,10 @@ def unavailable(options: Options) -> list[str]:
     return missing
 
 
-def check_listing(block: Block, command: str, line: int) -> list[str]:
-    """A command that is shown but not run: its bmg160-emu arguments still parse, and the
-    examples/ files it names exist."""
+def check_listing(block: Block, command: str, line: int, scratch: Path | None = None) -> list[str]:
+    """A command that is shown but not run: its bmg160-emu arguments still parse (in the
+    page's scratch directory, where its earlier blocks' files are), and the examples/ files
+    it names exist."""
     problems = []
     try:
         lexer = shlex.shlex(command, posix=True, punctuation_chars=True)
@@ -331,7 +332,8 @@ def check_listing(block: Block, command: str, line: int) -> list[str]:
 
         errors = io.StringIO()
         try:
-            with contextlib.redirect_stderr(errors), contextlib.redirect_stdout(io.StringIO()):
+            with contextlib.redirect_stderr(errors), contextlib.redirect_stdout(io.StringIO()), \
+                    contextlib.chdir(scratch or Path.cwd()):
                 build_parser().parse_args(segment[1:])
         except SystemExit as exc:
             if exc.code:
@@ -437,7 +439,7 @@ def run_block(block: Block, scratch: Path, env: dict[str, str], markers: set[str
     if reason is not None:
         result.skipped.append(f"block {block.number} (line {block.line}): {reason}")
         for text, line in listed:
-            result.failures += check_listing(block, text, line)
+            result.failures += check_listing(block, text, line, scratch)
         return
     for command in block.commands:
         must_fail = options.fails and command is block.commands[-1]
