@@ -75,3 +75,88 @@ def test_set_true_rate_each_step_gives_the_samples_of_the_rates_as_rows(bw):
     # rows are filtered in whole blocks, steps one sample at a time: equal to rounding
     # (lowpass.py: about 1e-15 of the signal; 1e-12 deg/s on rates of tens of deg/s)
     assert np.allclose(np.array(stepped[1]), np.array(rows[1]), rtol=0.0, atol=1e-12)
+
+
+def _loop(feed: str, rates: np.ndarray, step_s: float, *, hooks: bool, **options):
+    """Everything a driver and the hooks see while ``feed`` hands the chip a rate per step:
+    each read, the FIFO (stream mode, from the middle on), a BW change, the final dump."""
+    chip = BMG160(seed=SEED, **options)
+    chip.write(0x10, bytes([0x04]))  # ODR 200 Hz
+    seen: list = []
+    if hooks:
+        chip.truth_hooks.append(lambda c, t, r: seen.append(("truth", t, r.tolist())))
+        chip.sample_hooks.append(lambda c, t, r: (seen.append(("sample", t, r.tolist())), r)[1])
+    give = getattr(chip, feed)
+    out = []
+    for k, rate in enumerate(rates):
+        give(rate)
+        chip.advance(step_s)
+        out.append(chip.read(0x02, 6))
+        if k == len(rates) // 3:
+            chip.write(0x3E, bytes([0x80]))  # FIFO stream mode: frames stored per sample
+        if k == len(rates) // 2:
+            chip.write(0x10, bytes([0x01]))  # 2000 Hz ODR, the filter running on
+        if k % 50 == 49:
+            out.append(chip.read(0x3F, 6 * 10))
+    out.append(chip.dump())
+    return out, seen
+
+
+@pytest.mark.parametrize("step_periods", [1.0, 2.0, 0.6, 3.3])  # in 200 Hz output periods
+@pytest.mark.parametrize("hooks", [False, True])
+def test_stream_true_rate_gives_set_true_rates_samples_bit_for_bit(step_periods, hooks):
+    rates = _rates(300, seed=int(step_periods * 10))
+    step_s = step_periods / 200.0
+    streamed = _loop("stream_true_rate", rates, step_s, hooks=hooks)
+    stepped = _loop("set_true_rate", rates, step_s, hooks=hooks)
+    assert streamed[0] == stepped[0]
+    assert streamed[1] == stepped[1]  # times, true rates and rates before scaling, exactly
+    if hooks:
+        assert len(streamed[1]) > 300
+
+
+def test_stream_true_rate_through_mounting_and_a_units_errors():
+    # the sensor-frame transform and the error budget before the filter: still bit for bit
+    options = {"mounting": [[0, 0, 1], [1, 0, 0], [0, 1, 0]], "scale_factor": [0.01, -0.02, 0.0],
+               "misalignment": [[0, 0.001, 0], [0.002, 0, 0], [0, 0, 0]], "unit": 4}
+    rates = _rates(300, seed=3)
+    streamed = _loop("stream_true_rate", rates, 1 / 200.0, hooks=True, **options)
+    stepped = _loop("set_true_rate", rates, 1 / 200.0, hooks=True, **options)
+    assert streamed == stepped
+
+
+def test_stream_true_rate_holds_the_rate_and_computes_one_sample_a_step(monkeypatch):
+    chip = BMG160(seed=SEED)
+    chip.write(0x10, bytes([0x04]))
+    built = []
+    build = chip._path.build
+    monkeypatch.setattr(chip._path, "build", lambda k0, body, *a, **k: (
+        built.append(len(body)), build(k0, body, *a, **k))[1])
+    for rate in _rates(50, seed=4):
+        chip.stream_true_rate(rate)
+        chip.advance(1 / 200.0)
+        chip.read(0x02, 6)
+    assert set(built[2:]) == {1}  # after the first steps: the one sample each step changes
+    chip.stream_true_rate((100.0, 0.0, 0.0))
+    chip.advance(0.5)  # left alone: the rate holds, computed in growing pieces
+    assert built[-1] > 1
+    counts = np.frombuffer(chip.read(0x02, 6), dtype="<i2")
+    assert abs(counts[0] / chip.sensitivity - 100.0) < 0.5  # the paper's noise: ~0.1 deg/s
+
+
+@pytest.mark.parametrize("bad", [(1.0, 2.0), "abc", (1.0, float("nan"), 0.0),
+                                 lambda t: (0.0, 0.0, 0.0), np.zeros((4, 3))])
+def test_stream_true_rate_refuses_anything_but_three_finite_numbers(bad):
+    chip = BMG160(seed=SEED)
+    with pytest.raises(ValueError, match="true rate"):
+        chip.stream_true_rate(bad)
+
+
+def test_stream_true_rate_replaces_a_failing_rate_function_as_set_true_rate_does():
+    chip = BMG160(seed=SEED, true_rate=lambda t: 1 / 0 if t > 0.01 else (1.0, 2.0, 3.0))
+    with pytest.raises(ZeroDivisionError):
+        chip.advance(0.1)
+    chip.stream_true_rate((4.0, 5.0, 6.0))  # the samples it could not give come from this one
+    chip.advance(0.1)
+    counts = np.frombuffer(chip.read(0x02, 6), dtype="<i2") / chip.sensitivity
+    assert np.allclose(counts, (4.0, 5.0, 6.0), atol=0.5)

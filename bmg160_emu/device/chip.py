@@ -2,10 +2,11 @@
 
 Front ends reach the chip only through its primitives (``write``, ``read``, ``i2c_write``,
 ``i2c_read``, ``peek``, ``dump``; docs/architecture.md). This module holds the lock, the
-sample schedule and catch-up, the primitives, the hooks, reset and the emission of samples;
-the parts live beside it: ``access`` (one bus transaction), ``regmap`` (what each register
-does, by name), ``datapath`` and ``true_rate`` (true rate to counts, in blocks), ``engines``,
-``interrupts`` and ``fifo``. Section numbers refer to the register specification.
+sample schedule and catch-up, the primitives, the hooks and reset; the parts live beside it:
+``access`` (one bus transaction), ``regmap`` (what each register does, by name),
+``datapath`` and ``true_rate`` (true rate to counts, in blocks), ``emission`` (samples
+through the hooks and the per-sample engines), ``engines``, ``interrupts`` and ``fifo``.
+Section numbers refer to the register specification.
 
 Speed: the data path is computed ahead in blocks; the per-sample engines run only when
 enabled. Time is integer nanoseconds: sample k of a run is at ``anchor + k * period``."""
@@ -20,14 +21,14 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.clock import NS_PER_S, RealTimeClock, VirtualClock, seconds_to_ns
-from bmg160_emu.device import access, contract, datapath, engines, environment, regmap
+from bmg160_emu.device import access, contract, datapath, emission, engines, environment, regmap
 from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import spec_choices as choice
 from bmg160_emu.device.engines import NEVER, power_mode
 from bmg160_emu.device.interrupts import Interrupts
 from bmg160_emu.device.part_spec import BMG160_PART, Part
 from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of, field_of
-from bmg160_emu.device.true_rate import TrueRate, true_rate_source
+from bmg160_emu.device.true_rate import TrueRate, streamed_rate, true_rate_source
 
 log = logging.getLogger(__name__)
 NORMAL, DEEP_SUSPEND, SUSPEND, FAST_POWER_UP, POWER_SAVE = engines.MODES  # names as before
@@ -132,14 +133,27 @@ class BMG160(environment.EnvironmentInputs):
         ``(n, 3)`` array of samples. Samples are taken one per output sample from the next
         one on (or at ``sample_rate_hz``, held between rows); the last row then holds."""
         with self.lock:
-            try:
-                self._catch_up(self.clock.now_ns())
-            except Exception:
-                if not self._rate.failed:
-                    raise
-                # the failing function is being replaced: the samples it could not produce
-                # come from the new true rate
+            self._rate_due()
             self._apply_true_rate(rate, sample_rate_hz)
+
+    def stream_true_rate(self, rate_dps: Sequence[float]) -> None:
+        """The true body rate, 3 numbers in deg/s, from the next output sample on, for a loop
+        with a new rate every step: ``set_true_rate`` of the 3 numbers, bit for bit, checked
+        faster; each sample is computed once (a one-sample piece, ``datapath.next_piece``)."""
+        source = streamed_rate(rate_dps)
+        with self.lock:
+            self._rate_due()
+            self._invalidate()
+            self._rate = source
+
+    def _rate_due(self) -> None:
+        """The samples due before a new true rate; those a failing rate function could not
+        produce come from the new one (it is being replaced)."""
+        try:
+            self._now()
+        except Exception:
+            if not self._rate.failed:
+                raise
 
     def _apply_true_rate(self, rate: Any, sample_rate_hz: float | None) -> None:
         first_ns = self._next_ns if self._next_ns < NEVER else self.clock.now_ns()
@@ -195,7 +209,7 @@ class BMG160(environment.EnvironmentInputs):
         return 1.0 / self._sensitivity[choice.OFFSET_LSB_RANGE_CODE]
 
     def _offset_dps(self) -> np.ndarray:
-        return np.asarray(self.offsets_lsb(), dtype=float) * self.offset_lsb_dps
+        return engines.offsets_dps(self._regs, self.offset_lsb_dps)
 
     @property
     def nvm_image(self) -> bytes:
@@ -273,7 +287,12 @@ class BMG160(environment.EnvironmentInputs):
 
     def advance(self, seconds: float) -> None:
         """Advance the clock; the chip produces exactly one sample per output period."""
-        ns = contract.duration_ns(seconds)
+        try:  # contract.duration_ns, inlined: a polling loop's hot path
+            ns = round(seconds * 1e9)
+        except (TypeError, ValueError, OverflowError):
+            ns = -1
+        if ns < 0:
+            ns = contract.duration_ns(seconds)
         with self.lock:
             now = self.clock.advance_ns(ns)
             if now >= self._next_ns:
@@ -396,7 +415,7 @@ class BMG160(environment.EnvironmentInputs):
                     return
                 self._emitting = True
                 try:
-                    self._emit_one()
+                    emission.emit_one(self)
                 finally:
                     self._emitting = False
                 continue
@@ -417,82 +436,7 @@ class BMG160(environment.EnvironmentInputs):
                 self._sample_seq += 1
                 self._data_ready_pending = True
                 return
-            self._emit_batch((now - t) // period + 1)
-
-    def _emit_batch(self, n: int) -> None:
-        """n samples with no per-sample engine: only the last one and the FIFO matter."""
-        k_first = self._k + 1
-        k_last = self._k + n
-        fifo_mode = self._fifo_store_mode
-        wanted = range(0)
-        if fifo_mode:
-            wanted = self._fifo.kept(k_first, n, fifo_mode)
-            frames: list[bytes] = []
-            axis, tag = regmap.frame_format(self)
-        k = k_first
-        while True:
-            b = self._block_for(k, want=k_last - k + 1)
-            seg_end = min(b.end, k_last + 1)
-            if wanted:
-                frames += b.frames(max(k, wanted.start), min(seg_end, wanted.stop), axis, tag)
-            if seg_end > k_last:
-                break
-            self._k = seg_end - 1
-            k = seg_end
-        i = 6 * (k_last - b.k0)
-        self._cur = b.rate_bytes[i:i + 6]
-        self._k = k_last
-        self._last_sample_ns = self._next_ns + (n - 1) * self._period_ns
-        self._next_ns = self._last_sample_ns + self._period_ns
-        self._have_sample = True
-        self._sample_seq += n
-        self._data_ready_pending = True
-        if fifo_mode:
-            self._fifo.push_many(frames, fifo_mode, total=n)
-        if self._fifo_int_on:
-            regmap.update_fifo_int(self, self._last_sample_ns)
-
-    def _emit_one(self) -> None:
-        """One sample through the hooks and the per-sample engines."""
-        k = self._k + 1
-        b = self._block_for(k)
-        i = k - b.k0
-        t_ns = self._next_ns
-        t_s = t_ns / NS_PER_S
-        self._k = k
-        self._next_ns = t_ns + self._period_ns
-        for hook in list(self.truth_hooks):
-            hook(self, t_s, np.array(b.body[i], dtype=float))
-        rate_bytes = b.rate_bytes[6 * i:6 * i + 6]
-        counts_f = b.counts_f[i]
-        counts_u = b.counts_u[i]
-        dps_pre = None
-        if self.sample_hooks:
-            high_bw = self._regs[_RATE_HBW] & _DATA_HIGH_BW
-            rate = datapath.run_sample_hooks(self, t_s, b.dps_u[i] if high_bw else b.dps_f[i])
-            if rate is None:
-                return  # a lost sample: no data-ready, no register update
-            counts = datapath.to_counts(rate, self.sensitivity)
-            rate_bytes = datapath.to_bytes(counts)
-            counts_f = counts_u = counts
-            dps_pre = rate
-        self._cur = rate_bytes
-        self._last_sample_ns = t_ns
-        self._have_sample = True
-        self._sample_seq += 1
-        self._data_ready_pending = True
-        self._irq.step(self._regs, counts_f, counts_u, self._odr, t_ns)
-        foc = self._foc
-        if foc is not None:
-            if dps_pre is None:
-                dps_pre = b.dps_u[i] if foc.unfiltered else b.dps_f[i]
-            if foc.add(dps_pre, self._offset_dps()):
-                regmap.finish_foc(self)
-        if self._fifo_store_mode:
-            select, tag = regmap.frame_format(self)
-            self._fifo.push(rate_bytes[select] + tag, self._fifo_store_mode)
-        if self._fifo_int_on:
-            regmap.update_fifo_int(self, t_ns)
+            emission.emit_batch(self, (now - t) // period + 1)
 
     def __repr__(self) -> str:
         return (f"{type(self).__name__}(address=0x{self.address:02X}, t={self.clock.now():.6f} s, "

@@ -12,6 +12,7 @@ not depend on how far ahead a block was computed.
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Sequence
 from typing import Any
 
@@ -26,7 +27,8 @@ MAX_SPAN = 65536  # when catching up a long gap
 
 
 class Block:
-    """The data path for samples k0 .. k0 + n - 1."""
+    """The data path for samples k0 .. k0 + n - 1: (n, 3) arrays, or for a one-sample piece
+    (``DataPath.build``) lists holding its one row (3 floats, counts as 3 ints)."""
 
     __slots__ = ("body", "counts_f", "counts_u", "dps_f", "dps_u", "end", "k0", "n",
                  "rate_bytes", "x", "y", "zi0")
@@ -35,12 +37,12 @@ class Block:
     end: int
     body: np.ndarray  # true body rate, deg/s
     x: np.ndarray  # sensor-frame rate before the filter
-    y: np.ndarray  # filtered
+    y: Any  # filtered
     zi0: np.ndarray  # filter state before the first sample
-    dps_f: np.ndarray  # filtered + noise + offset, deg/s
-    dps_u: np.ndarray  # unfiltered + noise + offset, deg/s
-    counts_f: np.ndarray
-    counts_u: np.ndarray
+    dps_f: Any  # filtered + noise + offset, deg/s
+    dps_u: Any  # unfiltered + noise + offset, deg/s
+    counts_f: Any
+    counts_u: Any
     rate_bytes: bytes  # the selected counts, 6 bytes per sample
 
     def frames(self, lo: int, hi: int, axis: slice, tag: bytes) -> list[bytes]:
@@ -84,6 +86,31 @@ def to_bytes(counts: np.ndarray) -> bytes:
 
 
 _NATIVE_LITTLE = np.little_endian
+_INT16_XYZ = struct.Struct("<3h")
+
+
+def _nan_count() -> int:
+    return int(to_counts(np.array([np.nan]), 1.0)[0])
+
+
+def counts_of(dps: list[float], sensitivity: float) -> tuple[tuple[int, int, int], bytes]:
+    """``to_counts`` and ``to_bytes`` of one sample in Python floats: the same product,
+    round half to even (``round``, as np.rint) and saturation; beyond int16 (an infinite
+    product included) the limit, as np.clip's; NaN what numpy's cast makes of it."""
+    c = []
+    for v in dps:
+        v *= sensitivity
+        if v >= 32767.0:
+            c.append(32767)
+        elif v <= -32768.0:
+            c.append(-32768)
+        else:
+            try:
+                c.append(round(v))
+            except ValueError:  # NaN
+                c.append(_nan_count())
+    x, y, z = c
+    return (x, y, z), _INT16_XYZ.pack(x, y, z)
 
 
 def run_sample_hooks(chip: Any, t_s: float, rate_dps: np.ndarray) -> np.ndarray | None:
@@ -220,7 +247,9 @@ class DataPath:
         self.odr_hz: int | None = None  # no filter before the first set_filter
         self.filter: LowPass | None = None
         self.restart_filter = True  # the next block starts the filter at rest at its input
-        self.last_y: np.ndarray | None = None  # filter output of the last sample produced
+        self.last_y: Any = None  # filter output of the last sample produced (3 numbers)
+        self._errors_seen: Any = None  # the budget's SensorErrors when last asked if active
+        self._errors_active = False
 
     def set_filter(self, odr_hz: int, bandwidth_hz: float, used_end: int) -> None:
         """Filter for a BW code; a new ODR redraws the noise from sample ``used_end`` on."""
@@ -246,7 +275,7 @@ class DataPath:
         assert self.filter is not None
         j = k - block.k0
         if j >= block.n - 1:  # all used: the state after the block is the one after k
-            self.last_y = block.y[block.n - 1].copy()
+            self.last_y = np.array(block.y[block.n - 1], dtype=float)
         elif j >= 0:
             _, self.filter.state = self.filter.run(block.x[: j + 1], block.zi0)
             self.last_y = block.y[j].copy()
@@ -260,9 +289,13 @@ class DataPath:
         n = len(body)
         x = body if self.transform is None else body @ self.transform.T
         budget = self.budget
-        if budget is not None and budget.active:
-            x = budget.apply(x, k0, sensitivity)
-            constant_rate = constant_rate and not budget.time_varying
+        if budget is not None:
+            errors = budget.errors
+            if errors is not self._errors_seen:  # SensorErrors is frozen: ask once per set
+                self._errors_seen, self._errors_active = errors, budget.active
+            if self._errors_active:
+                x = budget.apply(x, k0, sensitivity)
+                constant_rate = constant_rate and not budget.time_varying
         filt = self.filter
         assert filt is not None
         if self.restart_filter:
@@ -273,6 +306,8 @@ class DataPath:
         b = Block()
         b.k0, b.n, b.end = k0, n, k0 + n
         b.body, b.x, b.zi0 = body, x, filt.state
+        if n == 1:
+            return self._finish_one(b, x[0].tolist(), offset_dps, sensitivity, high_bw)
         b.y, filt.state = filt.run(x)
         noise = self.noise.take(k0, n)
         if offset_dps.any():
@@ -285,4 +320,26 @@ class DataPath:
         b.counts_u = to_counts(b.dps_u, sensitivity)
         sel = b.counts_u if high_bw else b.counts_f
         b.rate_bytes = to_bytes(sel)
+        return b
+
+    def _finish_one(self, b: Block, x: list[float], offset_dps: np.ndarray, sensitivity: float,
+                    high_bw: bool) -> Block:
+        """A one-sample block (a closed loop's piece) in Python floats: the same operations
+        as for n samples in the same order, so bit for bit the same values; its rows are
+        lists of one row (Block)."""
+        assert self.filter is not None
+        y = self.filter.step(x)
+        offset = offset_dps.tolist()
+        if self.noise.generator is None and not any(offset):
+            dps_f, dps_u = y, x
+        else:
+            noise = self.noise.take(b.k0, 1)[0].tolist()
+            if any(offset):
+                noise = [a + o for a, o in zip(noise, offset)]
+            dps_f = [a + e for a, e in zip(y, noise)]
+            dps_u = [a + e for a, e in zip(x, noise)]
+        counts_f, bytes_f = counts_of(dps_f, sensitivity)
+        counts_u, bytes_u = counts_of(dps_u, sensitivity)
+        b.y, b.dps_f, b.dps_u, b.counts_f, b.counts_u = [y], [dps_f], [dps_u], [counts_f], [counts_u]
+        b.rate_bytes = bytes_u if high_bw else bytes_f
         return b

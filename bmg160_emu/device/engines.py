@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from functools import lru_cache
 
 import numpy as np
 
@@ -191,6 +192,27 @@ def offsets_from(regs: bytearray) -> tuple[int, int, int]:
         out.append(sign_extend(value, OFFSET_BITS))
     x, y, z = out
     return x, y, z
+
+
+_OFFSET_SPAN = (min(p[0] for axis in _OFFSET_PIECES for p in axis),
+                max(p[0] for axis in _OFFSET_PIECES for p in axis) + 1)
+
+
+def offsets_dps(regs: bytearray, lsb_dps: float) -> np.ndarray:
+    """The offsets in deg/s (``offsets_from`` x the offset LSB), read-only: remembered for
+    the last register contents, as the data path asks for them at every block."""
+    lo, hi = _OFFSET_SPAN
+    return _offsets_dps(bytes(regs[lo:hi]), lsb_dps)
+
+
+@lru_cache(maxsize=16)
+def _offsets_dps(contents: bytes, lsb_dps: float) -> np.ndarray:
+    lo, hi = _OFFSET_SPAN
+    regs = bytearray(hi)
+    regs[lo:hi] = contents
+    out = np.asarray(offsets_from(regs), dtype=float) * lsb_dps
+    out.setflags(write=False)
+    return out
 
 
 def set_offsets(regs: bytearray, offsets: Sequence[int | None]) -> None:

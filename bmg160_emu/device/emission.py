@@ -1,0 +1,95 @@
+"""The samples as they come out of the data path, for ``BMG160``'s catch-up (chip.py).
+
+``emit_one``: one sample through the truth and sample hooks and the per-sample engines
+(interrupts, fast offset, FIFO); ``emit_batch``: n samples when no per-sample engine runs,
+where only the last sample and the FIFO's frames matter. Both work on the chip's state, as
+``regmap`` does."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bmg160_emu.clock import NS_PER_S
+from bmg160_emu.device import datapath, regmap
+from bmg160_emu.device.registers import address_of, field_of
+
+_RATE_HBW, _DATA_HIGH_BW = address_of("RATE_HBW"), field_of("RATE_HBW", "data_high_bw").mask
+
+
+def emit_batch(chip: Any, n: int) -> None:
+    """n samples with no per-sample engine: only the last one and the FIFO matter."""
+    k_first = chip._k + 1
+    k_last = chip._k + n
+    fifo_mode = chip._fifo_store_mode
+    wanted = range(0)
+    if fifo_mode:
+        wanted = chip._fifo.kept(k_first, n, fifo_mode)
+        frames: list[bytes] = []
+        axis, tag = regmap.frame_format(chip)
+    k = k_first
+    while True:
+        b = chip._block_for(k, want=k_last - k + 1)
+        seg_end = min(b.end, k_last + 1)
+        if wanted:
+            frames += b.frames(max(k, wanted.start), min(seg_end, wanted.stop), axis, tag)
+        if seg_end > k_last:
+            break
+        chip._k = seg_end - 1
+        k = seg_end
+    i = 6 * (k_last - b.k0)
+    chip._cur = b.rate_bytes[i:i + 6]
+    chip._k = k_last
+    chip._last_sample_ns = chip._next_ns + (n - 1) * chip._period_ns
+    chip._next_ns = chip._last_sample_ns + chip._period_ns
+    chip._have_sample = True
+    chip._sample_seq += n
+    chip._data_ready_pending = True
+    if fifo_mode:
+        chip._fifo.push_many(frames, fifo_mode, total=n)
+    if chip._fifo_int_on:
+        regmap.update_fifo_int(chip, chip._last_sample_ns)
+
+
+def emit_one(chip: Any) -> None:
+    """One sample through the hooks and the per-sample engines."""
+    k = chip._k + 1
+    b = chip._block_for(k)
+    i = k - b.k0
+    t_ns = chip._next_ns
+    t_s = t_ns / NS_PER_S
+    chip._k = k
+    chip._next_ns = t_ns + chip._period_ns
+    for hook in list(chip.truth_hooks):
+        hook(chip, t_s, np.array(b.body[i], dtype=float))
+    rate_bytes = b.rate_bytes[6 * i:6 * i + 6]
+    counts_f = b.counts_f[i]
+    counts_u = b.counts_u[i]
+    dps_pre = None
+    if chip.sample_hooks:
+        high_bw = chip._regs[_RATE_HBW] & _DATA_HIGH_BW
+        rate = datapath.run_sample_hooks(chip, t_s, b.dps_u[i] if high_bw else b.dps_f[i])
+        if rate is None:
+            return  # a lost sample: no data-ready, no register update
+        counts_f, rate_bytes = datapath.counts_of(rate.tolist(), chip.sensitivity)
+        counts_u = counts_f
+        dps_pre = rate
+    chip._cur = rate_bytes
+    chip._last_sample_ns = t_ns
+    chip._have_sample = True
+    chip._sample_seq += 1
+    chip._data_ready_pending = True
+    if chip._irq.any_axes or chip._irq.high_axes:  # (step does nothing with both off)
+        chip._irq.step(chip._regs, counts_f, counts_u, chip._odr, t_ns)
+    foc = chip._foc
+    if foc is not None:
+        if dps_pre is None:
+            dps_pre = b.dps_u[i] if foc.unfiltered else b.dps_f[i]
+        if foc.add(dps_pre, chip._offset_dps()):
+            regmap.finish_foc(chip)
+    if chip._fifo_store_mode:
+        select, tag = regmap.frame_format(chip)
+        chip._fifo.push(rate_bytes[select] + tag, chip._fifo_store_mode)
+    if chip._fifo_int_on:
+        regmap.update_fifo_int(chip, t_ns)
