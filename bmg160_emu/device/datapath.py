@@ -27,8 +27,7 @@ MAX_SPAN = 65536  # when catching up a long gap
 
 
 class Block:
-    """The data path for samples k0 .. k0 + n - 1: (n, 3) arrays, or for a one-sample piece
-    (``DataPath.build``) lists holding its one row (3 floats, counts as 3 ints)."""
+    """The data path for samples k0 .. k0 + n - 1: (n, 3) arrays (``OneSample``: lists)."""
 
     __slots__ = ("body", "counts_f", "counts_u", "dps_f", "dps_u", "end", "k0", "n",
                  "rate_bytes", "x", "y", "zi0")
@@ -49,6 +48,28 @@ class Block:
         """FIFO frames of samples lo .. hi - 1: the selected axes, then the tag bytes."""
         rb, start, stop = self.rate_bytes, axis.start, axis.stop
         return [rb[i + start:i + stop] + tag for i in range(6 * (lo - self.k0), 6 * (hi - self.k0), 6)]
+
+
+class OneSample(Block):
+    """A one-sample block (``DataPath.build``): its rows are lists of one row, and its counts
+    are computed when asked for (``counts_of``; a loop's sample hooks replace them)."""
+
+    __slots__ = ("high_bw", "sensitivity")
+
+    def __init__(self, sensitivity: float, high_bw: bool) -> None:
+        self.sensitivity, self.high_bw = sensitivity, high_bw
+
+    @property
+    def counts_f(self) -> list[tuple[int, int, int]]:
+        return [counts_of(self.dps_f[0], self.sensitivity)[0]]
+
+    @property
+    def counts_u(self) -> list[tuple[int, int, int]]:
+        return [counts_of(self.dps_u[0], self.sensitivity)[0]]
+
+    @property
+    def rate_bytes(self) -> bytes:  # type: ignore[override]
+        return counts_of(self.dps_u[0] if self.high_bw else self.dps_f[0], self.sensitivity)[1]
 
 
 def next_piece(block: Block | None, k: int, want: int, span: tuple[int, int],
@@ -275,7 +296,7 @@ class DataPath:
         assert self.filter is not None
         j = k - block.k0
         if j >= block.n - 1:  # all used: the state after the block is the one after k
-            self.last_y = np.array(block.y[block.n - 1], dtype=float)
+            self.last_y = block.y[block.n - 1].copy()  # an array's row or a list
         elif j >= 0:
             _, self.filter.state = self.filter.run(block.x[: j + 1], block.zi0)
             self.last_y = block.y[j].copy()
@@ -303,11 +324,11 @@ class DataPath:
             self.restart_filter = False
         elif constant_rate and first:
             filt.rebase_if_settled(x[0])
-        b = Block()
+        b = OneSample(sensitivity, high_bw) if n == 1 else Block()
         b.k0, b.n, b.end = k0, n, k0 + n
         b.body, b.x, b.zi0 = body, x, filt.state
-        if n == 1:
-            return self._finish_one(b, x[0].tolist(), offset_dps, sensitivity, high_bw)
+        if isinstance(b, OneSample):
+            return self._finish_one(b, x[0].tolist(), offset_dps)
         b.y, filt.state = filt.run(x)
         noise = self.noise.take(k0, n)
         if offset_dps.any():
@@ -322,11 +343,9 @@ class DataPath:
         b.rate_bytes = to_bytes(sel)
         return b
 
-    def _finish_one(self, b: Block, x: list[float], offset_dps: np.ndarray, sensitivity: float,
-                    high_bw: bool) -> Block:
+    def _finish_one(self, b: OneSample, x: list[float], offset_dps: np.ndarray) -> Block:
         """A one-sample block (a closed loop's piece) in Python floats: the same operations
-        as for n samples in the same order, so bit for bit the same values; its rows are
-        lists of one row (Block)."""
+        as for n samples in the same order, so bit for bit the same values."""
         assert self.filter is not None
         y = self.filter.step(x)
         offset = offset_dps.tolist()
@@ -338,8 +357,5 @@ class DataPath:
                 noise = [a + o for a, o in zip(noise, offset)]
             dps_f = [a + e for a, e in zip(y, noise)]
             dps_u = [a + e for a, e in zip(x, noise)]
-        counts_f, bytes_f = counts_of(dps_f, sensitivity)
-        counts_u, bytes_u = counts_of(dps_u, sensitivity)
-        b.y, b.dps_f, b.dps_u, b.counts_f, b.counts_u = [y], [dps_f], [dps_u], [counts_f], [counts_u]
-        b.rate_bytes = bytes_u if high_bw else bytes_f
+        b.y, b.dps_f, b.dps_u = [y], [dps_f], [dps_u]
         return b
