@@ -433,8 +433,13 @@ class I2CBus:
         data = chip.read(register, length)
         log = self.log
         if log.enabled:
-            log.add((chip.time, self.number, address, "read_i2c_block_data", register, b"", data,
-                     None))
+            entry = (chip.time, self.number, address, "read_i2c_block_data", register, b"", data,
+                     None)
+            if log.sinks:
+                log.add(entry)
+            else:  # TransactionLog.add inlined: the polling driver's hot path
+                log._entries.append(entry)
+                log.total += 1
         return data
 
     def write_i2c_block_data(self, address: int, register: int, data: bytes) -> None:

@@ -287,16 +287,34 @@ class BMG160(environment.EnvironmentInputs):
 
     def advance(self, seconds: float) -> None:
         """Advance the clock; the chip produces exactly one sample per output period."""
-        try:  # contract.duration_ns, inlined: a polling loop's hot path
-            ns = round(seconds * 1e9)
+        try:  # contract.duration_ns and _catch_up's one-sample path, inlined: a polling
+            ns = round(seconds * 1e9)  # driver's hot path (tools/bench_fake_smbus.py)
         except (TypeError, ValueError, OverflowError):
             ns = -1
         if ns < 0:
             ns = contract.duration_ns(seconds)
         with self.lock:
             now = self.clock.advance_ns(ns)
-            if now >= self._next_ns:
+            t = self._next_ns
+            if now < t:
+                return
+            period = self._period_ns
+            if (now >= t + period or self._per_sample or self.sample_hooks or self.truth_hooks
+                    or self._fifo_store_mode or self._fifo_int_on):
                 self._catch_up(now)
+                return
+            k = self._k + 1
+            b = self._block
+            if b is None or k >= b.end:
+                b = self._block_for(k)
+            i = 6 * (k - b.k0)
+            self._cur = b.rate_bytes[i:i + 6]
+            self._k = k
+            self._last_sample_ns = t
+            self._next_ns = t + period
+            self._have_sample = True
+            self._sample_seq += 1
+            self._data_ready_pending = True
 
     def poke(self, reg: int, value: int) -> None:
         """Set a register's content directly, as an upset bit would: no access rules, no
