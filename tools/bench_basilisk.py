@@ -1,25 +1,34 @@
 """Speed of the Basilisk closed loop with an emulated 200 Hz gyro, against bare Basilisk.
 
-Measured in the same run, best of ``--repeat``:
+Measured in the same run, ``--repeat`` times each, the cases interleaved (so that the load
+of a shared machine falls on all of them alike), median and best reported:
 
 - bare: the example's spacecraft and three reaction wheels in Basilisk alone (C++ modules,
   5 ms task), no gyro, no flight software;
-- loop: the whole example (examples/basilisk_detumble): emulated gyro, star tracker and the
-  Python flight software reading the gyro over smbus2, faults on, rate resolution 1/4 LSB;
-- loop, exact feed: the same with a new true rate handed to the chip at every step;
-- per step, chip alone: ``set_true_rate`` + ``advance(5 ms)`` + 6-byte smbus2 read, against
-  ``advance`` + read (or the chip's ``stream_true_rate`` when it has one).
+- loop: the whole example (examples/basilisk_detumble): emulated gyro fed a new true rate
+  every step through ``stream_true_rate``, star tracker, the Python flight software reading
+  the gyro over smbus2, faults on;
+- loop, set_true_rate: the same with the rate handed over by ``set_true_rate`` (the input
+  before ``stream_true_rate``: the same samples, bit for bit);
+- per step, chip alone: the rate + ``advance(5 ms)`` + a 6-byte smbus2 read, for both
+  inputs, against ``advance`` + read.
 
-Prints the real-time factors (simulated / wall seconds) and the ratios.
+Real-time factor = simulated seconds / seconds taken, in wall time and in the process's
+CPU time (Basilisk steps its task in a thread of its own; CPU time leaves out the time the
+process waited for a core, which on a shared machine is most of the difference).
+``--breakdown`` adds, for the loop, the CPU time per step inside each Python module.
 
-    python tools/bench_basilisk.py [--duration 30] [--repeat 3]
+    python tools/bench_basilisk.py [--duration 30] [--repeat 5]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import statistics
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -27,20 +36,20 @@ import numpy as np
 EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "basilisk_detumble"
 sys.path.insert(0, str(EXAMPLE))
 
+STEP_S = 0.005
 
-def _best(func, repeat: int) -> float:
-    best = float("inf")
-    for _ in range(repeat):
-        start = time.perf_counter()
-        func()
-        best = min(best, time.perf_counter() - start)
-    return best
+
+def _timed(func: Callable[[], None]) -> tuple[float, float]:
+    """(wall seconds, process CPU seconds) of one call."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    func()
+    return time.perf_counter() - wall, time.process_time() - cpu
 
 
 def bare_basilisk(duration_s: float) -> None:
     from Basilisk.simulation import reactionWheelStateEffector, spacecraft
     from Basilisk.utilities import SimulationBaseClass, macros, simIncludeRW
-    from scenario import INERTIA, STEP_S
+    from scenario import INERTIA
 
     sim = SimulationBaseClass.SimBaseClass()
     sim.CreateNewProcess("dynamics").addTask(sim.CreateNewTask("loop", macros.sec2nano(STEP_S)))
@@ -61,68 +70,133 @@ def bare_basilisk(duration_s: float) -> None:
     sim.ExecuteSimulation()
 
 
-def closed_loop(duration_s: float, resolution_dps: float) -> None:
+def closed_loop(duration_s: float, feed: str) -> None:
+    """The example's run (scenario.run) with the gyro's rate input chosen."""
+    import scenario
+    from Basilisk.utilities import macros
+
+    from bmg160_emu.bus.patching import patch_smbus
+
+    sim, parts = scenario.build(scenario.Setup(duration_s=duration_s))
+    gyro = parts["gyro"]
+    assert gyro.streaming, "the chip has no stream_true_rate"
+    gyro._feeds = [getattr(g.chip, feed) for g in gyro.gyros]
+    with patch_smbus(gyro.buses):
+        sim.InitializeSimulation()
+        sim.ConfigureStopTime(macros.sec2nano(duration_s))
+        sim.ExecuteSimulation()
+
+
+def breakdown(duration_s: float) -> dict[str, float]:
+    """CPU microseconds per step inside each Python module's UpdateState (thread time, in
+    Basilisk's thread), and the rest of the process's CPU time."""
+    import flight_software
     import scenario
 
-    scenario.run(scenario.Setup(duration_s=duration_s, rate_resolution_dps=resolution_dps))
+    from bmg160_emu.adcs.basilisk import EmulatedGyro
+
+    spent = {"EmulatedGyro": 0.0, "FlightSoftware": 0.0, "StarTracker": 0.0}
+    classes = {"EmulatedGyro": EmulatedGyro, "FlightSoftware": flight_software.FlightSoftware,
+               "StarTracker": scenario.StarTracker}
+    originals = {name: cls.UpdateState for name, cls in classes.items()}
+
+    def wrap(name: str, update: Callable[..., None]) -> Callable[..., None]:
+        def timed(self: object, now_ns: int) -> None:
+            start = time.thread_time()
+            update(self, now_ns)
+            spent[name] += time.thread_time() - start
+        return timed
+
+    for name, cls in classes.items():
+        cls.UpdateState = wrap(name, originals[name])
+    try:
+        _, cpu = _timed(lambda: closed_loop(duration_s, "stream_true_rate"))
+    finally:
+        for name, cls in classes.items():
+            cls.UpdateState = originals[name]
+    steps = duration_s / STEP_S
+    out = {name: value / steps * 1e6 for name, value in spent.items()}
+    out["Basilisk and the rest"] = (cpu - sum(spent.values())) / steps * 1e6
+    return out
 
 
-def chip_step_costs(n: int, repeat: int) -> tuple[float, float, bool]:
-    """(us per step with a new true rate, us per step without, streaming input used)."""
+def chip_step_costs(n: int, repeat: int) -> dict[str, float]:
+    """Microseconds per step (thread CPU time, best of ``repeat``) of the chip alone."""
     from bmg160_emu.bus.i2c import I2CBus
     from bmg160_emu.bus.patching import patch_smbus
     from bmg160_emu.device.chip import BMG160
 
     chip = BMG160(seed=1)
-    chip.write(0x0F, bytes([3]))
-    chip.write(0x10, bytes([4]))
+    chip.write(0x0F, bytes([3]))  # RANGE +-250 deg/s
+    chip.write(0x10, bytes([4]))  # ODR 200 Hz
     bus = I2CBus(1)
     bus.attach(0x68, chip)
-    feed = getattr(chip, "stream_true_rate", None)
-    streaming = feed is not None
-    feed = feed or chip.set_true_rate
     rates = np.random.default_rng(0).normal(0.0, 1.0, (n, 3))
     with patch_smbus({1: bus}):
         import smbus2
 
-        smbus = smbus2.SMBus(1)
+        read = smbus2.SMBus(1).read_i2c_block_data
+        advance = chip.advance
 
-        def with_rate() -> None:
+        def loop(feed: Callable[[np.ndarray], None] | None) -> float:
+            start = time.thread_time()
             for i in range(n):
-                feed(rates[i])
-                chip.advance(0.005)
-                smbus.read_i2c_block_data(0x68, 0x02, 6)
+                if feed is not None:
+                    feed(rates[i])
+                advance(STEP_S)
+                read(0x68, 0x02, 6)
+            return (time.thread_time() - start) / n * 1e6
 
-        def without_rate() -> None:
-            for _ in range(n):
-                chip.advance(0.005)
-                smbus.read_i2c_block_data(0x68, 0x02, 6)
-
-        a = _best(with_rate, repeat) / n * 1e6
-        b = _best(without_rate, repeat) / n * 1e6
-    return a, b, streaming
+        cases = {"stream_true_rate": chip.stream_true_rate, "set_true_rate": chip.set_true_rate,
+                 "none": None}
+        best = dict.fromkeys(cases, float("inf"))
+        for _ in range(repeat):
+            for name, feed in cases.items():
+                best[name] = min(best[name], loop(feed))
+    return best
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
-    parser.add_argument("--repeat", type=int, default=3, help="timed runs, best kept")
+    parser.add_argument("--repeat", type=int, default=5, help="timed runs of each case")
     parser.add_argument("--steps", type=int, default=2000, help="chip steps per measurement")
+    parser.add_argument("--breakdown", action="store_true",
+                        help="CPU time per step inside each Python module of the loop")
     args = parser.parse_args()
     d = args.duration
-    bare = _best(lambda: bare_basilisk(d), args.repeat)
-    loop = _best(lambda: closed_loop(d, 0.002), args.repeat)
-    exact = _best(lambda: closed_loop(d, 0.0), args.repeat)
-    with_rate, without_rate, streaming = chip_step_costs(args.steps, args.repeat)
-    print(f"simulated {d:g} s, 5 ms task, 200 Hz gyro (best of {args.repeat})")
-    print(f"  bare Basilisk (spacecraft + 3 wheels)  {bare:8.3f} s wall  {d / bare:8.1f}x real time")
-    print(f"  closed loop, rate resolution 1/4 LSB   {loop:8.3f} s wall  {d / loop:8.1f}x real time"
-          f"  ({loop / bare:.1f}x bare)")
-    print(f"  closed loop, new rate every step       {exact:8.3f} s wall  {d / exact:8.1f}x real "
-          f"time  ({exact / bare:.1f}x bare)")
-    name = "stream_true_rate" if streaming else "set_true_rate"
-    print(f"  chip step: {name} + advance + smbus2 read {with_rate:7.1f} us; advance + read "
-          f"{without_rate:6.1f} us (ratio {with_rate / without_rate:.1f})")
+    cases = {"bare": lambda: bare_basilisk(d),
+             "loop": lambda: closed_loop(d, "stream_true_rate"),
+             "loop, set_true_rate": lambda: closed_loop(d, "set_true_rate")}
+    closed_loop(1.0, "stream_true_rate")  # imports, filter designs, first noise blocks
+    bare_basilisk(1.0)
+    load_before = os.getloadavg()[0]
+    wall: dict[str, list[float]] = {name: [] for name in cases}
+    cpu: dict[str, list[float]] = {name: [] for name in cases}
+    for _ in range(args.repeat):
+        for name, case in cases.items():
+            w, c = _timed(case)
+            wall[name].append(w)
+            cpu[name].append(c)
+    load_after = os.getloadavg()[0]
+    print(f"simulated {d:g} s, 5 ms task, 200 Hz gyro; {args.repeat} interleaved runs each; "
+          f"load average {load_before:.1f} -> {load_after:.1f}")
+    print(f"  {'':34s} {'wall median':>12s} {'x real time':>12s} {'(best)':>8s}   "
+          f"{'CPU median':>11s} {'x real time':>12s}")
+    for name in cases:
+        wm, cm = statistics.median(wall[name]), statistics.median(cpu[name])
+        print(f"  {name:34s} {wm:10.3f} s {d / wm:11.1f}x {d / min(wall[name]):7.1f}x   "
+              f"{cm:9.3f} s {d / cm:11.1f}x")
+    for name in ("loop", "loop, set_true_rate"):
+        print(f"  {name} / bare: wall {statistics.median(wall[name]) / statistics.median(wall['bare']):.1f}x, "
+              f"CPU {statistics.median(cpu[name]) / statistics.median(cpu['bare']):.1f}x")
+    if args.breakdown:
+        parts = breakdown(d)
+        print("  loop, CPU per 5 ms step: " + ", ".join(f"{k} {v:.1f} us" for k, v in parts.items()))
+    steps = chip_step_costs(args.steps, args.repeat)
+    print(f"  chip step (rate + advance + smbus2 read, thread CPU, best of {args.repeat}): "
+          f"stream_true_rate {steps['stream_true_rate']:.1f} us, set_true_rate "
+          f"{steps['set_true_rate']:.1f} us; advance + read alone {steps['none']:.1f} us")
     return 0
 
 

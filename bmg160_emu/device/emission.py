@@ -63,11 +63,9 @@ def emit_one(chip: Any) -> None:
     chip._next_ns = t_ns + chip._period_ns
     for hook in list(chip.truth_hooks):
         hook(chip, t_s, np.array(b.body[i], dtype=float))
-    rate_bytes = b.rate_bytes[6 * i:6 * i + 6]
-    counts_f = b.counts_f[i]
-    counts_u = b.counts_u[i]
     dps_pre = None
-    if chip.sample_hooks:
+    irq = chip._irq
+    if chip.sample_hooks:  # the hooks' rate replaces the block's counts (not computed then)
         high_bw = chip._regs[_RATE_HBW] & _DATA_HIGH_BW
         rate = datapath.run_sample_hooks(chip, t_s, b.dps_u[i] if high_bw else b.dps_f[i])
         if rate is None:
@@ -75,13 +73,17 @@ def emit_one(chip: Any) -> None:
         counts_f, rate_bytes = datapath.counts_of(rate.tolist(), chip.sensitivity)
         counts_u = counts_f
         dps_pre = rate
+    else:
+        rate_bytes = b.rate_bytes[6 * i:6 * i + 6]
+        if irq.any_axes or irq.high_axes:
+            counts_f, counts_u = b.counts_f[i], b.counts_u[i]
     chip._cur = rate_bytes
     chip._last_sample_ns = t_ns
     chip._have_sample = True
     chip._sample_seq += 1
     chip._data_ready_pending = True
-    if chip._irq.any_axes or chip._irq.high_axes:  # (step does nothing with both off)
-        chip._irq.step(chip._regs, counts_f, counts_u, chip._odr, t_ns)
+    if irq.any_axes or irq.high_axes:  # (step does nothing with both engines off)
+        irq.step(chip._regs, counts_f, counts_u, chip._odr, t_ns)
     foc = chip._foc
     if foc is not None:
         if dps_pre is None:
