@@ -5,11 +5,13 @@ of a shared machine falls on all of them alike), median and best reported:
 
 - bare: the example's spacecraft and three reaction wheels in Basilisk alone (C++ modules,
   5 ms task), no gyro, no flight software;
-- loop: the whole example (examples/basilisk_detumble): emulated gyro fed a new true rate
-  every step through ``stream_true_rate``, star tracker, the Python flight software reading
-  the gyro over smbus2, faults on;
-- loop, set_true_rate: the same with the rate handed over by ``set_true_rate`` (the input
-  before ``stream_true_rate``: the same samples, bit for bit);
+- loop, the example: the whole example (examples/basilisk_detumble): emulated gyro, star
+  tracker, the Python flight software reading the gyro over smbus2, faults on; the rate
+  handed over through ``stream_true_rate`` when it moved by 1/4 LSB (the example's
+  ``rate_resolution_dps``);
+- loop, every step: the same with a new true rate at every step (resolution 0);
+- loop, every step, set_true_rate: the same through ``set_true_rate``, the input before
+  ``stream_true_rate`` (the same samples, bit for bit);
 - per step, chip alone: the rate + ``advance(5 ms)`` + a 6-byte smbus2 read, for both
   inputs, against ``advance`` + read.
 
@@ -70,14 +72,18 @@ def bare_basilisk(duration_s: float) -> None:
     sim.ExecuteSimulation()
 
 
-def closed_loop(duration_s: float, feed: str) -> None:
-    """The example's run (scenario.run) with the gyro's rate input chosen."""
+def closed_loop(duration_s: float, feed: str, resolution_dps: float | None = None) -> None:
+    """The example's run (scenario.run) with the gyro's rate input and resolution chosen
+    (None: the example's)."""
     import scenario
     from Basilisk.utilities import macros
 
     from bmg160_emu.bus.patching import patch_smbus
 
-    sim, parts = scenario.build(scenario.Setup(duration_s=duration_s))
+    setup = scenario.Setup(duration_s=duration_s)
+    if resolution_dps is not None:
+        setup.rate_resolution_dps = resolution_dps
+    sim, parts = scenario.build(setup)
     gyro = parts["gyro"]
     assert gyro.streaming, "the chip has no stream_true_rate"
     gyro._feeds = [getattr(g.chip, feed) for g in gyro.gyros]
@@ -89,7 +95,7 @@ def closed_loop(duration_s: float, feed: str) -> None:
 
 def breakdown(duration_s: float) -> dict[str, float]:
     """CPU microseconds per step inside each Python module's UpdateState (thread time, in
-    Basilisk's thread), and the rest of the process's CPU time."""
+    Basilisk's thread), and the rest of the process's CPU time; a new rate every step."""
     import flight_software
     import scenario
 
@@ -110,7 +116,7 @@ def breakdown(duration_s: float) -> dict[str, float]:
     for name, cls in classes.items():
         cls.UpdateState = wrap(name, originals[name])
     try:
-        _, cpu = _timed(lambda: closed_loop(duration_s, "stream_true_rate"))
+        _, cpu = _timed(lambda: closed_loop(duration_s, "stream_true_rate", 0.0))
     finally:
         for name, cls in classes.items():
             cls.UpdateState = originals[name]
@@ -166,8 +172,9 @@ def main() -> int:
     args = parser.parse_args()
     d = args.duration
     cases = {"bare": lambda: bare_basilisk(d),
-             "loop": lambda: closed_loop(d, "stream_true_rate"),
-             "loop, set_true_rate": lambda: closed_loop(d, "set_true_rate")}
+             "loop, the example": lambda: closed_loop(d, "stream_true_rate"),
+             "loop, every step": lambda: closed_loop(d, "stream_true_rate", 0.0),
+             "loop, every step, set_true_rate": lambda: closed_loop(d, "set_true_rate", 0.0)}
     closed_loop(1.0, "stream_true_rate")  # imports, filter designs, first noise blocks
     bare_basilisk(1.0)
     load_before = os.getloadavg()[0]
@@ -187,12 +194,12 @@ def main() -> int:
         wm, cm = statistics.median(wall[name]), statistics.median(cpu[name])
         print(f"  {name:34s} {wm:10.3f} s {d / wm:11.1f}x {d / min(wall[name]):7.1f}x   "
               f"{cm:9.3f} s {d / cm:11.1f}x")
-    for name in ("loop", "loop, set_true_rate"):
+    for name in list(cases)[1:]:
         print(f"  {name} / bare: wall {statistics.median(wall[name]) / statistics.median(wall['bare']):.1f}x, "
               f"CPU {statistics.median(cpu[name]) / statistics.median(cpu['bare']):.1f}x")
     if args.breakdown:
         parts = breakdown(d)
-        print("  loop, CPU per 5 ms step: " + ", ".join(f"{k} {v:.1f} us" for k, v in parts.items()))
+        print("  loop, every step, CPU per 5 ms step: " + ", ".join(f"{k} {v:.1f} us" for k, v in parts.items()))
     steps = chip_step_costs(args.steps, args.repeat)
     print(f"  chip step (rate + advance + smbus2 read, thread CPU, best of {args.repeat}): "
           f"stream_true_rate {steps['stream_true_rate']:.1f} us, set_true_rate "

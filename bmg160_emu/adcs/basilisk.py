@@ -64,11 +64,12 @@ class EmulatedGyro(sysModel.SysModel):
     split per chip and for the fault schedule as in :class:`~bmg160_emu.adcs.rig.GyroRig`.
     ``faults``: a schedule or fault list (:mod:`bmg160_emu.adcs.faults`). ``publish``: write
     the IMU messages each step. ``record_truth``: keep the per-sample truth (costs a hook
-    call per sample, and Basilisk's attitude and rate per step). ``rate_resolution_dps``: feed a new rate only when it differs from the
-    held one by more than this on some axis (0: every step). ``set_true_rate`` rebuilds the
-    chip's sample blocks at each call; a resolution well under one LSB (1/131 deg/s at
-    +-250 deg/s) saves most of that without a visible change in the counts. A chip with a
-    streaming input (``stream_true_rate``) is fed every step regardless.
+    call per sample, and Basilisk's attitude and rate per step). The chips take each step's
+    rate through ``stream_true_rate`` (the samples of ``set_true_rate``, bit for bit, at the
+    cost of the one sample a step changes; ``set_true_rate`` for a chip without it).
+    ``rate_resolution_dps``: hand the chips a new rate only when it moved by more than this
+    on some axis (0, the default: every step; a saving for a chip without the streaming
+    input, or a deliberately quantised rate).
     """
 
     def __init__(
@@ -135,8 +136,6 @@ class EmulatedGyro(sysModel.SysModel):
         # the rate input: a streaming input when the chip has one, else set_true_rate
         streams = [getattr(g.chip, "stream_true_rate", None) for g in self.gyros]
         self.streaming = all(f is not None for f in streams)
-        if self.streaming:
-            self.rate_resolution_dps = 0.0
         self._feeds = [f or g.chip.set_true_rate for f, g in zip(streams, self.gyros)]
         # nominal sensor -> body rotation (the mounting the flight software knows)
         self._to_body = [np.asarray(s.mounting, dtype=float).T for s in self.specs]
@@ -170,7 +169,7 @@ class EmulatedGyro(sysModel.SysModel):
         if lag:
             self.clock.advance_ns(lag)
         state = self.scStateInMsg()
-        rate_dps = np.degrees(np.asarray(state.omega_BN_B, dtype=float))
+        rate_dps = np.degrees(state.omega_BN_B)  # a list of 3 floats in rad/s
         held = self._held_dps
         if (held is None or self.rate_resolution_dps == 0.0
                 or np.max(np.abs(rate_dps - held)) > self.rate_resolution_dps):
