@@ -169,7 +169,7 @@ class EmulatedGyro(sysModel.SysModel):
         if lag:
             self.clock.advance_ns(lag)
         state = self.scStateInMsg()
-        rate_dps = np.degrees(state.omega_BN_B)  # a list of 3 floats in rad/s
+        rate_dps = np.degrees(np.asarray(state.omega_BN_B, dtype=float))
         held = self._held_dps
         if (held is None or self.rate_resolution_dps == 0.0
                 or np.max(np.abs(rate_dps - held)) > self.rate_resolution_dps):
