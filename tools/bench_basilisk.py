@@ -18,7 +18,8 @@ of a shared machine falls on all of them alike), median and best reported:
 Real-time factor = simulated seconds / seconds taken, in wall time and in the process's
 CPU time (Basilisk steps its task in a thread of its own; CPU time leaves out the time the
 process waited for a core, which on a shared machine is most of the difference).
-``--breakdown`` adds, for the loop, the CPU time per step inside each Python module.
+``--breakdown`` adds, for the loop, the CPU time per step inside each Python module and,
+of the gyro module's, inside the chip's rate input (with the sample it makes due).
 
     python tools/bench_basilisk.py [--duration 30] [--repeat 5] [--breakdown]
 
@@ -102,29 +103,32 @@ def breakdown(duration_s: float, feed: str) -> dict[str, float]:
     import scenario
 
     from bmg160_emu.adcs.basilisk import EmulatedGyro
+    from bmg160_emu.device.chip import BMG160
 
-    spent = {"EmulatedGyro": 0.0, "FlightSoftware": 0.0, "StarTracker": 0.0}
-    classes = {"EmulatedGyro": EmulatedGyro, "FlightSoftware": flight_software.FlightSoftware,
-               "StarTracker": scenario.StarTracker}
-    originals = {name: cls.UpdateState for name, cls in classes.items()}
+    spent = {"EmulatedGyro": 0.0, "FlightSoftware": 0.0, "StarTracker": 0.0, feed: 0.0}
+    methods = {"EmulatedGyro": (EmulatedGyro, "UpdateState"),
+               "FlightSoftware": (flight_software.FlightSoftware, "UpdateState"),
+               "StarTracker": (scenario.StarTracker, "UpdateState"), feed: (BMG160, feed)}
+    originals = {name: getattr(cls, method) for name, (cls, method) in methods.items()}
 
-    def wrap(name: str, update: Callable[..., None]) -> Callable[..., None]:
-        def timed(self: object, now_ns: int) -> None:
+    def wrap(name: str, call: Callable[..., None]) -> Callable[..., None]:
+        def timed(self: object, arg: object) -> None:
             start = time.thread_time()
-            update(self, now_ns)
+            call(self, arg)
             spent[name] += time.thread_time() - start
         return timed
 
-    for name, cls in classes.items():
-        cls.UpdateState = wrap(name, originals[name])
+    for name, (cls, method) in methods.items():
+        setattr(cls, method, wrap(name, originals[name]))
     try:
         _, cpu = _timed(lambda: closed_loop(duration_s, feed, 0.0))
     finally:
-        for name, cls in classes.items():
-            cls.UpdateState = originals[name]
+        for name, (cls, method) in methods.items():
+            setattr(cls, method, originals[name])
     steps = duration_s / STEP_S
     out = {name: value / steps * 1e6 for name, value in spent.items()}
-    out["Basilisk and the rest"] = (cpu - sum(spent.values())) / steps * 1e6
+    out["Basilisk and the rest"] = (cpu - sum(spent.values()) + spent[feed]) / steps * 1e6
+    out[f"(of EmulatedGyro: {feed})"] = out.pop(feed)
     return out
 
 
