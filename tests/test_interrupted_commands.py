@@ -43,11 +43,12 @@ def test_a_long_monte_carlo_stops_on_a_signal_and_keeps_its_finished_runs(
     assert [p.name for p in tmp_path.iterdir() if ".part" in p.name] == []
 
 
-@pytest.mark.parametrize("suffix", [".npy", ".csv"])
+@pytest.mark.parametrize("suffix", [".npy", ".csv", ".resd"])
 def test_an_interrupted_generate_leaves_an_honest_shorter_record(tmp_path, monkeypatch, suffix,
                                                                  capsys):
     # ^C after two chunks: the file holds exactly the samples written, and says so (the .npy
-    # shape; the CSV header's samples= and a last comment); it loads as a shorter record
+    # shape; the CSV header's samples= and a last comment; the RESD block's size rewritten);
+    # it loads as a shorter record
     import numpy as np
 
     from bmg160_emu.cli import main
@@ -74,8 +75,10 @@ def test_an_interrupted_generate_leaves_an_honest_shorter_record(tmp_path, monke
         text = out.read_text()
         assert f"samples={written}" in text.splitlines()[0].split()
         assert text.rstrip().endswith(f"# interrupted after {written} of 720000 samples")
-    else:
+    elif suffix == ".npy":
         assert np.load(out).shape == (written, 3)
+    else:  # 45-byte header (docs/resd.md), then 12 bytes a sample: nothing after the last
+        assert out.stat().st_size == 45 + 12 * written
     # the same samples as an uninterrupted run
     monkeypatch.setattr(generate, "_chunks", real_chunks)
     full = tmp_path / f"full{suffix}"

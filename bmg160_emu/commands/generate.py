@@ -183,14 +183,20 @@ def run(args: argparse.Namespace) -> int:
             if suffix == ".resd":  # Renode Sensor Data, angular rate channel 0 (docs/resd.md)
                 from bmg160_emu.io.resd import ResdFormatError, ResdWriter
 
-                try:  # a RESD block gives its sample count up front: interrupted, nothing
+                try:  # the block states its count up front: an interruption rewrites it
                     start_s = 1.0 / gen.rate_hz  # sample k at (k + 1) / rate, as in the CSV
-                    with ResdWriter(handle, rate_hz=gen.rate_hz, samples=total,
-                                    start_s=start_s) as w:
+                    resd = ResdWriter(handle, rate_hz=gen.rate_hz, samples=total,
+                                      start_s=start_s)
+                    try:
                         for _, block in _chunks(gen, total, bar):
-                            w.write_dps(block)
+                            resd.write_dps(block)
+                    except KeyboardInterrupt as exc:
+                        stopped = exc
+                        resd.end_short()
+                    resd.close()
                 except ResdFormatError as exc:
                     raise CommandError(f"{args.output}: {exc}") from None
+                written = resd.written
             else:
                 writer = RateStreamWriter(handle, suffix, total, gen.rate_hz, [header])
                 try:
@@ -199,6 +205,7 @@ def run(args: argparse.Namespace) -> int:
                 except KeyboardInterrupt as exc:
                     stopped = exc
                     writer.end_short(f"interrupted after {writer.samples} of {total} samples")
+                written = writer.samples
     except OSError as exc:
         raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     finally:
@@ -206,8 +213,8 @@ def run(args: argparse.Namespace) -> int:
             bar.close()
     if stopped is not None:
         name = getattr(stopped, "signal_name", "SIGINT")
-        print(f"bmg160-emu generate: interrupted by {name} after {writer.samples:,} of "
-              f"{total:,} samples; {args.output} holds those {writer.samples:,} "
+        print(f"bmg160-emu generate: interrupted by {name} after {written:,} of "
+              f"{total:,} samples; {args.output} holds those {written:,} "
               f"(its header says so)", file=sys.stderr)
         return 143 if name == "SIGTERM" else 130
     return 0

@@ -110,6 +110,8 @@ class ResdWriter:
         size = _CONSTANT_FREQUENCY.size + samples * _SAMPLE_BYTES
         if file_header:
             handle.write(FILE_HEADER)
+        self._channel = channel
+        self._block_at = handle.tell() if handle.seekable() else None
         handle.write(
             _BLOCK_HEADER.pack(BLOCK_CONSTANT_FREQUENCY, SAMPLE_ANGULAR_RATE, channel, size)
         )
@@ -121,6 +123,23 @@ class ResdWriter:
             raise ResdFormatError(f"more than the {self.samples} samples announced")
         self.handle.write(dps_to_units(block).tobytes())
         self.written += len(block)
+
+    def end_short(self) -> None:
+        """After an interruption: the block's size rewritten for the samples written so far
+        and the file cut after them, so the file is a valid, shorter RESD (a stream that
+        cannot seek back cannot be made honest: refused)."""
+        if self._block_at is None:
+            raise ResdFormatError("an interrupted RESD stream that cannot seek back")
+        if self.written == 0:
+            raise ResdFormatError("interrupted before the first sample: a RESD block needs one")
+        size = _CONSTANT_FREQUENCY.size + self.written * _SAMPLE_BYTES
+        end = self._block_at + _BLOCK_HEADER.size + size
+        self.handle.seek(self._block_at)
+        self.handle.write(_BLOCK_HEADER.pack(BLOCK_CONSTANT_FREQUENCY, SAMPLE_ANGULAR_RATE,
+                                             self._channel, size))
+        self.handle.seek(end)
+        self.handle.truncate(end)
+        self.samples = self.written
 
     def close(self) -> None:
         if self.written != self.samples:
