@@ -67,7 +67,7 @@ GUEST_SCRIPT = r"""
 set -u
 OUT=${GUEST_OUT:?}
 cd /run || exit 1
-modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68,0x69 || echo "modprobe i2c-stub failed"
+modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68,0x69,0x18 || echo "modprobe i2c-stub failed"
 modprobe -d "$GUEST_ROOT" i2c-dev || echo "modprobe i2c-dev failed"
 "$PY" "$ADAPTERS" "$OUT" bmi055_gyro@0x68 bmi088_gyro@0x69 > "$OUT/adapters.log" 2>&1 &
 STUB=$!
@@ -97,6 +97,40 @@ for spec in bmi055_gyro:0x68 bmi088_gyro:0x69; do
     cat "$IIO/in_temp_raw" > "$OUT/temp_$name.txt" 2>&1
     n=$((n + 1))
 done
+# the BMI055's accelerometer as a stand-in behind i2c-stub, bound by the kernel's bmc150-accel
+"$PY" -m bmg160_emu stub --bus 0 --device bma2x2_accel@0x18 --ready-file /run/accel.ready \
+    --stats "$OUT/stub_accel.json" > "$OUT/stub_accel.log" 2>&1 &
+ACCEL=$!
+i=0
+while [ ! -e /run/accel.ready ] && [ $i -lt 3000 ] && kill -0 $ACCEL 2>/dev/null; do
+    sleep 0.1; i=$((i + 1))
+done
+i2cget -y 0 0x18 0x00 > "$OUT/accel_chip_id.txt" 2>&1
+modprobe -d "$GUEST_ROOT" bmc150-accel-i2c || echo "modprobe bmc150-accel-i2c failed"
+echo bmi055_accel 0x18 > /sys/bus/i2c/devices/i2c-0/new_device
+i=0
+ACC=""
+while [ -z "$ACC" ] && [ $i -lt 100 ]; do
+    for d in /sys/bus/iio/devices/iio:device*; do
+        [ -e "$d/in_accel_x_raw" ] && ACC=$d
+    done
+    [ -z "$ACC" ] && sleep 0.1
+    i=$((i + 1))
+done
+if [ -n "$ACC" ]; then
+    cat "$ACC/name" > "$OUT/accel_name.txt" 2>&1
+    cat "$ACC/in_accel_x_raw" > "$OUT/accel_x_raw.txt" 2>&1
+    cat "$ACC/in_accel_scale_available" > "$OUT/accel_scales.txt" 2>&1
+    # the second scale (+-4 g): the driver writes PMU_RANGE 0x05 (bmc150-accel-core.c),
+    # which must reach the stand-in
+    cut -d' ' -f2 "$ACC/in_accel_scale_available" > "$ACC/in_accel_scale" \
+        2> "$OUT/accel_scale_write.txt"
+    cat "$ACC/in_accel_scale" > "$OUT/accel_scale.txt" 2>&1
+    sleep 0.5
+fi
+echo "bmi055_accel 0x18" > "$OUT/accel_bound.txt"
+kill -TERM $ACCEL 2>/dev/null
+wait $ACCEL
 kill -TERM $STUB 2>/dev/null
 wait $STUB
 dmesg > "$OUT/dmesg.txt"
@@ -191,3 +225,17 @@ def test_driver_writes_to_registers_the_bmi088_lacks_are_dropped(guest):
     assert {0x0F, 0x10, 0x21} <= written  # range, bandwidth and INT_RST_LATCH were written
     assert final[0x0F] == 0x02 and final[0x10] == 0x87  # 500 deg/s, code 7 (bit 7 reads 1)
     assert final[0x21] == 0x00  # INT_RST_LATCH is absent on the BMI088: it still reads 0
+
+
+def test_the_kernels_bmc150_accel_driver_binds_to_the_bma2x2_stand_in(guest):
+    # the stand-in behind i2c-stub (bus/i2c_stub_standin.py): chip ID 0xFA, found by the
+    # driver's probe; it holds registers and produces no motion data, so the raw value is 0
+    assert text(guest, "accel_chip_id.txt").strip() == "0xfa"
+    assert text(guest, "accel_name.txt").strip() == "bmi055_accel", text(guest, "dmesg.txt")[-3000:]
+    assert int(text(guest, "accel_x_raw.txt")) == 0
+    report = json.loads(text(guest, "stub_accel.json"))
+    final = bytes.fromhex(report["final"]["registers"])
+    # the driver's writes reached the stand-in through the adapter: the +-4 g range written
+    # through sysfs (PMU_RANGE 0x05, BMA2x2 data sheet 5.4) and its soft reset at probe
+    assert final[0x0F] == 0x05, (report["events"], text(guest, "accel_scale_write.txt"))
+    assert any("0x14" in e["writes"] for e in report["events"])

@@ -6,6 +6,7 @@ import argparse
 import json
 import signal
 import sys
+from typing import Any
 
 from bmg160_emu.commands._chip_options import add_chip_options, announce_seed, chips_from_args
 from bmg160_emu.commands._common import (
@@ -23,6 +24,8 @@ examples (as root, on a machine or VM that can load modules):
   (a BMI088 gyro: bmg160-emu stub --bus 0 --device bmi088_gyro@0x68, then
    echo bmi088_gyro 0x68 > .../new_device)
   cat /sys/bus/iio/devices/iio:device0/in_anglvel_x_raw
+  bmg160-emu stub --bus 0 --device bma2x2_accel@0x18 &   # a stand-in (registers only), then
+  echo bmi055_accel 0x18 > .../new_device                # the kernel's bmc150-accel binds
   bmg160-emu stub --bus 0 --seed 7 --true-rate 20 -10 5 --duration 30s --stats stats.json
   bmg160-emu stub --bus 0 --seed 7 --ready-file /run/bmg160.ready &   # scripts wait for it
   modprobe i2c-stub chip_addr=0x68,0x69    # two chips: one stub process per address
@@ -77,13 +80,6 @@ def run(args: argparse.Namespace) -> int:
 
     devices = list(args.devices or [])
     for device in devices:
-        if device.standin is not None:
-            raise CommandError(
-                f"--device {device.text}: stub keeps a gyro in step with i2c-stub; a stand-in "
-                "has nothing to keep in step: load its registers into i2c-stub once with "
-                f"`bmg160-emu dump --device {device.text.partition(':')[0]} --format i2cdump` "
-                "and i2c-stub-from-dump (i2c-stub then holds plain memory: no read-only bits, "
-                "soft reset or power gate)")
         if device.bus is not None and device.bus != args.bus:
             raise CommandError(f"--device {device.text}: stub serves bus {args.bus} only")
     addresses = list(dict.fromkeys(args.addresses or ([] if devices else [0x68])))
@@ -102,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
             stats_file = args.stats.open("w", encoding="utf-8")
         except OSError as exc:
             raise CommandError(f"cannot write {args.stats}: {exc.strerror}") from None
+    if devices and devices[0].standin is not None:
+        return _run_standin(args, devices[0], stats_file)
     args.realtime = True  # a kernel driver lives in real time
     # --part or the --device part; a chosen seed is printed once the adapter is open, so a
     # setup error stays the one line of output
@@ -151,4 +149,41 @@ def run(args: argparse.Namespace) -> int:
                 stats_file.write(json.dumps(report, indent=1) + "\n")
     print(f"bmg160-emu stub: {adapter.stats.summary().get('refreshes', 0):.0f} refreshes",
           file=sys.stderr)
+    return 0
+
+
+def _run_standin(args: argparse.Namespace, device: Any, stats_file: Any) -> int:
+    """A stand-in behind i2c-stub: the client's writes applied to it (masks, read-only bits,
+    soft reset, power gate) and what it then reads written back (bus/i2c_stub_standin.py)."""
+    from bmg160_emu.bus.i2c_stub_standin import StandinStubAdapter
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.device.standin import StandinDevice
+
+    standin = StandinDevice(device.standin, device.address)
+    try:
+        adapter = StandinStubAdapter(standin, args.bus, device.address)
+    except PermissionError:
+        raise CommandError(f"permission denied on /dev/i2c-{args.bus}: run as root") from None
+    except OSError as exc:
+        raise CommandError(f"cannot open /dev/i2c-{args.bus}: {exc.strerror}") from None
+    stop: list[bool] = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
+    try:
+        adapter.preload()
+        if args.ready_file is not None:
+            args.ready_file.write_text("ready\n")
+        adapter.run(duration_s=args.duration, should_stop=lambda: bool(stop), preload=False)
+    except KeyboardInterrupt:
+        pass
+    except OSError as exc:
+        raise CommandError(f"i2c-stub access failed: {exc}") from None
+    finally:
+        adapter.close()
+        if stats_file is not None:
+            report = {"standin": standin.name, "polls": adapter.polls, "events": adapter.events,
+                      "final": {"registers": standin.dump().hex()}}
+            with stats_file:
+                stats_file.write(json.dumps(report, indent=1) + "\n")
+    print(f"bmg160-emu stub: {standin.name} at 0x{device.address:02x}: {adapter.polls} polls, "
+          f"{len(adapter.events)} client writes", file=sys.stderr)
     return 0
