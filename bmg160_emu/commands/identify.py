@@ -411,7 +411,7 @@ def _gmwm_summary(text: str, fits: dict) -> str:
     for k, line in enumerate(lines):
         if line.startswith("fit:"):
             lines[k] = (
-                "fit: GMWM, Haar wavelet variance with efficient two-step weights "
+                "fit: GMWM, Haar wavelet variance with iterated efficient weights "
                 "(white + Gauss-Markov + random walk); 95 % asymptotic intervals"
             )
             break

@@ -6,6 +6,7 @@ import argparse
 import json
 import signal
 import sys
+from collections.abc import Callable
 from typing import Any
 
 from bmg160_emu.commands._chip_options import add_chip_options, announce_seed, chips_from_args
@@ -104,35 +105,23 @@ def run(args: argparse.Namespace) -> int:
     # --part or the --device part; a chosen seed is printed once the adapter is open, so a
     # setup error stays the one line of output
     chip = chips_from_args(args, announce=False)[address]
-    try:
-        adapter = I2CStubAdapter(chip, args.bus, address)
-        if args.max_refresh_hz is not None:
-            if args.max_refresh_hz <= 0:
-                raise CommandError("--max-refresh-hz must be > 0")
-            adapter.max_refresh_hz = args.max_refresh_hz
-    except PermissionError:
-        raise CommandError(f"permission denied on /dev/i2c-{args.bus}: run as root") from None
-    except OSError as exc:
-        raise CommandError(f"cannot open /dev/i2c-{args.bus}: {exc.strerror}") from None
+    if args.max_refresh_hz is not None and args.max_refresh_hz <= 0:
+        raise CommandError("--max-refresh-hz must be > 0")
+    adapter = _open(args, lambda: I2CStubAdapter(chip, args.bus, address))
+    if args.max_refresh_hz is not None:
+        adapter.max_refresh_hz = args.max_refresh_hz
     announce_seed(args)
 
-    stop = []
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
-    try:
+    def adopt_a_bound_drivers_configuration() -> None:
         driver = bound_driver(args.bus, address)
         if driver is not None:
             adopted = adapter.adopt()
             print(f"bmg160-emu stub: the {driver} driver is bound to 0x{address:02x}: took its "
                   f"configuration from i2c-stub's memory ({len(adopted)} registers differ from "
                   "reset) instead of preloading reset values", file=sys.stderr)
-        adapter.preload()
-        if args.ready_file is not None:
-            args.ready_file.write_text("ready\n")
-        adapter.run(duration_s=args.duration, should_stop=lambda: bool(stop), preload=False)
-    except KeyboardInterrupt:
-        pass
-    except OSError as exc:
-        raise CommandError(f"i2c-stub access failed: {exc}") from None
+
+    try:
+        _serve(args, adapter, before_preload=adopt_a_bound_drivers_configuration)
     finally:
         adapter.close()
         if stats_file is not None:
@@ -156,27 +145,12 @@ def _run_standin(args: argparse.Namespace, device: Any, stats_file: Any) -> int:
     """A stand-in behind i2c-stub: the client's writes applied to it (masks, read-only bits,
     soft reset, power gate) and what it then reads written back (bus/i2c_stub_standin.py)."""
     from bmg160_emu.bus.i2c_stub_standin import StandinStubAdapter
-    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device.standin import StandinDevice
 
     standin = StandinDevice(device.standin, device.address)
+    adapter = _open(args, lambda: StandinStubAdapter(standin, args.bus, device.address))
     try:
-        adapter = StandinStubAdapter(standin, args.bus, device.address)
-    except PermissionError:
-        raise CommandError(f"permission denied on /dev/i2c-{args.bus}: run as root") from None
-    except OSError as exc:
-        raise CommandError(f"cannot open /dev/i2c-{args.bus}: {exc.strerror}") from None
-    stop: list[bool] = []
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
-    try:
-        adapter.preload()
-        if args.ready_file is not None:
-            args.ready_file.write_text("ready\n")
-        adapter.run(duration_s=args.duration, should_stop=lambda: bool(stop), preload=False)
-    except KeyboardInterrupt:
-        pass
-    except OSError as exc:
-        raise CommandError(f"i2c-stub access failed: {exc}") from None
+        _serve(args, adapter)
     finally:
         adapter.close()
         if stats_file is not None:
@@ -187,3 +161,36 @@ def _run_standin(args: argparse.Namespace, device: Any, stats_file: Any) -> int:
     print(f"bmg160-emu stub: {standin.name} at 0x{device.address:02x}: {adapter.polls} polls, "
           f"{len(adapter.events)} client writes", file=sys.stderr)
     return 0
+
+
+def _open(args: argparse.Namespace, make: Callable[[], Any]) -> Any:
+    """The adapter on /dev/i2c-BUS, its open errors as one line."""
+    from bmg160_emu.commands._common import CommandError
+
+    try:
+        return make()
+    except PermissionError:
+        raise CommandError(f"permission denied on /dev/i2c-{args.bus}: run as root") from None
+    except OSError as exc:
+        raise CommandError(f"cannot open /dev/i2c-{args.bus}: {exc.strerror}") from None
+
+
+def _serve(args: argparse.Namespace, adapter: Any,
+           before_preload: Callable[[], None] | None = None) -> None:
+    """Preload, signal readiness, then keep i2c-stub in step until --duration, SIGINT or
+    SIGTERM (both end cleanly)."""
+    from bmg160_emu.commands._common import CommandError
+
+    stop: list[bool] = []
+    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
+    try:
+        if before_preload is not None:
+            before_preload()
+        adapter.preload()
+        if args.ready_file is not None:
+            args.ready_file.write_text("ready\n")
+        adapter.run(duration_s=args.duration, should_stop=lambda: bool(stop), preload=False)
+    except KeyboardInterrupt:
+        pass
+    except OSError as exc:
+        raise CommandError(f"i2c-stub access failed: {exc}") from None
