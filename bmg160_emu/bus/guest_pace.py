@@ -17,26 +17,25 @@ from __future__ import annotations
 
 import time
 
-from bmg160_emu.clock import NS_PER_S
+from bmg160_emu.clock import NS_PER_S, RealTimeClock
 
 NEVER = 1 << 62  # no limit
 
 
-class GuestPacedClock:
+class GuestPacedClock(RealTimeClock):
     """Wall time since construction, held below :attr:`limit_ns` and then caught up.
 
     ``now_ns()`` never goes backwards; the chips read it at each access, as they read a
-    :class:`~bmg160_emu.clock.RealTimeClock`.
+    :class:`~bmg160_emu.clock.RealTimeClock`, whose waiting ``advance``/``sleep`` it keeps
+    (wall time cannot be pushed).
     """
-
-    realtime = True
 
     def __init__(self, catch_up: float = 2.0) -> None:
         if not catch_up > 1.0:
             raise ValueError("catch_up must be > 1 (the lag is made up at that speed)")
+        super().__init__()
         self.catch_up = catch_up
         self.limit_ns = NEVER  # the chips' time stays below this (set by the pacer)
-        self._origin_ns = time.monotonic_ns()
         self._real_ns = 0  # wall time at the last look (since the origin)
         self._ns = 0  # the chips' time at the last look
         self.max_lag_ns = 0
@@ -57,9 +56,6 @@ class GuestPacedClock:
         self._ns = new
         return new
 
-    def now(self) -> float:
-        return self.now_ns() / NS_PER_S
-
     @property
     def lag_s(self) -> float:
         """How far the chips' time is behind wall time (s), as of the last look."""
@@ -74,18 +70,6 @@ class GuestPacedClock:
         fast = min(ns - now, lag * self.catch_up / (self.catch_up - 1.0)) if lag > 0 else 0.0
         # while catching up the chips' time moves catch_up x wall time, then 1 x
         return (fast / self.catch_up + (ns - now - fast)) / NS_PER_S
-
-    def advance_ns(self, ns: int) -> int:
-        """Wall time cannot be pushed: wait instead (as RealTimeClock)."""
-        if ns < 0:
-            raise ValueError("time cannot go backwards")
-        time.sleep(ns / NS_PER_S)
-        return self.now_ns()
-
-    def advance(self, seconds: float) -> None:
-        self.advance_ns(round(seconds * NS_PER_S))
-
-    sleep = advance
 
     def __repr__(self) -> str:
         return f"GuestPacedClock(t={self._ns / NS_PER_S:.6f} s, lag={self.lag_s:.6f} s)"
