@@ -146,14 +146,9 @@ def _trace_writer(args: argparse.Namespace, buses: list[Any]) -> Any:
     """A TraceWriter fed by every bus's log (None without --trace)."""
     if args.trace is None:
         return None
-    from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.commands.trace import header_from_chip_args
-    from bmg160_emu.io.trace import TraceWriter
+    from bmg160_emu.commands.trace import trace_writer_from_args
 
-    try:
-        writer = TraceWriter(args.trace, header_from_chip_args(args))
-    except OSError as exc:
-        raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
+    writer = trace_writer_from_args(args)
     for bus in buses:
         bus.log.sinks.append(writer)
     return writer

@@ -65,8 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.commands.trace import header_from_chip_args
-    from bmg160_emu.io.trace import TraceWriter
+    from bmg160_emu.commands.trace import trace_writer_from_args
     from bmg160_emu.script import (
         ScriptFailure,
         ScriptRunner,
@@ -106,10 +105,7 @@ def run(args: argparse.Namespace) -> int:
         port, log_ = None, i2c_bus.log
     writer = None
     if args.trace is not None:
-        try:
-            writer = TraceWriter(args.trace, header_from_chip_args(args))
-        except OSError as exc:
-            raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
+        writer = trace_writer_from_args(args)
         log_.sinks.append(writer)
 
     def log(line: str) -> None:

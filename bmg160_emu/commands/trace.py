@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu.commands._common import add_command_parser
-from bmg160_emu.io.trace import TraceHeader
+from bmg160_emu.io.trace import TraceHeader, TraceWriter
 
 EPILOG = """\
 examples:
@@ -43,7 +43,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.decode import describe_transaction
-    from bmg160_emu.io.trace import TraceFormatError, TraceHeader, read_trace
+    from bmg160_emu.io.trace import TraceFormatError, read_trace
     from bmg160_emu.replay import replay_trace
 
     try:
@@ -99,3 +99,14 @@ def header_from_chip_args(args: Any) -> TraceHeader:
     for config in configs_from_args(args):
         header.add_config(config)
     return header
+
+
+def trace_writer_from_args(args: Any) -> TraceWriter:
+    """``--trace FILE`` opened with the session's header; an unwritable path is the
+    command's one-line error (run, script and vhost-user-i2c share it)."""
+    from bmg160_emu.commands._common import CommandError
+
+    try:
+        return TraceWriter(args.trace, header_from_chip_args(args))
+    except OSError as exc:
+        raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None

@@ -153,13 +153,10 @@ def run(args: argparse.Namespace) -> int:
             if args.gpio_socket is not None else None)
     writer = None
     if args.trace is not None:
-        from bmg160_emu.commands.trace import header_from_chip_args
+        from bmg160_emu.commands.trace import trace_writer_from_args
         from bmg160_emu.io.trace import TraceWriter
 
-        try:
-            writer = TraceWriter(args.trace, header_from_chip_args(args))
-        except OSError as exc:
-            raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
+        writer = trace_writer_from_args(args)
         # written after the guest has its answer (i2c.after_transfer), not inside the
         # transfer: the JSON line and its flush cost ~10 us a transaction
         pending: list[Any] = []
