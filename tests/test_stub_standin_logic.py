@@ -62,3 +62,13 @@ def test_a_poll_without_client_writes_writes_nothing():
     stub.operations.clear()
     adapter.refresh()
     assert set(stub.operations) == {"read_i2c_block_data"} and len(stub.operations) == 8
+
+
+def test_a_reset_and_a_configuration_seen_in_one_poll_keep_the_configuration():
+    # a driver writes BGW_SOFTRESET, then PMU_RANGE; a poll that sees both must not let the
+    # reset undo the range (in register order 0x0F would come before 0x14)
+    device, stub, adapter = _rig("bma2x2_accel", 0x18)
+    stub.client_write(0x14, 0xB6)
+    stub.client_write(0x0F, 0x05)
+    adapter.refresh()
+    assert device.peek(0x0F) == 0x05 and stub.client_block(0x0F, 1) == b"\x05"

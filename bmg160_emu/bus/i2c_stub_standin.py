@@ -72,6 +72,12 @@ class StandinStubAdapter:
         self.polls += 1
         lows = self._read_lows()
         writes = {reg: v for reg, v in enumerate(lows) if self.shadow[reg] != v}
+        reset = self.device.spec.soft_reset
+        if reset is not None and reset.register in writes and reset.triggered_by(
+                writes[reset.register]):
+            # one poll cannot tell the order of the writes it sees; a driver resets first
+            # and configures after, so the reset is applied first (else it undoes them)
+            writes = {reset.register: writes.pop(reset.register), **writes}
         for reg, value in writes.items():
             self.device.write(reg, bytes([value]))
             self.shadow[reg] = value
