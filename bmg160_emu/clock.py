@@ -46,7 +46,9 @@ class VirtualClock:
 
     def __init__(self, start_s: float = 0.0) -> None:
         self._ns = seconds_to_ns(start_s)
-        self._lock = threading.Lock()
+        # Chips on this clock take this lock as theirs: one acquisition then covers a chip's
+        # state and the time it advances (a polling driver's hot path, bench_fake_smbus).
+        self.lock = threading.RLock()
 
     def now_ns(self) -> int:
         return self._ns
@@ -58,7 +60,7 @@ class VirtualClock:
         """Move time forward by ``ns`` nanoseconds; return the new time in ns."""
         if ns < 0:
             raise ValueError("virtual time cannot go backwards")
-        with self._lock:
+        with self.lock:
             self._ns += ns
             return self._ns
 

@@ -80,3 +80,20 @@ def test_a_string_is_not_a_time_step():
     with pytest.raises(TypeError, match="number of seconds"):
         BMG160(seed=1, noise=False).advance("0.5")
     assert clock.now() == 0.0
+
+
+def test_chips_on_one_virtual_clock_share_its_lock_and_follow_a_replaced_clock():
+    shared = VirtualClock()
+    a, b = BMG160(seed=1, clock=shared), BMG160(seed=2, clock=shared)
+    assert a.lock is b.lock is shared.lock  # one acquisition covers chip and time
+    a.advance(0.01)
+    assert shared.now_ns() == b.clock.now_ns() == 10_000_000
+    other = VirtualClock(5.0)  # a clock with its own lock: the chip must go through it
+    a.clock = other
+    a.advance(0.25)
+    assert other.now_ns() == 5_250_000_000 and shared.now_ns() == 10_000_000
+    assert a.time == 5.25
+    a.clock = RealTimeClock()
+    t0 = a.time
+    time.sleep(0.02)
+    assert a.time - t0 >= 0.02

@@ -182,3 +182,47 @@ def test_same_result_or_error_as_real_smbus2_over_the_emulated_kernel(method, ar
             bus.close()
         results.append((outcome, chip.dump()))
     assert results[0] == results[1]
+
+
+def _address_sequence(bus, kernel) -> list:
+    """Block reads around hand-set ``address`` and ``force`` attributes: smbus2 decides on
+    its ioctl by comparing them, so a stale fast path would reach the wrong device or skip
+    the EBUSY of an unforced ioctl."""
+    out = []
+
+    def read(address, **force):
+        try:
+            out.append(bus.read_i2c_block_data(address, 0x00, 2, **force))
+        except OSError as exc:
+            out.append(exc.errno)
+
+    read(0x68)
+    bus.address = 0x69  # by hand: no ioctl, the kernel's client is still 0x68
+    read(0x69)  # smbus2: no ioctl, reads 0x68
+    read(0x68)  # the address differs: ioctl, 0x68
+    read(0x69)  # ioctl to 0x69
+    bus.force = True
+    read(0x68)  # force differs: a forced ioctl
+    kernel.claimed.add(0x68)  # a kernel driver binds 0x68
+    read(0x68)  # same address and force: no ioctl, the read goes through
+    bus.force = False
+    read(0x68)  # force differs: an unforced ioctl, EBUSY
+    read(0x68, force=True)
+    return out
+
+
+def test_hand_set_address_and_force_route_reads_as_real_smbus2():
+    results = []
+    for front_end in ("fake", "smbus2"):
+        low, high = RegisterFileChip(), RegisterFileChip()
+        high.write(0x00, bytes([0xAA, 0xBB]))
+        with patch_smbus({1: {0x68: low, 0x69: high}}) as buses:
+            bus = FakeSMBus(1) if front_end == "fake" else smbus2.SMBus(1)
+            out = _address_sequence(bus, buses[1])
+            bus.close()
+            kinds = [(t.address, t.kind) for t in buses[1].log]
+        results.append((out, kinds))
+    assert results[0] == results[1]
+    out = results[0][0]
+    assert out[1] == out[0] != out[3]  # the stale-address read really hit 0x68
+    assert out[6] == errno.EBUSY

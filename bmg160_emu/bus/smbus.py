@@ -44,6 +44,9 @@ def _block(data: Sequence[Any]) -> bytes:
     return bytes(operator.index(v) & 0xFF for v in data)
 
 
+_NOT_HOT = object()  # FakeSMBus._hot when no address is set for the fast path
+
+
 def _closed() -> TypeError:
     # What fcntl.ioctl(None, ...) raises on a closed smbus2.SMBus.
     return TypeError("argument must be an int, or have a fileno() method.")
@@ -70,7 +73,8 @@ class FakeSMBus:
             self._own_bus = I2CBus(number, devices)
         if bus is not None:
             self.open(bus)
-        self.address: int | None = None
+        self._hot: object = _NOT_HOT
+        self.address = None
         self.force = force
         self._force_last: bool | None = None
         self._pec = 0
@@ -158,6 +162,26 @@ class FakeSMBus:
 
     pec = property(_get_pec, enable_pec)
 
+    @property
+    def address(self) -> int | None:
+        """The address of the last ``I2C_SLAVE`` ioctl, as in smbus2 (None when closed)."""
+        return self._address
+
+    @address.setter
+    def address(self, value: int | None) -> None:
+        self._address = value
+        self._hot = _NOT_HOT  # assigned by hand: the next call compares it, as smbus2 does
+
+    @property
+    def force(self) -> bool:
+        """Force the address by default (``I2C_SLAVE_FORCE``), as in smbus2."""
+        return self._force
+
+    @force.setter
+    def force(self, value: bool) -> None:
+        self._force = value
+        self._hot = _NOT_HOT
+
     def _set_address(self, address: int, force: bool | None = None) -> None:
         force = force if force is not None else self.force
         if self.address != address or self._force_last != force:
@@ -179,6 +203,8 @@ class FakeSMBus:
             self._client = address
             self.address = address
             self._force_last = force
+        if force == self._force:  # the next call with force=None needs no ioctl: fast path
+            self._hot = address
 
     def _bus(self) -> I2CBus:
         bus = self._i2c
@@ -270,18 +296,15 @@ class FakeSMBus:
         self, i2c_addr: int, register: int, length: int, force: bool | None = None
     ) -> list[int]:
         """Read a block of byte data from a given register (burst, auto-increment)."""
-        bus = self._i2c
         if (
-            i2c_addr == self.address
+            i2c_addr == self._hot  # the address set last, with the default force, bus open
             and force is None
-            and self._force_last == self.force
-            and bus is not None
             and register.__class__ is int
             and length.__class__ is int
             and 0 <= register <= 0xFF
             and 0 <= length <= I2C_SMBUS_BLOCK_MAX
         ):  # the hot path of a polling driver: the same address again, plain ints in range
-            return list(bus.read_i2c_block_data(self._client, register, length))
+            return list(self._i2c.read_i2c_block_data(self._client, register, length))  # type: ignore[union-attr]
         return self._read_i2c_block_data(i2c_addr, register, length, force)
 
     def _read_i2c_block_data(

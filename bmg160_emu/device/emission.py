@@ -43,8 +43,6 @@ def emit_batch(chip: Any, n: int) -> None:
     chip._k = k_last
     chip._last_sample_ns = chip._next_ns + (n - 1) * chip._period_ns
     chip._next_ns = chip._last_sample_ns + chip._period_ns
-    chip._have_sample = True
-    chip._sample_seq += n
     chip._data_ready_pending = True
     if fifo_mode:
         chip._fifo.push_many(frames, fifo_mode, total=n)
@@ -69,7 +67,8 @@ def emit_one(chip: Any) -> None:
         high_bw = chip._regs[_RATE_HBW] & _DATA_HIGH_BW
         rate = datapath.run_sample_hooks(chip, t_s, b.dps_u[i] if high_bw else b.dps_f[i])
         if rate is None:
-            return  # a lost sample: no data-ready, no register update
+            chip._seq_base += 1  # a lost sample: not counted, no data-ready, no register update
+            return
         counts_f, rate_bytes = datapath.counts_of(rate.tolist(), chip.sensitivity)
         counts_u = counts_f
         dps_pre = rate
@@ -79,8 +78,6 @@ def emit_one(chip: Any) -> None:
             counts_f, counts_u = b.counts_f[i], b.counts_u[i]
     chip._cur = rate_bytes
     chip._last_sample_ns = t_ns
-    chip._have_sample = True
-    chip._sample_seq += 1
     chip._data_ready_pending = True
     if irq.any_axes or irq.high_axes:  # (step does nothing with both engines off)
         irq.step(chip._regs, counts_f, counts_u, chip._odr, t_ns)

@@ -354,6 +354,7 @@ def update_engine_flags(chip: BMG160) -> None:
     chip._fifo_store_mode = mode if mode in (fifo_mod.FIFO, fifo_mod.STREAM) else 0
     chip._fifo.capacity = chip.part.fifo_depth(mode)  # a part's stream depth (part_spec)
     chip._per_sample = bool(chip._irq.any_axes or chip._irq.high_axes or chip._foc is not None)
+    chip._plain = not (chip._per_sample or chip._fifo_store_mode or chip._fifo_int_on)
 
 
 def engine_config_changed(chip: BMG160, now: int) -> None:
