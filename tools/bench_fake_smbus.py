@@ -13,13 +13,14 @@ Every figure is per call, the best of R rounds of L calls (as timeit does: the l
 disturbed), timed in this thread's CPU time (``--wall``: perf_counter) so that time spent
 descheduled on a shared machine does not count, and the rounds of all the loops are
 interleaved so that what load remains (caches, clock frequency) falls on the reference and
-the emulator alike. The advance includes the chip's
-block-wise noise and filter computation (1024 samples at a time), amortised over the loop.
+the emulator alike. The advance includes the chip's block-wise filter computation (1024
+samples at a time) and noise draws (2048 at a time), amortised over the loop.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections.abc import Callable
 
@@ -27,6 +28,7 @@ import smbus2
 
 from bmg160_emu.bus.patching import patch_smbus
 from bmg160_emu.bus.smbus import FakeSMBus
+from bmg160_emu.device import datapath
 from bmg160_emu.device.chip import BMG160
 
 RATE_X_LSB = 0x02  # spec 4.2
@@ -47,9 +49,12 @@ class DictBus:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    # 2048 calls: every loop spans exactly two of the chip's 1024-sample blocks, so each
-    # round carries the same share of block computation whatever its phase
-    parser.add_argument("--loop", type=int, default=2048, help="calls per timed loop")
+    # a whole number of the chip's blocks (datapath.SPAN) and of its noise draws
+    # (datapath.NOISE_CHUNK), 2048 calls today: every round carries the same share of block
+    # and noise computation whatever its phase, so the best round cannot be one without it
+    whole = math.lcm(datapath.SPAN, datapath.NOISE_CHUNK)
+    parser.add_argument("--loop", type=int, default=whole,
+                        help=f"calls per timed loop (a multiple of {whole})")
     parser.add_argument("--rounds", type=int, default=60, help="interleaved rounds, best kept")
     parser.add_argument("--wall", action="store_true",
                         help="time with perf_counter (wall) instead of this thread's CPU time")

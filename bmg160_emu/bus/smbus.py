@@ -304,7 +304,7 @@ class FakeSMBus:
             and 0 <= register <= 0xFF
             and 0 <= length <= I2C_SMBUS_BLOCK_MAX
         ):  # the hot path of a polling driver: the same address again, plain ints in range
-            return list(self._i2c.read_i2c_block_data(self._client, register, length))  # type: ignore[union-attr]
+            return [*self._i2c.read_i2c_block_data(self._client, register, length)]  # type: ignore[union-attr]
         return self._read_i2c_block_data(i2c_addr, register, length, force)
 
     def _read_i2c_block_data(

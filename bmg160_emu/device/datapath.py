@@ -21,7 +21,7 @@ import numpy as np
 from bmg160_emu.device import spec_choices as choice
 from bmg160_emu.device.lowpass import LowPass
 
-NOISE_CHUNK = 256  # least noise drawn at once (the generator buffers small requests)
+NOISE_CHUNK = 2048  # least noise drawn at once: one generator checkpoint per 2048 samples
 SPAN = 1024  # samples computed ahead, in pieces of 1, 2, 4, ... as they are used
 MAX_SPAN = 65536  # when catching up a long gap
 
