@@ -19,7 +19,8 @@ Real-time factor = simulated seconds / seconds taken, in wall time and in the pr
 CPU time (Basilisk steps its task in a thread of its own; CPU time leaves out the time the
 process waited for a core, which on a shared machine is most of the difference).
 ``--breakdown`` adds, for the loop, the CPU time per step inside each Python module and,
-of the gyro module's, inside the chip's rate input (with the sample it makes due).
+of the gyro module's, inside the chip's rate input (with the sample it makes due); and the
+bare simulation with 0, 1 and 3 empty Python modules (what a module costs by itself).
 
     python tools/bench_basilisk.py [--duration 30] [--repeat 5] [--breakdown]
 
@@ -52,10 +53,20 @@ def _timed(func: Callable[[], None]) -> tuple[float, float]:
     return time.perf_counter() - wall, time.process_time() - cpu
 
 
-def bare_basilisk(duration_s: float) -> None:
+def bare_basilisk(duration_s: float, empty_modules: int = 0) -> None:
+    """The spacecraft and wheels alone; with ``empty_modules`` Python modules in the task
+    whose ``UpdateState`` returns at once (what a Python module costs Basilisk by itself)."""
+    from Basilisk.architecture import sysModel
     from Basilisk.simulation import reactionWheelStateEffector, spacecraft
     from Basilisk.utilities import SimulationBaseClass, macros, simIncludeRW
     from scenario import INERTIA
+
+    class Empty(sysModel.SysModel):
+        def UpdateState(self, CurrentSimNanos: int) -> None:
+            pass
+
+        def Reset(self, CurrentSimNanos: int) -> None:
+            pass
 
     sim = SimulationBaseClass.SimBaseClass()
     sim.CreateNewProcess("dynamics").addTask(sim.CreateNewTask("loop", macros.sec2nano(STEP_S)))
@@ -71,6 +82,10 @@ def bare_basilisk(duration_s: float) -> None:
     factory.addToSpacecraft(sc.ModelTag, wheels, sc)
     sim.AddModelToTask("loop", sc, 100)
     sim.AddModelToTask("loop", wheels, 90)
+    empties = [Empty() for _ in range(empty_modules)]
+    for i, module in enumerate(empties):
+        module.ModelTag = f"empty{i}"
+        sim.AddModelToTask("loop", module, 50 - i)
     sim.InitializeSimulation()
     sim.ConfigureStopTime(macros.sec2nano(duration_s))
     sim.ExecuteSimulation()
@@ -213,6 +228,13 @@ def main() -> int:
     if args.breakdown:
         parts = breakdown(d, stream)
         print("  loop, every step, CPU per 5 ms step: " + ", ".join(f"{k} {v:.1f} us" for k, v in parts.items()))
+        per_step = {}
+        for n in (0, 1, 3):  # median of repeat runs, CPU time
+            runs = [_timed(lambda n=n: bare_basilisk(d, n))[1] for _ in range(args.repeat)]
+            per_step[n] = statistics.median(runs) / (d / STEP_S) * 1e6
+        print("  Basilisk with empty Python modules, CPU per step: "
+              + ", ".join(f"{n} modules {v:.1f} us" for n, v in per_step.items())
+              + f" ({(per_step[3] - per_step[0]) / 3:.1f} us per module)")
     steps = chip_step_costs(args.steps, args.repeat)
     streamed = f"stream_true_rate {steps['stream_true_rate']:.1f} us, " if "stream_true_rate" in steps else ""
     print(f"  chip step (rate + advance + smbus2 read, thread CPU, best of {args.repeat}): "
