@@ -43,6 +43,10 @@ class _Activation:
     not_before_s: float = -math.inf  # a replayed fault: the first sample it touched
 
 
+# (the bus, the gyros on it, [(fault index, fault, its targets on the bus, a bus fault?)])
+_BusPlan = tuple[Any, list[GyroTarget], list[tuple[int, Fault, list[GyroTarget], bool]]]
+
+
 class FaultSchedule:
     """Faults to inject into a rig of gyros; seeded, so a run can be repeated exactly."""
 
@@ -56,6 +60,7 @@ class FaultSchedule:
         self._rngs = [np.random.default_rng(s) for s in root.spawn(len(self.faults))]
         self.events: list[FaultEvent] = []
         self._gyros: list[GyroTarget] = []
+        self._bus_plans: dict[int, _BusPlan] = {}  # id(bus) -> its plan
         self._fired: list[int] = [0] * len(self.faults)
         self._time_done: set[tuple[int, int]] = set()  # (fault, id(bus)) already fired
         self._bus_windows: list[list[tuple[float, float]]] = [[] for _ in self.faults]
@@ -71,6 +76,7 @@ class FaultSchedule:
     def install(self, gyros: Sequence[GyroTarget]) -> None:
         """Hook the schedule into the gyros' chips and buses (each bus once)."""
         self._gyros = list(gyros)
+        self._bus_plans = {}
         for fault in self.faults:
             if fault.gyro is not None and not 0 <= fault.gyro < len(self._gyros):
                 raise FaultError(
@@ -101,17 +107,31 @@ class FaultSchedule:
 
     # ----------------------------------------------------------------- bus side
 
-    def _transaction_hook(self, bus: Any, index: int, address: int, kind: str) -> None:
+    def _bus_plan(self, bus: Any) -> _BusPlan:
+        """What a transaction on ``bus`` must look at, worked out once per bus (the hook runs
+        on every transaction: a polling loop's hot path): the gyros on it and, for each fault
+        with a target there that is not placed on sample times at install, (index, fault,
+        its targets on this bus, whether it is a bus fault)."""
+        plan = self._bus_plans.get(id(bus))
+        if plan is not None and plan[0] is bus:
+            return plan
         gyros_here = [g for g in self._gyros if g.bus is bus]
-        now = _clock_time(gyros_here[0].chip) if gyros_here else 0.0
-        failure: OSError | None = None
+        entries = []
         for i, fault in enumerate(self.faults):
             if fault.layer == "sample" and fault.at_s is not None:
                 continue  # placed on exact sample times at install
             targets = [g for g in self._targets(fault) if g.bus is bus]
-            if not targets:
-                continue
-            if fault.layer == "bus":
+            if targets:
+                entries.append((i, fault, targets, fault.layer == "bus"))
+        plan = self._bus_plans[id(bus)] = (bus, gyros_here, entries)
+        return plan
+
+    def _transaction_hook(self, bus: Any, index: int, address: int, kind: str) -> None:
+        _, gyros_here, entries = self._bus_plan(bus)
+        now = _clock_time(gyros_here[0].chip) if gyros_here else 0.0
+        failure: OSError | None = None
+        for i, fault, targets, is_bus_fault in entries:
+            if is_bus_fault:
                 addressed = [g for g in targets if g.address == address]
                 if fault.gyro is not None and not addressed:
                     continue
