@@ -11,6 +11,8 @@ overlapping Allan variance is twice it, so the Allan methods get exactly allanto
            poles, and its widened Jacobian intervals
     gmwm   GMWM with the truth's model, iterated efficient weighting with the exact
            finite-record Omega (noise/gmwm.py), asymptotic intervals
+    gmwm_boot  (with --bootstrap R) the same estimates with the parametric bootstrap's
+           percentile intervals (gmwm.bootstrap, R records simulated from each fit)
 
 Truths: "paper" (white + Gauss-Markov + random walk, the paper profile's N, B, T, K) and
 "twopole" (white + two Gauss-Markov poles + random walk; the read-offs, which see one pole,
@@ -21,6 +23,8 @@ checkpoint file (JSON lines), so an interrupted run continues where it stopped.
     nice python tools/identification_accuracy.py                     # the full study
     python tools/identification_accuracy.py --seeds 20 --lengths 2.8 # a quick look
     python tools/identification_accuracy.py --table-only             # table from the checkpoint
+    python tools/identification_accuracy.py --truths twopole --lengths 6 --seeds 20 \
+        --bootstrap 100 --checkpoint boot.jsonl                       # bootstrap intervals too
 
 Errors are relative to the truth (%); RMSE is dominated by the few records where a term is
 not resolved (a slow pole taken for a random walk), the median absolute error is not.
@@ -57,7 +61,7 @@ TRUTHS = {
 METHODS = ("ieee", "allan", "gmwm")
 
 
-def one_record(truth: str, hours: float, seed: int) -> dict:
+def one_record(truth: str, hours: float, seed: int, bootstrap: int = 0) -> dict:
     model, params = TRUTHS[truth]
     n = round(hours * 3600 * RATE_HZ)
     # one independent stream per (truth, length, seed)
@@ -74,6 +78,11 @@ def one_record(truth: str, hours: float, seed: int) -> dict:
     n_min = MIN_COEFFS_FRACTION * n
     fit = gmwm.gmwm_fit(wv.up_to(int((n + 1 - n_min) // 2)), model)
     out["gmwm"] = {k: [e.value, e.ci_low, e.ci_high] for k, e in fit.estimates.items()}
+    if bootstrap:  # the same fit, scored on its parametric-bootstrap percentile intervals
+        gmwm.bootstrap(fit, bootstrap, seed=int(rng.integers(2**63)))
+        out["gmwm_boot"] = {k: [e.value, e.boot_low, e.boot_high]
+                            for k, e in fit.estimates.items()}
+        out["bootstrap_replicates"] = bootstrap
     return out
 
 
@@ -131,10 +140,10 @@ def run(args) -> None:
     with path.open("a") as fh:
         for truth in args.truths:
             for hours in args.lengths:
-                for seed in range(args.seeds):
+                for seed in range(args.first_seed, args.seeds):
                     if (truth, hours, seed) in done:
                         continue
-                    r = one_record(truth, hours, seed)
+                    r = one_record(truth, hours, seed, args.bootstrap)
                     fh.write(json.dumps(r) + "\n")
                     fh.flush()
     print(f"computed in {time.perf_counter() - start:.0f} s (records already done were skipped)")
@@ -149,6 +158,7 @@ def table(path: Path, seeds: int, lengths, truths) -> str:
         ),
         "| --- | --- | --- | --- | ---: | ---: | ---: | ---: | ---: |",
     ]
+    methods = METHODS + (("gmwm_boot",) if any("gmwm_boot" in r for r in rows) else ())
     for truth in truths:
         _, params = TRUTHS[truth]
         for hours in lengths:
@@ -157,8 +167,8 @@ def table(path: Path, seeds: int, lengths, truths) -> str:
             if not sel:
                 continue
             for name, true in params.items():
-                for method in METHODS:
-                    vals = [r[method][name] for r in sel if name in r[method]]
+                for method in methods:
+                    vals = [r[method][name] for r in sel if name in r.get(method, {})]
                     if not vals:
                         continue
                     v = np.array(vals, dtype=float)
@@ -200,6 +210,11 @@ def main() -> None:
         default="identification_accuracy.jsonl",
         help="JSON-lines results file, appended record by record (default %(default)s)",
     )
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="first seed to compute (two processes can share the seeds)")
+    parser.add_argument("--bootstrap", type=int, default=0, metavar="R",
+                        help="also score GMWM's parametric-bootstrap intervals (R replicates "
+                        "per record; method gmwm_boot)")
     parser.add_argument("--table-only", action="store_true", help="only print the table")
     args = parser.parse_args()
     if not args.table_only:
