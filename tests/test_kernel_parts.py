@@ -200,10 +200,13 @@ def test_kernel_driver_binds_by_the_parts_name_and_reads_the_rate(guest, name):
         assert len(values) == SAMPLES
         # new samples, not one frozen value (noise ~2 counts rms at 500 deg/s, 32 Hz filter)
         assert len(set(values)) >= 3, values
-        # 12 samples: noise of the mean ~0.06 deg/s, bias instability ~0.01; a wrong range
-        # would be off by a factor of 2 or more
-        mean = statistics.fmean(values) * 500.0 / 32768
-        assert math.isclose(mean, true, abs_tol=1.5), (name, axis, mean)
+        # The median of 12 samples (noise ~0.08 deg/s, bias instability ~0.01; a wrong range
+        # would be off by a factor of 2 or more), not the mean: the first read after the
+        # driver's runtime resume can still see i2c-stub's memory from before the chip's
+        # first sample (0) when the in-guest adapter takes longer than the driver's 80 ms
+        # start-up wait (one CI run at load: x read 0, then 1319, 1308, ...)
+        median = statistics.median(values) * 500.0 / 32768
+        assert math.isclose(median, true, abs_tol=1.5), (name, axis, median, values)
 
 
 def test_temperature_is_absent_on_the_bmi088_die(guest):
