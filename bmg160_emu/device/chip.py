@@ -476,7 +476,7 @@ class BMG160(environment.EnvironmentInputs):
                 continue
             t = self._next_ns
             period = self._period_ns
-            if now < t + period and not self._fifo_store_mode and not self._fifo_int_on:
+            if now < t + period and self._plain:  # (no per-sample engine: the branch above)
                 # fast path: exactly one new sample, nothing stored per sample
                 k = self._k + 1
                 b = self._block
