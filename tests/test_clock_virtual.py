@@ -2,9 +2,10 @@
 
 import time
 
+import numpy as np
 import pytest
 
-from bmg160_emu.clock import RealTimeClock, VirtualClock, virtual_sleep
+from bmg160_emu.clock import RealTimeClock, VirtualClock, seconds_to_ns, virtual_sleep
 from bmg160_emu.device.chip import BMG160
 
 
@@ -97,3 +98,22 @@ def test_chips_on_one_virtual_clock_share_its_lock_and_follow_a_replaced_clock()
     t0 = a.time
     time.sleep(0.02)
     assert a.time - t0 >= 0.02
+
+
+def test_advance_remembers_only_a_valid_step_and_rounds_each_new_one():
+    # advance keeps the last step's rounding (the polling hot path): a bad step between two
+    # good ones must still raise, a negative one after its positive twin too, and a mixed
+    # sequence must land where seconds_to_ns of each step puts it
+    chip = BMG160(seed=1, noise=False)
+    steps = [0.005, 0.005, 1e-9, 0.005, 0.0, np.float64(0.005), 2.5e-10, 0.0025, 0.005]
+    for step in steps:
+        chip.advance(step)
+    assert chip.clock.now_ns() == sum(seconds_to_ns(float(s)) for s in steps)
+    before = chip.clock.now_ns()
+    for bad in (-0.005, float("nan"), "0.005", float("inf")):
+        with pytest.raises((TypeError, ValueError, OverflowError)):
+            chip.advance(bad)
+        with pytest.raises((TypeError, ValueError, OverflowError)):
+            chip.advance(bad)  # the second time too: a failed step is not remembered
+        chip.advance(0.005)
+    assert chip.clock.now_ns() == before + 4 * 5_000_000

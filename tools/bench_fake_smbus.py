@@ -13,7 +13,9 @@ Every figure is per call, the best of R rounds of L calls (as timeit does: the l
 disturbed), timed in this thread's CPU time (``--wall``: perf_counter) so that time spent
 descheduled on a shared machine does not count, and the rounds of all the loops are
 interleaved so that what load remains (caches, clock frequency) falls on the reference and
-the emulator alike. The advance includes the chip's block-wise filter computation (1024
+the emulator alike. Beside the best-of ratio it prints the median over the rounds of each
+round's own ratio (the emulator's loop over the dict loop run just before it): on a host
+whose speed drifts by several per cent within a minute, that pairing is the steadier figure. The advance includes the chip's block-wise filter computation (1024
 samples at a time) and noise draws (2048 at a time), amortised over the loop.
 """
 
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import statistics
 import time
 from collections.abc import Callable
 
@@ -119,14 +122,18 @@ def main() -> int:
     }
     clock = time.perf_counter if args.wall else time.thread_time
     best = dict.fromkeys(cases, float("inf"))
+    paired: list[float] = []  # per round: advance+read over the dict read of the same round
     advance_read()  # warm-up: first noise block, filter design, caches
     advance_without_noise()
     for _ in range(args.rounds):
+        this_round = {}
         for name, case in cases.items():
             log.clear()
             start = clock()
             case()
-            best[name] = min(best[name], (clock() - start) / args.loop)
+            this_round[name] = (clock() - start) / args.loop
+            best[name] = min(best[name], this_round[name])
+        paired.append(this_round["advance+read"] / this_round["dict"])
     # For reference, not a target: real smbus2 (ctypes, ioctl) over the emulated kernel.
     with patch_smbus({1: bus.i2c_bus}), smbus2.SMBus(1) as real:
         real_read = real.read_i2c_block_data
@@ -144,6 +151,9 @@ def main() -> int:
     print(f"dict-backed fake read (reference):          {ref:7.0f} ns")
     print(f"FakeSMBus advance + read, log on:           {ns['advance+read']:7.0f} ns  "
           f"{ns['advance+read'] / ref:5.2f} x   (target <= 3)")
+    print(f"  median over the rounds of the round's own ratio:  "
+          f"{statistics.median(paired):5.2f} x   (quartiles "
+          f"{statistics.quantiles(paired, n=4)[0]:.2f}-{statistics.quantiles(paired, n=4)[2]:.2f})")
     print(f"  of which chip.advance(period):            {ns['advance']:7.0f} ns  "
           f"{ns['advance'] / ref:5.2f} x")
     print(f"    the same without noise:                 {ns['advance, noise off']:7.0f} ns  "

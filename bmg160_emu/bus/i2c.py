@@ -425,21 +425,9 @@ class I2CBus:
         core sends no PEC for this kind."""
         if not 0 <= length <= I2C_SMBUS_BLOCK_MAX:
             raise os_error(errno.EINVAL)
-        chip = self.devices.get(address)
-        if chip is None or self.transaction_hooks or self._unsupported:
-            chip = self._begin(address, "read_i2c_block_data", register)
-        else:  # the hot path of a polling driver: _begin inlined
-            next(self._counter)
-        data = chip.read(register, length)
-        log = self.log
-        if log.enabled:
-            entry = (chip.time, self.number, address, "read_i2c_block_data", register, b"", data,
-                     None)
-            if log.sinks:
-                log.add(entry)
-            else:  # TransactionLog.add inlined: the polling driver's hot path
-                log._entries.append(entry)
-                log.total += 1
+        chip = self._begin(address, "read_i2c_block_data", register)  # (FakeSMBus inlines
+        data = chip.read(register, length)  # this for a polling driver's hot path)
+        self._record(chip, address, "read_i2c_block_data", register, b"", data)
         return data
 
     def write_i2c_block_data(self, address: int, register: int, data: bytes) -> None:

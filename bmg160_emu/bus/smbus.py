@@ -304,7 +304,23 @@ class FakeSMBus:
             and 0 <= register <= 0xFF
             and 0 <= length <= I2C_SMBUS_BLOCK_MAX
         ):  # the hot path of a polling driver: the same address again, plain ints in range
-            return [*self._i2c.read_i2c_block_data(self._client, register, length)]  # type: ignore[union-attr]
+            # I2CBus.read_i2c_block_data and TransactionLog.add inlined (one Python call
+            # fewer, 60-100 ns of a 1.5 us poll): no hook, no sink, every kind supported
+            bus: Any = self._i2c
+            chip = bus.devices.get(i2c_addr)
+            if chip is not None and not bus.transaction_hooks and not bus._unsupported:
+                next(bus._counter)
+                data = chip.read(register, length)
+                log = bus.log
+                if log.enabled:
+                    entry = (chip.time, bus.number, i2c_addr, "read_i2c_block_data", register,
+                             b"", data, None)
+                    if log.sinks:
+                        log.add(entry)
+                    else:
+                        log._entries.append(entry)
+                        log.total += 1
+                return [*data]
         return self._read_i2c_block_data(i2c_addr, register, length, force)
 
     def _read_i2c_block_data(
