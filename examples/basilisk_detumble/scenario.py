@@ -22,7 +22,7 @@ import numpy as np
 from Basilisk.architecture import messaging, sysModel
 from Basilisk.simulation import reactionWheelStateEffector, spacecraft
 from Basilisk.utilities import SimulationBaseClass, macros, simIncludeRW
-from flight_software import FlightConfig, FlightSoftware
+from flight_software import PERIOD_S, FlightConfig, FlightSoftware
 
 from bmg160_emu.adcs.attitude import angle_between_deg
 from bmg160_emu.adcs.basilisk import EmulatedGyro, quaternion_from_mrp
@@ -31,7 +31,8 @@ from bmg160_emu.bus.patching import patch_smbus
 
 HERE = Path(__file__).resolve().parent
 IDENTIFICATION = HERE / "identification.json"
-STEP_S = 0.005  # task step = the gyro's output period at 200 Hz
+STEP_S = 0.005  # the dynamics and gyro task's step = the gyro's output period at 200 Hz
+FSW_STEP_S = PERIOD_S  # the flight software's task (20 Hz; it reads the gyro's FIFO)
 INERTIA = np.array([[0.0420, 0.0002, -0.0001],  # kg m^2: 4 kg, 10 x 10 x 34 cm (m (b^2+c^2)/12)
                     [0.0002, 0.0418, 0.0001],
                     [-0.0001, 0.0001, 0.0067]])
@@ -137,7 +138,10 @@ def build(setup: Setup):
     """The Basilisk simulation of ``setup``; returns (sim, parts)."""
     sim = SimulationBaseClass.SimBaseClass()
     proc = sim.CreateNewProcess("dynamics")
-    proc.addTask(sim.CreateNewTask("loop", macros.sec2nano(STEP_S)))
+    # at a time both tasks are due, the dynamics and the gyro first (higher priority), then
+    # the star tracker and the flight software on the state and samples of that time
+    proc.addTask(sim.CreateNewTask("loop", macros.sec2nano(STEP_S)), 100)
+    proc.addTask(sim.CreateNewTask("flight", macros.sec2nano(FSW_STEP_S)), 50)
 
     sc = spacecraft.Spacecraft()
     sc.ModelTag = "cubesat"
@@ -164,8 +168,8 @@ def build(setup: Setup):
 
     cfg = FlightConfig(inertia=INERTIA, wheel_axes=np.eye(3), wheel_js=float(first.Js),
                        wheel_u_max=float(first.u_max), bias_cal_dps=bias_calibration_dps(),
-                       dt_s=STEP_S, kd=setup.kd)
-    fsw = FlightSoftware(cfg, log_every=max(1, round(setup.log_period_s / STEP_S)))
+                       dt_s=FSW_STEP_S, kd=setup.kd)
+    fsw = FlightSoftware(cfg, log_every=max(1, round(setup.log_period_s / FSW_STEP_S)))
     fsw.rwSpeedInMsg.subscribeTo(wheels.rwSpeedOutMsg)
     fsw.starTrackerInMsg.subscribeTo(tracker.attOutMsg)
     wheels.rwMotorCmdInMsg.subscribeTo(fsw.rwMotorTorqueOutMsg)
@@ -173,8 +177,8 @@ def build(setup: Setup):
     sim.AddModelToTask("loop", sc, 100)
     sim.AddModelToTask("loop", wheels, 90)
     sim.AddModelToTask("loop", gyro, 50)
-    sim.AddModelToTask("loop", tracker, 45)
-    sim.AddModelToTask("loop", fsw, 40)
+    sim.AddModelToTask("flight", tracker, 45)
+    sim.AddModelToTask("flight", fsw, 40)
     log_ns = macros.sec2nano(setup.log_period_s)
     state_rec = sc.scStateOutMsg.recorder(log_ns)
     wheel_rec = wheels.rwSpeedOutMsg.recorder(log_ns)
