@@ -82,15 +82,18 @@ def test_chip_time_is_basilisk_time_to_the_nanosecond_over_an_orbit():
     assert gyro.offset_ns == 250_000_001
     sim.ConfigureStopTime(macros.sec2nano(10.0))
     sim.ExecuteSimulation()
+    chip.peek(0x00)  # a look at the chip: the queued rate input computes samples when read
     first, count_start = times[-1], len(times)
     chip.truth_hooks.remove(hook)
     sim.ConfigureStopTime(macros.sec2nano(5400.0))
     sim.ExecuteSimulation()
+    chip.peek(0x00)
     assert probe.steps == 541 and probe.mismatches == 0
     assert gyro.clock.now_ns() == 5400 * 10**9 + 250_000_001
     chip.truth_hooks.append(hook)
     sim.ConfigureStopTime(macros.sec2nano(5410.0))
     sim.ExecuteSimulation()
+    chip.peek(0x00)
     period = 5_000_000
     last = times[-1]
     assert (last - first) % period == 0  # still on the starting grid after 5400 s
@@ -172,3 +175,32 @@ def test_messages_are_basilisk_types():
     gyro = EmulatedGyro()
     assert isinstance(gyro.imuOutMsg, messaging.IMUSensorMsg)
     assert isinstance(gyro.imuBodyOutMsg, messaging.IMUSensorBodyMsg)
+
+
+def test_the_rate_inputs_give_the_same_counts_and_truth():
+    # a tumbling body (unequal inertia: the rate changes every step), the FIFO read every
+    # 10 steps as the example's flight software does: the queued input (computed at each
+    # read) gives the counts and truth the streamed one (each sample when due) gives
+    seen = {}
+    for rate_input in ("queue", "stream", "set"):
+        gyro = EmulatedGyro([GyroSpec()], seed=4, publish=False, rate_input=rate_input)
+        assert gyro.rate_input == rate_input
+        chip = gyro.chips[0]
+        _configure(chip)
+        chip.write(0x3E, bytes([0x80]))  # FIFO stream mode (spec 4.26)
+        sim, _ = _sim(0.005, gyro, inertia=(0.04, 0.03, 0.01))
+        sim.InitializeSimulation()
+        frames = []
+        for stop in np.arange(0.05, 1.0001, 0.05):
+            sim.ConfigureStopTime(macros.sec2nano(float(stop)))
+            sim.ExecuteSimulation()
+            frames.append(chip.read(0x3F, 6 * (chip.peek(0x0E) & 0x7F)))
+        truth = gyro.truth()
+        seen[rate_input] = (frames, truth.times_s, truth.rate_dps)
+    assert sum(len(f) for f in seen["queue"][0]) >= 6 * 190  # 200 Hz, from just after start
+    for other in ("stream", "set"):
+        assert seen["queue"][0] == seen[other][0]
+        assert np.array_equal(seen["queue"][1], seen[other][1])
+        assert np.array_equal(seen["queue"][2], seen[other][2])
+    with pytest.raises(ValueError, match="rate_input"):
+        EmulatedGyro(rate_input="push")

@@ -6,12 +6,14 @@ of a shared machine falls on all of them alike), median and best reported:
 - bare: the example's spacecraft and three reaction wheels in Basilisk alone (C++ modules,
   5 ms task), no gyro, no flight software;
 - loop, the example: the whole example (examples/basilisk_detumble): emulated gyro, star
-  tracker, the Python flight software reading the gyro over smbus2, faults on; the rate
-  handed over through ``stream_true_rate`` when it moved by 1/4 LSB (the example's
+  tracker, the Python flight software reading the gyro's FIFO over smbus2 at 20 Hz, faults
+  on; the rate handed over through ``queue_true_rate`` (EmulatedGyro's default: samples
+  computed when the flight software reads them) when it moved by 1/4 LSB (the example's
   ``rate_resolution_dps``);
 - loop, every step: the same with a new true rate at every step (resolution 0);
-- loop, every step, set_true_rate: the same through ``set_true_rate``, the input before
-  ``stream_true_rate`` (the same samples, bit for bit);
+- loop, every step, stream_true_rate / set_true_rate: the same through the inputs that
+  compute each sample as it falls due (the same samples as each other, bit for bit; as the
+  queued input's to rounding);
 - per step, chip alone: the rate + ``advance(5 ms)`` + a 6-byte smbus2 read, for both
   inputs, against ``advance`` + read.
 
@@ -91,9 +93,10 @@ def bare_basilisk(duration_s: float, empty_modules: int = 0) -> None:
     sim.ExecuteSimulation()
 
 
-def closed_loop(duration_s: float, feed: str, resolution_dps: float | None = None) -> None:
-    """The example's run (scenario.run) with the gyro's rate input and resolution chosen
-    (None: the example's)."""
+def closed_loop(duration_s: float, feed: str | None,
+                resolution_dps: float | None = None) -> None:
+    """The example's run (scenario.run) with the gyro's rate input (a chip method's name;
+    None: EmulatedGyro's default) and resolution chosen (None: the example's)."""
     import scenario
     from Basilisk.utilities import macros
 
@@ -104,7 +107,8 @@ def closed_loop(duration_s: float, feed: str, resolution_dps: float | None = Non
         setup.rate_resolution_dps = resolution_dps
     sim, parts = scenario.build(setup)
     gyro = parts["gyro"]
-    gyro._feeds = [getattr(g.chip, feed) for g in gyro.gyros]
+    if feed is not None:
+        gyro._feeds = [getattr(g.chip, feed) for g in gyro.gyros]
     with patch_smbus(gyro.buses):
         sim.InitializeSimulation()
         sim.ConfigureStopTime(macros.sec2nano(duration_s))
@@ -197,13 +201,15 @@ def main() -> int:
 
     # a model without stream_true_rate (an older checkout on PYTHONPATH): set_true_rate only
     stream = "stream_true_rate" if hasattr(BMG160, "stream_true_rate") else "set_true_rate"
+    queue = "queue_true_rate" if hasattr(BMG160, "queue_true_rate") else stream
     cases = {"bare": lambda: bare_basilisk(d),
-             "loop, the example": lambda: closed_loop(d, stream),
-             "loop, every step": lambda: closed_loop(d, stream, 0.0),
+             "loop, the example": lambda: closed_loop(d, queue),
+             "loop, every step": lambda: closed_loop(d, queue, 0.0),
+             "loop, every step, stream_true_rate": lambda: closed_loop(d, stream, 0.0),
              "loop, every step, set_true_rate": lambda: closed_loop(d, "set_true_rate", 0.0)}
     if stream == "set_true_rate":
         print("(this model has no stream_true_rate: set_true_rate in every case)")
-    closed_loop(1.0, stream)  # imports, filter designs, first noise blocks
+    closed_loop(1.0, queue)  # imports, filter designs, first noise blocks
     bare_basilisk(1.0)
     load_before = os.getloadavg()[0]
     wall: dict[str, list[float]] = {name: [] for name in cases}
@@ -226,7 +232,7 @@ def main() -> int:
         print(f"  {name} / bare: wall {statistics.median(wall[name]) / statistics.median(wall['bare']):.1f}x, "
               f"CPU {statistics.median(cpu[name]) / statistics.median(cpu['bare']):.1f}x")
     if args.breakdown:
-        parts = breakdown(d, stream)
+        parts = breakdown(d, queue)
         print("  loop, every step, CPU per 5 ms step: " + ", ".join(f"{k} {v:.1f} us" for k, v in parts.items()))
         per_step = {}
         for n in (0, 1, 3):  # median of repeat runs, CPU time

@@ -26,6 +26,7 @@ true attitude, fault flags) as the rig does (:class:`~bmg160_emu.adcs.rig.Truth`
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -47,6 +48,7 @@ except ImportError as exc:  # pragma: no cover - depends on the installation
 # spec 3: RATE_X_LSB .. RATE_Z_MSB, little-endian int16 per axis; CHIP_ID has no side effect
 _RATE_REGISTERS = tuple(address_of("RATE_X_LSB") + k for k in range(6))
 _CHIP_ID = address_of("CHIP_ID")
+_RATE_INPUTS = {"queue": "queue_true_rate", "stream": "stream_true_rate", "set": "set_true_rate"}
 
 
 def quaternion_from_mrp(sigma: Any) -> np.ndarray:
@@ -64,9 +66,12 @@ class EmulatedGyro(sysModel.SysModel):
     split per chip and for the fault schedule as in :class:`~bmg160_emu.adcs.rig.GyroRig`.
     ``faults``: a schedule or fault list (:mod:`bmg160_emu.adcs.faults`). ``publish``: write
     the IMU messages each step. ``record_truth``: keep the per-sample truth (costs a hook
-    call per sample, and Basilisk's attitude and rate per step). The chips take each step's
-    rate through ``stream_true_rate`` (the samples of ``set_true_rate``, bit for bit, at the
-    cost of the one sample a step changes; ``set_true_rate`` for a chip without it).
+    call per sample, and Basilisk's attitude and rate per step). ``rate_input``: how the
+    chips take each step's rate: ``"queue"`` (default: ``queue_true_rate``, nothing computed
+    until something reads the chip, then all due samples at once; a flight software reading
+    the FIFO at 20 Hz pays one block per read instead of a sample per step), ``"stream"``
+    (``stream_true_rate``: each sample when it falls due, bit for bit ``set_true_rate``'s)
+    or ``"set"``; a chip without the method gets ``set_true_rate``.
     ``rate_resolution_dps``: hand the chips a new rate only when it moved by more than this
     on some axis (0, the default: every step; a saving for a chip without the streaming
     input, or a deliberately quantised rate).
@@ -82,6 +87,7 @@ class EmulatedGyro(sysModel.SysModel):
         publish: bool = True,
         record_truth: bool = True,
         rate_resolution_dps: float = 0.0,
+        rate_input: str = "queue",
         model_tag: str = "bmg160",
     ) -> None:
         from bmg160_emu.bus.i2c import I2CBus
@@ -105,7 +111,7 @@ class EmulatedGyro(sysModel.SysModel):
         if not rate_resolution_dps >= 0.0:
             raise ValueError(f"rate_resolution_dps must be >= 0, not {rate_resolution_dps!r}")
         self.rate_resolution_dps = float(rate_resolution_dps)
-        self._held_dps: np.ndarray | None = None
+        self._held_dps: list[float] | None = None
         self.feeds = 0  # rate changes handed to the chips (for the benchmarks)
         children = np.random.SeedSequence(self.seed).spawn(len(self.specs) + 1)
         self.buses: dict[int, Any] = {}
@@ -133,16 +139,20 @@ class EmulatedGyro(sysModel.SysModel):
             fault_seed = int(children[-1].generate_state(1, dtype=np.uint64)[0])
             self.faults = FaultSchedule(list(faults or ()), seed=fault_seed)
         self.faults.install(self.gyros)
-        # the rate input: a streaming input when the chip has one, else set_true_rate
-        streams = [getattr(g.chip, "stream_true_rate", None) for g in self.gyros]
-        self.streaming = all(f is not None for f in streams)
-        self._feeds = [f or g.chip.set_true_rate for f, g in zip(streams, self.gyros)]
+        # the rate input: the one asked for when the chip has it, else set_true_rate
+        method = _RATE_INPUTS.get(rate_input)
+        if method is None:
+            raise ValueError(f"rate_input must be one of {', '.join(_RATE_INPUTS)}, "
+                             f"not {rate_input!r}")
+        feeds = [getattr(g.chip, method, None) for g in self.gyros]
+        self.rate_input = rate_input if all(f is not None for f in feeds) else "set"
+        self._feeds = [f or g.chip.set_true_rate for f, g in zip(feeds, self.gyros)]
         # nominal sensor -> body rotation (the mounting the flight software knows)
         self._to_body = [np.asarray(s.mounting, dtype=float).T for s in self.specs]
         self.offset_ns = self.clock.now_ns()
         self._step_ns: list[int] = []
         self._step_sigma: list[Any] = []
-        self._step_rate_dps: list[np.ndarray] = []
+        self._step_rate_dps: list[list[float]] = []
 
     def _truth_hook(self, index: int):
         times, rates = self._sample_times[index], self._sample_rates[index]
@@ -169,10 +179,14 @@ class EmulatedGyro(sysModel.SysModel):
         if lag:
             self.clock.advance_ns(lag)
         state = self.scStateInMsg()
-        rate_dps = np.degrees(np.asarray(state.omega_BN_B, dtype=float))
+        # in Python floats: numpy's per-call cost on a 3-vector is most of a step's work here
+        wx, wy, wz = state.omega_BN_B
+        rate_dps = [math.degrees(wx), math.degrees(wy), math.degrees(wz)]
         held = self._held_dps
-        if (held is None or self.rate_resolution_dps == 0.0
-                or np.max(np.abs(rate_dps - held)) > self.rate_resolution_dps):
+        resolution = self.rate_resolution_dps
+        if (held is None or resolution == 0.0 or abs(rate_dps[0] - held[0]) > resolution
+                or abs(rate_dps[1] - held[1]) > resolution
+                or abs(rate_dps[2] - held[2]) > resolution):
             self._held_dps = rate_dps
             self.feeds += 1
             for feed in self._feeds:

@@ -28,7 +28,7 @@ from bmg160_emu.device.engines import NEVER, power_mode
 from bmg160_emu.device.interrupts import Interrupts
 from bmg160_emu.device.part_spec import BMG160_PART, Part
 from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of, field_of
-from bmg160_emu.device.true_rate import TrueRate, streamed_rate, true_rate_source
+from bmg160_emu.device.true_rate import QueuedRates, TrueRate, streamed_rate, true_rate_source
 
 log = logging.getLogger(__name__)
 NORMAL, DEEP_SUSPEND, SUSPEND, FAST_POWER_UP, POWER_SAVE = engines.MODES  # names as before
@@ -149,6 +149,20 @@ class BMG160(environment.EnvironmentInputs):
             self._rate_due()
             self._invalidate()
             self._rate = source
+
+    def queue_true_rate(self, rate_dps: Sequence[float]) -> None:
+        """``stream_true_rate`` without computing anything now: the rate holds from the next
+        output sample on, and the samples are computed when something reads them, all that
+        are due at once (a simulator's 5 ms steps against a driver reading the FIFO at 20 Hz).
+        The same samples as ``stream_true_rate``'s to rounding (~1e-15 of the rate)."""
+        row = streamed_rate(rate_dps).rate_dps
+        with self.lock:
+            if isinstance(self._rate, QueuedRates):
+                self._rate.add(emission.first_not_due(self, self.clock.now_ns()), row)
+                return
+            self._rate_due()
+            self._invalidate()
+            self._rate = QueuedRates(self._k + 1, row)
 
     def _rate_due(self) -> None:
         """The samples due before a new true rate; those a failing rate function could not
@@ -451,6 +465,8 @@ class BMG160(environment.EnvironmentInputs):
         if b is not None and b.k0 <= k < b.end:
             return b
         first, n, self._span = datapath.next_piece(b, k, want, self._span, self._span_used)
+        if not self._rate.ahead:  # rates still to come (queue_true_rate): only what is due
+            n = min(n, want)
         body = self._rate.block(k, n, self._times_ns)
         b = self._block = self._path.build(
             k, body, self._offset_dps(), self.sensitivity,
@@ -467,32 +483,7 @@ class BMG160(environment.EnvironmentInputs):
 
     def _catch_up(self, now: int) -> None:
         """Produce every sample due by ``now`` (between transactions, never inside one)."""
-        while now >= self._next_ns:
-            if self._per_sample or self.sample_hooks or self.truth_hooks:
-                if self._emitting:  # a hook called a primitive: finish this sample first
-                    return
-                self._emitting = True
-                try:
-                    emission.emit_one(self)
-                finally:
-                    self._emitting = False
-                continue
-            t = self._next_ns
-            period = self._period_ns
-            if now < t + period and self._plain:  # (no per-sample engine: the branch above)
-                # fast path: exactly one new sample, nothing stored per sample
-                k = self._k + 1
-                b = self._block
-                if b is None or k >= b.end:
-                    b = self._block_for(k)
-                i = 6 * (k - b.k0)
-                self._cur = b.rate_bytes[i:i + 6]
-                self._k = k
-                self._last_sample_ns = t
-                self._next_ns = t + period
-                self._data_ready_pending = True
-                return
-            emission.emit_batch(self, (now - t) // period + 1)
+        emission.catch_up(self, now)
 
     def __repr__(self) -> str:
         return (f"{type(self).__name__}(address=0x{self.address:02X}, t={self.clock.now():.6f} s, "

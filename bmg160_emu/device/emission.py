@@ -1,8 +1,9 @@
 """The samples as they come out of the data path, for ``BMG160``'s catch-up (chip.py).
 
-``emit_one``: one sample through the truth and sample hooks and the per-sample engines
-(interrupts, fast offset, FIFO); ``emit_batch``: n samples when no per-sample engine runs,
-where only the last sample and the FIFO's frames matter. Both work on the chip's state, as
+``catch_up``: every sample due by a time; ``emit_one``: one sample through the truth and
+sample hooks and the per-sample engines (interrupts, fast offset, FIFO); ``emit_batch``: n
+samples when no per-sample engine runs, where only the last sample and the FIFO's frames
+matter. Both work on the chip's state, as
 ``regmap`` does."""
 
 from __future__ import annotations
@@ -50,10 +51,48 @@ def emit_batch(chip: Any, n: int) -> None:
         regmap.update_fifo_int(chip, chip._last_sample_ns)
 
 
-def emit_one(chip: Any) -> None:
-    """One sample through the hooks and the per-sample engines."""
+def first_not_due(chip: Any, now: int) -> int:
+    """The index of the first sample not yet due at ``now`` (ns)."""
+    t = chip._next_ns
+    return chip._k + 1 + ((now - t) // chip._period_ns + 1 if now >= t else 0)
+
+
+def catch_up(chip: Any, now: int) -> None:
+    """Produce every sample due by ``now`` (``BMG160._catch_up``)."""
+    while now >= chip._next_ns:
+        t = chip._next_ns
+        period = chip._period_ns
+        if chip._per_sample or chip.sample_hooks or chip.truth_hooks:
+            if chip._emitting:  # a hook called a primitive: finish this sample first
+                return
+            chip._emitting = True
+            try:
+                # (a queued rate computes all that are due at once; others as they were)
+                emit_one(chip, 1 if chip._rate.ahead else (now - t) // period + 1)
+            finally:
+                chip._emitting = False
+            continue
+        if now < t + period and chip._plain:  # (no per-sample engine: the branch above)
+            # fast path: exactly one new sample, nothing stored per sample
+            k = chip._k + 1
+            b = chip._block
+            if b is None or k >= b.end:
+                b = chip._block_for(k)
+            i = 6 * (k - b.k0)
+            chip._cur = b.rate_bytes[i:i + 6]
+            chip._k = k
+            chip._last_sample_ns = t
+            chip._next_ns = t + period
+            chip._data_ready_pending = True
+            return
+        emit_batch(chip, (now - t) // period + 1)
+
+
+def emit_one(chip: Any, due: int = 1) -> None:
+    """One sample through the hooks and the per-sample engines; ``due``: the samples due,
+    this one included (a missing block is built for all of them)."""
     k = chip._k + 1
-    b = chip._block_for(k)
+    b = chip._block_for(k, due)
     i = k - b.k0
     t_ns = chip._next_ns
     t_s = t_ns / NS_PER_S

@@ -7,6 +7,7 @@ sources that need them.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Callable
 from typing import Any
@@ -23,6 +24,7 @@ class ConstantRate:
 
     constant = True
     failed = False
+    ahead = True  # samples may be computed before they are due
 
     def __init__(self, rate_dps: np.ndarray) -> None:
         self.rate_dps = rate_dps
@@ -37,6 +39,7 @@ class FunctionRate:
     """``func(t_s) -> 3 numbers``, called once per output sample in order."""
 
     constant = False
+    ahead = True
 
     def __init__(self, func: Callable[[float], Any]) -> None:
         self.func = func
@@ -70,6 +73,7 @@ class SampledRate:
 
     constant = False
     failed = False
+    ahead = True
 
     def __init__(self, samples: np.ndarray, first_k: int, first_ns: int,
                  rate_hz: float | None) -> None:
@@ -84,7 +88,37 @@ class SampledRate:
         return self.samples[np.clip(rows, 0, len(self.samples) - 1)]
 
 
-TrueRate = ConstantRate | FunctionRate | SampledRate
+class QueuedRates:
+    """Rates handed in one at a time (``BMG160.queue_true_rate``), each from a given sample
+    on and held until the next one's; ``ahead = False``: a sample is computed only once it
+    is due, when its rate is known."""
+
+    constant = False
+    failed = False
+    ahead = False
+
+    def __init__(self, first_k: int, rate_dps: np.ndarray) -> None:
+        self.starts, self.rows = [first_k], [rate_dps]
+
+    def add(self, first_k: int, rate_dps: np.ndarray) -> None:
+        if first_k <= self.starts[-1]:  # a second rate before the first's sample: it wins
+            self.rows[-1] = rate_dps
+        else:
+            self.starts.append(first_k)
+            self.rows.append(rate_dps)
+
+    def block(self, k0: int, n: int, times_ns: Times) -> np.ndarray:
+        starts = self.starts
+        used = bisect.bisect_right(starts, k0) - 1  # the rate of sample k0; earlier ones go
+        if used > 0:
+            del starts[:used], self.rows[:used]
+        if len(starts) == 1 or k0 + n <= starts[1]:
+            return np.broadcast_to(self.rows[0], (n, 3))
+        rows = np.searchsorted(starts, np.arange(k0, k0 + n), side="right") - 1
+        return np.array(self.rows)[rows]
+
+
+TrueRate = ConstantRate | FunctionRate | SampledRate | QueuedRates
 
 
 def streamed_rate(rate_dps: Any) -> ConstantRate:
