@@ -104,3 +104,31 @@ def test_printed_log_shows_session_events_by_their_description():
     assert str(Transaction(0.5, 1, 0x68, "fault:brownout")).endswith("fault:brownout")
     read = Transaction(0.5, 1, 0x68, "read_byte_data", register=2, read=b"\x01")
     assert str(read).endswith("read_byte_data reg 0x02 -> 01")
+
+
+def test_fake_smbus_fast_lane_logs_what_the_bus_logs():
+    # FakeSMBus.read_i2c_block_data takes a polling driver's repeat reads itself (I2CBus's
+    # lane inlined): the log, a sink, a hook's transaction index and the total must be what
+    # I2CBus.read_i2c_block_data gives for the same reads
+    from bmg160_emu.bus.smbus import FakeSMBus
+
+    def session(through_fake: bool):
+        chip = RegisterFileChip()
+        bus = I2CBus(2, {0x68: chip})
+        fake = FakeSMBus(bus)
+        sunk: list[Transaction] = []
+        indices: list[int] = []
+        out = []
+        for step in range(6):
+            chip.advance(0.01)
+            if step == 2:
+                bus.log.sinks.append(sunk.append)
+            if step == 4:
+                bus.transaction_hooks.append(lambda b, i, a, k: indices.append(i))
+            if through_fake:
+                out.append(fake.read_i2c_block_data(0x68, 0x02, 6))
+            else:
+                out.append(list(bus.read_i2c_block_data(0x68, 0x02, 6)))
+        return out, [t.to_dict() for t in bus.log], [t.to_dict() for t in sunk], indices, bus.log.total
+
+    assert session(True) == session(False)

@@ -146,7 +146,7 @@ def figures(result: scenario.Result, folder: Path) -> list[Path]:
                 label="true |w| (Basilisk)")
     if len(result.est_time_s):
         ax.semilogy(result.est_time_s, np.linalg.norm(result.rate_est_dps, axis=1), color="C0",
-                    lw=0.4, alpha=0.35, label="gyro |w|, one sample (flight software)")
+                    lw=0.4, alpha=0.35, label="gyro |w|, mean of a 50 ms FIFO read (flight software)")
         ax.semilogy(result.est_time_s, np.linalg.norm(result.rate_model_dps, axis=1),
                     color="C1", lw=0.9, label="smoothed |w| used by the controller")
     ax.axhline(scenario.RATE_LIMIT_DPS, color="C3", ls="--", lw=1, label="0.1 deg/s")
