@@ -287,15 +287,17 @@ class FlightSoftware(sysModel.SysModel):
         sums = self.residual_sum
         window = self.step_window
         if len(self.residuals) == window:
+            # the residual leaving the window goes into the level: a step's first residuals
+            # are judged (suspect) before they could leave, so the level stays the one before
             oldest = self.residuals[0]
+            follow = self.cfg.dt_s / BASELINE_TAU_S
             for axis in range(3):
                 sums[axis] -= oldest[axis]
+                if not self.suspect[axis]:
+                    self.baseline[axis] += follow * (oldest[axis] - self.baseline[axis])
         self.residuals.append(residual)
-        follow = self.cfg.dt_s / BASELINE_TAU_S
         for axis in range(3):
             sums[axis] += residual[axis]
-            if not self.suspect[axis]:
-                self.baseline[axis] += follow * (residual[axis] - self.baseline[axis])
         if len(self.residuals) < window:
             return
         limit = STEP_THRESHOLD_DPS * window
