@@ -334,7 +334,7 @@ class BMG160(environment.EnvironmentInputs):
 
     def advance(self, seconds: float) -> None:
         """Advance the clock; the chip produces exactly one sample per output period."""
-        try:  # contract.duration_ns and _catch_up's one-sample path, inlined: a polling
+        try:  # contract.duration_ns and emit_batch of one sample, inlined: a polling
             if seconds == self._step_s:  # driver's hot path (tools/bench_fake_smbus.py):
                 ns = self._step_ns  # the same step as last time, as round() made it (80 ns)
             else:

@@ -72,19 +72,6 @@ def catch_up(chip: Any, now: int) -> None:
             finally:
                 chip._emitting = False
             continue
-        if now < t + period and chip._plain:  # (no per-sample engine: the branch above)
-            # fast path: exactly one new sample, nothing stored per sample
-            k = chip._k + 1
-            b = chip._block
-            if b is None or k >= b.end:
-                b = chip._block_for(k)
-            i = 6 * (k - b.k0)
-            chip._cur = b.rate_bytes[i:i + 6]
-            chip._k = k
-            chip._last_sample_ns = t
-            chip._next_ns = t + period
-            chip._data_ready_pending = True
-            return
         emit_batch(chip, (now - t) // period + 1)
 
 
