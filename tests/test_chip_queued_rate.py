@@ -3,17 +3,12 @@
 
 import numpy as np
 import pytest
+from test_chip_streaming_rate import _rates  # a random walk in deg/s, a new rate every row
 
 from bmg160_emu.clock import VirtualClock
 from bmg160_emu.device.chip import BMG160
 
 SEED = 5
-
-
-def _rates(n: int, seed: int) -> np.ndarray:
-    # a random walk in deg/s: every step a new rate, as a simulator's
-    steps = np.random.default_rng(seed).normal(0.0, 3.0, size=(n, 3))
-    return np.cumsum(steps, axis=0) + np.array([10.0, -20.0, 5.0])
 
 
 def _loop(feed: str, rates: np.ndarray, step_s: float, read_every: int, *, hooks: bool):

@@ -151,9 +151,9 @@ def main() -> int:
     print(f"dict-backed fake read (reference):          {ref:7.0f} ns")
     print(f"FakeSMBus advance + read, log on:           {ns['advance+read']:7.0f} ns  "
           f"{ns['advance+read'] / ref:5.2f} x   (target <= 3)")
+    low, _, high = statistics.quantiles(paired, n=4)
     print(f"  median over the rounds of the round's own ratio:  "
-          f"{statistics.median(paired):5.2f} x   (quartiles "
-          f"{statistics.quantiles(paired, n=4)[0]:.2f}-{statistics.quantiles(paired, n=4)[2]:.2f})")
+          f"{statistics.median(paired):5.2f} x   (quartiles {low:.2f}-{high:.2f})")
     print(f"  of which chip.advance(period):            {ns['advance']:7.0f} ns  "
           f"{ns['advance'] / ref:5.2f} x")
     print(f"    the same without noise:                 {ns['advance, noise off']:7.0f} ns  "

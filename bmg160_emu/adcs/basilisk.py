@@ -73,8 +73,8 @@ class EmulatedGyro(sysModel.SysModel):
     (``stream_true_rate``: each sample when it falls due, bit for bit ``set_true_rate``'s)
     or ``"set"``; a chip without the method gets ``set_true_rate``.
     ``rate_resolution_dps``: hand the chips a new rate only when it moved by more than this
-    on some axis (0, the default: every step; a saving for a chip without the streaming
-    input, or a deliberately quantised rate).
+    on some axis (0, the default: every step; a saving with the inputs that compute each
+    sample as it falls due, or a deliberately quantised rate).
     """
 
     def __init__(
