@@ -24,7 +24,6 @@ suite's default seed and noise profile; the marker overrides them.
 from __future__ import annotations
 
 import inspect
-import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -174,11 +173,7 @@ def bmg160_smbus(request: pytest.FixtureRequest, bmg160_chip: Any) -> Iterator[A
 class SpiDevNode:
     """The emulated /dev/spidevB.D that ``bmg160_spidev`` yields, as ``bmg160_smbus`` yields
     the emulated /dev/i2c-N: ``.chip``, ``.bus``, ``.device``, ``.path``, and ``open()`` for a
-    ``FakeSpiDev`` on it. Each ``SpiDev`` keeps its own transaction ``.log``.
-
-    Before 0.2.0 the fixture yielded the chip itself; other attributes still reach the chip,
-    with a DeprecationWarning (use ``bmg160_chip`` or ``.chip``).
-    """
+    ``FakeSpiDev`` on it. Each ``SpiDev`` keeps its own transaction ``.log``."""
 
     def __init__(self, chip: Any, bus: int, device: int) -> None:
         self.chip = chip
@@ -194,18 +189,6 @@ class SpiDevNode:
         from bmg160_emu.bus.spi import FakeSpiDev
 
         return FakeSpiDev(self.bus, self.device)
-
-    def __getattr__(self, name: str) -> Any:
-        if name.startswith("__"):
-            raise AttributeError(name)
-        value = getattr(self.chip, name)
-        warnings.warn(
-            f"bmg160_spidev.{name}: the fixture now yields the SPI device node; "
-            f"use bmg160_chip.{name} or bmg160_spidev.chip.{name}",
-            DeprecationWarning,
-            stacklevel=2,
-        )
-        return value
 
     def __repr__(self) -> str:
         return f"SpiDevNode({self.path}, {self.chip!r})"

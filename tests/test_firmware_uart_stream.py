@@ -11,7 +11,7 @@ from _firmware_backends import require_firmware_build
 from scipy import stats
 
 from bmg160_emu.firmware.build import capture_uart
-from bmg160_emu.firmware.uart_stream import UartStreamError, parse_uart_stream, read_uart_stream
+from bmg160_emu.io.uart_stream import UartStreamError, parse_uart_stream, read_uart_stream
 from bmg160_emu.noise.discretization import axis_coefficients
 from bmg160_emu.noise.profile import load_profile
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from bmg160_emu.io.rates import RateFileError as RecordError
+from bmg160_emu.io.rates import load_rate_record
 from bmg160_emu.noise.identification import IdentificationError, identify
-from bmg160_emu.noise.rate_record import RecordError, load_rate_record
 
 
 @pytest.fixture

@@ -68,7 +68,7 @@ def test_prefixed_fake_fixtures_and_their_old_aliases(pytester):
     result.assert_outcomes(passed=2)
 
 
-def test_spidev_fixture_yields_the_device_node_and_still_reaches_the_chip(pytester):
+def test_spidev_fixture_yields_the_device_node_not_the_chip(pytester):
     result = run(pytester, """
         import pytest
 
@@ -82,9 +82,10 @@ def test_spidev_fixture_yields_the_device_node_and_still_reaches_the_chip(pytest
                 assert spi.xfer2([0x80, 0]) == [0, 0x0F]
                 assert spi.log.kinds() == ["spi_read"]
 
-        def test_old_use_as_the_chip_warns_but_works(bmg160_spidev, bmg160_chip):
-            with pytest.warns(DeprecationWarning, match="bmg160_chip.read"):
-                assert bmg160_spidev.read(0x00) == bytes([0x0F])
+        def test_the_node_is_not_the_chip(bmg160_spidev):
+            # 0.1's use of the fixture as the chip ended in 0.3.0 (CHANGELOG)
+            with pytest.raises(AttributeError):
+                bmg160_spidev.read(0x00)
     """)
     result.assert_outcomes(passed=2)
 
