@@ -174,7 +174,7 @@ class I2CBus:
         # errno of an address NACK: EREMOTEIO on i2c-bcm2835 (Raspberry Pi) and most
         # adapters; some (i2c-designware, i2c-i801) give ENXIO. Set it to match a target.
         self.nack_errno = errno.EREMOTEIO
-        self._counter = itertools.count()  # next() is atomic: safe across threads
+        self.indices = itertools.count()  # transaction indices; next() is atomic across threads
         self.funcs = funcs
 
     # ------------------------------------------------------------------ configuration
@@ -185,8 +185,10 @@ class I2CBus:
 
     @funcs.setter
     def funcs(self, value: int) -> None:
+        """The adapter's I2C_FUNC_* bits; ``unsupported`` follows: the transaction kinds
+        they leave out (read, with ``indices``, by FakeSMBus's polling lane)."""
         self._funcs = int(value)
-        self._unsupported = frozenset(k for k, bit in KIND_FUNCS.items() if not value & bit)
+        self.unsupported = frozenset(k for k, bit in KIND_FUNCS.items() if not value & bit)
 
     @property
     def path(self) -> str:
@@ -252,8 +254,8 @@ class I2CBus:
         self, address: int, kind: str, register: int | None = None, written: bytes = b""
     ) -> Any:
         """Run the hooks and find the device; raise the adapter's error if there is none."""
-        index = next(self._counter)
-        if kind in self._unsupported:
+        index = next(self.indices)
+        if kind in self.unsupported:
             raise os_error(errno.EOPNOTSUPP)
         chip = self.devices.get(address)
         if self.transaction_hooks:

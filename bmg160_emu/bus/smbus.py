@@ -308,8 +308,8 @@ class FakeSMBus:
             # fewer, 60-100 ns of a 1.5 us poll): no hook, no sink, every kind supported
             bus: Any = self._i2c
             chip = bus.devices.get(i2c_addr)
-            if chip is not None and not bus.transaction_hooks and not bus._unsupported:
-                next(bus._counter)
+            if chip is not None and not bus.transaction_hooks and not bus.unsupported:
+                next(bus.indices)
                 data = chip.read(register, length)
                 log = bus.log
                 if log.enabled:
@@ -318,7 +318,7 @@ class FakeSMBus:
                     if log.sinks:
                         log.add(entry)
                     else:
-                        log._entries.append(entry)
+                        log.entries.append(entry)
                         log.total += 1
                 return [*data]
         return self._read_i2c_block_data(i2c_addr, register, length, force)

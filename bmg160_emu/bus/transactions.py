@@ -128,10 +128,12 @@ class TransactionLog:
     handed out as :class:`Transaction` objects. ``maxlen`` bounds memory for long sessions
     (oldest entries drop out; ``total`` keeps counting). ``enabled = False`` stops recording.
     ``sinks`` are called with each new :class:`Transaction` (e.g. a trace writer).
+    ``entries`` is the store of tuples in ``Transaction`` field order; a front end's fast
+    path appends to it directly (and counts ``total``) when there is no sink.
     """
 
     def __init__(self, maxlen: int | None = 100_000, sinks: Iterable[Sink] = ()) -> None:
-        self._entries: deque[tuple] = deque(maxlen=maxlen)
+        self.entries: deque[tuple] = deque(maxlen=maxlen)
         self.sinks: list[Sink] = list(sinks)
         self.enabled = True
         self.total = 0
@@ -154,7 +156,7 @@ class TransactionLog:
         """Append one transaction given as the tuple of its fields in ``Transaction`` order
         (the front ends' fast path: one argument to bind, no Transaction built unless a sink
         wants one)."""
-        self._entries.append(entry)
+        self.entries.append(entry)
         self.total += 1
         if self.sinks:
             transaction = Transaction(*entry)
@@ -166,19 +168,19 @@ class TransactionLog:
         self.record(t.time, t.bus, t.address, t.kind, t.register, t.written, t.read, t.error)
 
     def clear(self) -> None:
-        self._entries.clear()
+        self.entries.clear()
 
     def __len__(self) -> int:
-        return len(self._entries)
+        return len(self.entries)
 
     def __iter__(self) -> Iterator[Transaction]:
-        return (Transaction(*entry) for entry in list(self._entries))
+        return (Transaction(*entry) for entry in list(self.entries))
 
     def __getitem__(self, index: int) -> Transaction:
-        return Transaction(*self._entries[index])
+        return Transaction(*self.entries[index])
 
     def __bool__(self) -> bool:
-        return bool(self._entries)
+        return bool(self.entries)
 
     def filter(
         self,
@@ -199,15 +201,15 @@ class TransactionLog:
         ]
 
     def kinds(self) -> list[str]:
-        return [entry[3] for entry in list(self._entries)]
+        return [entry[3] for entry in list(self.entries)]
 
     def to_dicts(self) -> list[dict[str, Any]]:
         return [t.to_dict() for t in self]
 
     def __str__(self) -> str:
-        if not self._entries:
+        if not self.entries:
             return "(no transactions)"
         return "\n".join(str(t) for t in self)
 
     def __repr__(self) -> str:
-        return f"<TransactionLog {len(self._entries)} of {self.total} transactions>"
+        return f"<TransactionLog {len(self.entries)} of {self.total} transactions>"

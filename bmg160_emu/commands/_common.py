@@ -7,7 +7,14 @@ import re
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
+
+
+class Subparsers(Protocol):
+    """What ``ArgumentParser.add_subparsers()`` returns, as the commands use it (argparse
+    names its class only privately)."""
+
+    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser: ...
 
 
 class CommandError(Exception):
@@ -61,7 +68,7 @@ _NEGATIVE_NUMBER_OR_DURATION = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?[a-z]
 
 
 def add_command_parser(
-    subparsers: argparse._SubParsersAction, name: str, summary: str, description: str, epilog: str
+    subparsers: Subparsers, name: str, summary: str, description: str, epilog: str
 ) -> argparse.ArgumentParser:
     """The sub-command's parser: one-line ``summary`` for the command list, ``description``
     and an ``epilog`` of examples shown as written."""
@@ -108,7 +115,7 @@ def run_script_file(
     printed to stderr after ``failed_prefix`` and gives exit status 1, else 0.
     """
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.script import ScriptFailure, ScriptSyntaxError, read_script, run_script
+    from bmg160_emu.session.script import ScriptFailure, ScriptSyntaxError, read_script, run_script
 
     chip = next(iter(chips.values()))
     try:

@@ -14,7 +14,12 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
-from bmg160_emu.commands._common import add_bus_option, add_command_parser, integer_at_least
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_bus_option,
+    add_command_parser,
+    integer_at_least,
+)
 from bmg160_emu.device.registers import address_of, field_of
 
 # Register addresses and fields from the table (spec section 3), and values the session writes.
@@ -40,7 +45,7 @@ examples:
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "demo",

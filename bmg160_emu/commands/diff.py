@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
@@ -18,7 +18,7 @@ Exit status: 0 when the dumps are equal, 1 when they differ, 2 on a bad file.
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "diff",
@@ -47,7 +47,7 @@ def _load(path: Path):
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.decode import diff_dumps, format_diff
+    from bmg160_emu.session.decode import diff_dumps, format_diff
 
     a, b = _load(args.a), _load(args.b)
     sys.stdout.write(format_diff(a, b, args.a.name, args.b.name, show_all=args.all))

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import add_command_parser, run_script_file
+from bmg160_emu.commands._common import Subparsers, add_command_parser, run_script_file
 
 
 def _address(text: str) -> int:
@@ -35,7 +35,7 @@ The dump reads no register through the bus: it has no read side effects (FIFO, s
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "dump",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
@@ -21,7 +21,7 @@ writes its UART sample stream (docs/firmware.md), which `bmg160-emu identify` re
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "firmware",

@@ -7,7 +7,7 @@ import secrets
 import sys
 from pathlib import Path
 
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 from bmg160_emu.durations import parse_duration
 
 EPILOG = """\
@@ -77,7 +77,7 @@ class ChipFilteredNoise:
         return out
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "generate",

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
@@ -34,7 +34,7 @@ figures; with --compare, an emulator record of the same length is overlaid.
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "identify",

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
@@ -21,7 +21,7 @@ whatever the scheduler.
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "montecarlo",

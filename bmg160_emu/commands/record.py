@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import add_command_parser, check_writable
+from bmg160_emu.commands._common import Subparsers, add_command_parser, check_writable
 
 EPILOG = """\
 examples:
@@ -26,7 +26,7 @@ Without either the chip keeps its reset BW (0x00): 2000 Hz, where generate's def
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "record",
@@ -57,7 +57,12 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.durations import parse_duration
     from bmg160_emu.io.atomic import atomic_path
-    from bmg160_emu.record import BW_CODE_BY_ODR_HZ, RecordingInterrupted, record, write_recording
+    from bmg160_emu.session.record import (
+        BW_CODE_BY_ODR_HZ,
+        RecordingInterrupted,
+        record,
+        write_recording,
+    )
 
     if args.output.suffix.lower() not in (".csv", ".npz", ".resd"):
         raise CommandError(f"output must end in .csv, .npz or .resd, not {args.output.name!r}")

@@ -6,7 +6,12 @@ import argparse
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
-from bmg160_emu.commands._common import add_command_parser, check_writable, run_script_file
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    check_writable,
+    run_script_file,
+)
 
 EPILOG = """\
 examples:
@@ -24,7 +29,7 @@ are errors naming the line.
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "replay",
@@ -53,8 +58,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device import spec_choices
-    from bmg160_emu.playback import ReplayDataError, ReplaySource, load_replay_data
-    from bmg160_emu.record import record, write_recording
+    from bmg160_emu.session.playback import ReplayDataError, ReplaySource, load_replay_data
+    from bmg160_emu.session.record import record, write_recording
 
     if (args.output is None) == (args.script is None):
         raise CommandError("give -o OUT (record the chip's output) or --script FILE, one of them")

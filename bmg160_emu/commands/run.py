@@ -12,7 +12,12 @@ import sys
 from typing import Any
 
 from bmg160_emu.commands._chip_options import add_chip_options, buses_from_args
-from bmg160_emu.commands._common import add_bus_option, add_command_parser, add_file_option
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_bus_option,
+    add_command_parser,
+    add_file_option,
+)
 
 EPILOG = """\
 examples:
@@ -30,7 +35,7 @@ raw syscalls and setuid programs are not intercepted. Exit status: the program's
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "run",
@@ -69,12 +74,12 @@ def _is_static(path: str) -> bool:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.bus.umockdev import (
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.linux.umockdev import (
         RequestClock,
         UMockdevUnavailable,
         VirtualI2CDevices,
     )
-    from bmg160_emu.commands._common import CommandError
 
     program = list(args.program)
     if program and program[0] == "--":

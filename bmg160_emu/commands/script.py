@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
@@ -35,7 +35,7 @@ with --spi through SPI frames on a FakeSpiDev (spec 2.2).
 SCRIPT_BUS = 1  # the emulated bus a script's accesses go through
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "script",
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.commands.trace import trace_writer_from_args
-    from bmg160_emu.script import (
+    from bmg160_emu.session.script import (
         ScriptFailure,
         ScriptRunner,
         ScriptSyntaxError,
@@ -97,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     bus: I2CBus | None = i2c_bus
     if args.spi:
         from bmg160_emu.bus.spi import FakeSpiDev
-        from bmg160_emu.script import SpiRegisterPort
+        from bmg160_emu.session.script import SpiRegisterPort
 
         spi = FakeSpiDev(chip)
         bus, port, log_ = None, SpiRegisterPort(spi), spi.log

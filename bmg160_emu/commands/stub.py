@@ -11,6 +11,7 @@ from typing import Any
 
 from bmg160_emu.commands._chip_options import add_chip_options, announce_seed, chips_from_args
 from bmg160_emu.commands._common import (
+    Subparsers,
     add_bus_option,
     add_command_parser,
     add_file_option,
@@ -38,7 +39,7 @@ the driver writes. Docs: docs/i2c-stub.md.
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "stub",
@@ -71,13 +72,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.bus.i2c_stub import (
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.linux.i2c_stub import (
         I2CStubAdapter,
         StubSetupError,
         bound_driver,
         check_stub_bus,
     )
-    from bmg160_emu.commands._common import CommandError
 
     devices = list(args.devices or [])
     for device in devices:
@@ -143,9 +144,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_standin(args: argparse.Namespace, device: Any, stats_file: Any) -> int:
     """A stand-in behind i2c-stub: the client's writes applied to it (masks, read-only bits,
-    soft reset, power gate) and what it then reads written back (bus/i2c_stub_standin.py)."""
-    from bmg160_emu.bus.i2c_stub_standin import StandinStubAdapter
+    soft reset, power gate) and what it then reads written back (linux/i2c_stub_standin.py)."""
     from bmg160_emu.device.standin import StandinDevice
+    from bmg160_emu.linux.i2c_stub_standin import StandinStubAdapter
 
     standin = StandinDevice(device.standin, device.address)
     adapter = _open(args, lambda: StandinStubAdapter(standin, args.bus, device.address))

@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
@@ -30,7 +30,7 @@ TEMPERATURE_COLUMNS = ("temp_c", "temperature_c", "temp", "temperature", "t_die_
 AXIS_COLUMNS = (("x_dps", "y_dps", "z_dps"), ("x", "y", "z"), ("gx", "gy", "gz"))
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "thermal",

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 from bmg160_emu.io.trace import TraceHeader, TraceWriter
 
 EPILOG = """\
@@ -26,7 +26,7 @@ again on the replay chips at the same points.
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "trace",
@@ -42,9 +42,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.decode import describe_transaction
     from bmg160_emu.io.trace import TraceFormatError, read_trace
-    from bmg160_emu.replay import replay_trace
+    from bmg160_emu.session.decode import describe_transaction
+    from bmg160_emu.session.replay import replay_trace
 
     try:
         header, records = read_trace(args.file)

@@ -14,6 +14,7 @@ from typing import Any
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
 from bmg160_emu.commands._common import (
+    Subparsers,
     add_bus_option,
     add_command_parser,
     add_file_option,
@@ -38,7 +39,7 @@ new QEMU after the previous one went away. Docs: docs/virtio-i2c.md.
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "vhost-user-i2c",
@@ -123,10 +124,10 @@ class _RateFile:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.bus.vhost_user_server import Server, SocketPathError
-    from bmg160_emu.bus.virtio_gpio import VirtioGPIODevice
-    from bmg160_emu.bus.virtio_i2c import VirtioI2CDevice
     from bmg160_emu.cli import CommandError
+    from bmg160_emu.linux.vhost_user_server import Server, SocketPathError
+    from bmg160_emu.linux.virtio_gpio import VirtioGPIODevice
+    from bmg160_emu.linux.virtio_i2c import VirtioI2CDevice
 
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING,
                         format="bmg160-emu vhost-user-i2c: %(message)s")
@@ -143,7 +144,7 @@ def run(args: argparse.Namespace) -> int:
     args.realtime = True  # a guest kernel lives in real time
     clock = None
     if args.pace == "guest" and args.gpio_socket is not None:  # pacing needs the interrupts
-        from bmg160_emu.bus.guest_pace import GuestPacedClock
+        from bmg160_emu.linux.guest_pace import GuestPacedClock
 
         clock = GuestPacedClock()
     chips = chips_from_args(args, clock=clock)

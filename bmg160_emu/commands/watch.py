@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bmg160_emu.commands._common import add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
@@ -23,7 +23,7 @@ session goes on. Needs the rich package (pip install 'bmg160-emu[watch]').
 """
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "watch",

@@ -15,7 +15,6 @@ from typing import Any
 
 import numpy as np
 
-from bmg160_emu.device.registers import address_of
 from bmg160_emu.faults.model import (
     BUS_KINDS,
     CHIP_KINDS,
@@ -28,8 +27,6 @@ from bmg160_emu.faults.model import (
     fault_from_dict,
 )
 from bmg160_emu.io.trace import parse_fault_entry  # noqa: F401  (the entry format lives with the trace)
-
-BW = address_of("BW")  # a write here changes the output data rate (spec 4.9)
 
 
 @dataclass
@@ -395,23 +392,13 @@ def _stall(chip: Any, seconds: float) -> None:
 
 
 def _poke(chip: Any, register: int, value: int) -> None:
-    """Change register content as radiation would: no bus, no access rules.
-
-    The chip model has no public primitive for this yet (asked for); until it has, the
-    register file is changed under the chip's lock and the computed-ahead samples are
-    dropped so that a flipped RANGE or BW bit takes effect from the next sample.
-    """
-    if hasattr(chip, "poke"):
-        chip.poke(register, value)
-        return
-    with chip.lock:
-        chip.clock.now()  # samples due before the upset keep the old configuration
-        chip.peek(register)
-        chip._regs[register] = value
-        if register == BW and hasattr(chip, "_change_bandwidth"):  # spec 4.9
-            chip._change_bandwidth()
-        elif hasattr(chip, "_invalidate"):
-            chip._invalidate()
+    """Change register content as radiation would: no bus, no access rules (the chip's
+    ``poke`` primitive, device/contract.py). A device without it cannot take an upset."""
+    poke = getattr(chip, "poke", None)
+    if poke is None:
+        raise TypeError(f"{type(chip).__name__} has no poke(register, value): a register "
+                        f"upset needs it (docs/architecture.md, the chip's primitives)")
+    poke(register, value)
 
 
 def _base_temperature(gyro: Any) -> float:

@@ -20,14 +20,14 @@ import re
 import tokenize
 import zipfile
 import zlib
-from bisect import bisect_right
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from bmg160_emu.io.errors import FileFormat, FormatError, format_for, register_format
+from bmg160_emu.io.errors import FileFormat, format_for, register_format
+from bmg160_emu.io.rate_table import ColumnChoice, RateFileError, RateTable
 
 # what numpy and zipfile raise on a damaged file: np.load's header parser (tokenize), a zip
 # member with an unknown compression method, a cut or corrupt archive
@@ -37,48 +37,6 @@ CHUNK_BYTES = 1 << 20  # text parsed per np.loadtxt call: bounds the reader's wo
 CHUNK_ROWS = 1 << 20  # rows of a time column checked at a time
 MEDIAN_STEPS = 1 << 21  # steps the median step is taken from (evenly spread over the record)
 TIME_COLUMN_NAMES = ("t", "t_s", "time", "time_s", "timestamp")
-
-
-class RateFileError(FormatError):
-    """A rate file that cannot be used: unreadable, wrong shape, bad time column, no rate."""
-
-
-# A choice of columns: given the header (None when the file has none), the number of
-# columns and where the header (or first row) is, the index of the time column (or None)
-# and the indices of the value columns, in the order wanted.
-ColumnChoice = Callable[[list[str] | None, int, str], tuple[int | None, list[int]]]
-
-
-@dataclass
-class RateTable:
-    """Columns read from a rate file, and where each row came from (for messages)."""
-
-    path: Path
-    header: list[str] | None
-    t_s: np.ndarray | None
-    values: np.ndarray  # (n, k) float64
-    comments: list[tuple[int, str]] = field(default_factory=list)  # leading '#' lines
-    _row_starts: list[int] = field(default_factory=list)
-    _row_lines: list[int | np.ndarray] = field(default_factory=list)
-
-    def where(self, row: int) -> str:
-        """``path:LINE`` of CSV data row ``row`` (0-based), or ``path: row N`` for arrays."""
-        if not self._row_starts:
-            return f"{self.path}: row {row}"
-        k = bisect_right(self._row_starts, row) - 1
-        lines = self._row_lines[k]
-        start = self._row_starts[k]
-        line = lines + (row - start) if isinstance(lines, int) else int(lines[row - start])
-        return f"{self.path}:{line}"
-
-    def line_text(self, row: int) -> str:
-        """The text of CSV data row ``row`` as the file holds it (read again: for messages)."""
-        line = int(self.where(row).rsplit(":", 1)[1])
-        with open(self.path, encoding="utf-8", errors="replace") as handle:
-            for number, text in enumerate(handle, 1):
-                if number == line:
-                    return text.strip()
-        return ""
 
 
 def is_number(text: str) -> bool:
@@ -183,8 +141,8 @@ def _parse_chunk(table: RateTable, lines: list[str], first_line: int, row: int, 
         table.values[row:row + m] = block[:, 1:]
     else:
         table.values[row:row + m] = block
-    table._row_starts.append(row)
-    table._row_lines.append(numbers)
+    table.row_starts.append(row)
+    table.row_lines.append(numbers)
     return row + m
 
 

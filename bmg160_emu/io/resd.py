@@ -293,8 +293,8 @@ def read_angular_rate(path: str | Path, channel: int = 0) -> tuple[np.ndarray, n
 
 def resd_rate_table(path: str | Path):
     """Channel 0 as the rate reader's table (``identify`` and ``load_rate_record``): times
-    from the blocks' start and period, errors as :class:`~bmg160_emu.io.rates.RateFileError`."""
-    from bmg160_emu.io.rates import RateFileError, RateTable
+    from the blocks' start and period, errors as :class:`~bmg160_emu.io.rate_table.RateFileError`."""
+    from bmg160_emu.io.rate_table import RateFileError, RateTable
 
     try:
         t_s, rate_dps = read_angular_rate(path, channel=0)
@@ -305,7 +305,7 @@ def resd_rate_table(path: str | Path):
 
 def write_resd_rates(path: str | Path, t_s: np.ndarray | None, rate_dps: np.ndarray) -> None:
     """``write_rates`` for .resd: evenly spaced times and three axes, as channel 0."""
-    from bmg160_emu.io.rates import RateFileError
+    from bmg160_emu.io.rate_table import RateFileError
 
     rate_dps = np.asarray(rate_dps, dtype=float)
     if t_s is None or rate_dps.ndim != 2 or rate_dps.shape[1] != 3:

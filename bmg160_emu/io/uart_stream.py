@@ -197,10 +197,10 @@ def looks_like_uart_stream(path: str | Path) -> bool:
 def uart_rate_table(path: str | Path, rate_hz: float | None):
     """A stream as the rate reader's table (``identify``): times from the index and the ODR
     (the capture's line, else ``rate_hz``); every sample must be there, as in a time column
-    (a gap is refused at its line); errors as :class:`~bmg160_emu.io.rates.RateFileError`."""
+    (a gap is refused at its line); errors as :class:`~bmg160_emu.io.rate_table.RateFileError`."""
     import math
 
-    from bmg160_emu.io.rates import RateFileError, RateTable
+    from bmg160_emu.io.rate_table import RateFileError, RateTable
 
     path = Path(path)
     try:
@@ -227,5 +227,5 @@ def uart_rate_table(path: str | Path, rate_hz: float | None):
         raise RateFileError(f"sample rate must be a positive number of Hz, got {odr!r}")
     t_s = (stream.index - stream.index[0]) / float(odr)
     table = RateTable(path, ["x", "y", "z"], t_s, stream.rate_dps)
-    table._row_starts, table._row_lines = [0], [lines]  # where(row) names the file line
+    table.row_starts, table.row_lines = [0], [lines]  # where(row) names the file line
     return table

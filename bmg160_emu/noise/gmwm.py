@@ -35,12 +35,12 @@ from scipy.optimize import least_squares, nnls
 from scipy.stats import chi2
 
 from bmg160_emu.noise.gmwm_processes import (
-    _SIZES,
     COMPONENTS,
+    PARAMETER_COUNT,
     GMWMError,
     Params,
-    _component_wv,
     check_model,
+    component_wv,
     model_second_sum,
     model_spectrum,
     model_wv,
@@ -192,7 +192,7 @@ def _unit_columns(model, T_values: Sequence[float], m: np.ndarray, dt: float) ->
             cols.append(wv_gauss_markov(m, dt, 1.0, T_values[k]))
             k += 1
         else:
-            cols.append(_component_wv(comp, (1.0,), m, dt))
+            cols.append(component_wv(comp, (1.0,), m, dt))
     return np.column_stack(cols)
 
 
@@ -280,7 +280,7 @@ def _offsets(model) -> list[int]:
     out, i = [], 0
     for comp in model:
         out.append(i)
-        i += _SIZES[comp]
+        i += PARAMETER_COUNT[comp]
     return out
 
 

@@ -130,7 +130,7 @@ def _gauss_markov_spectrum(B: float, a: float) -> Spectrum:
 
 # -- models ----------------------------------------------------------------------------------
 
-_SIZES = {"WN": 1, "QN": 1, "GM": 2, "RW": 1, "DR": 1}
+PARAMETER_COUNT = {"WN": 1, "QN": 1, "GM": 2, "RW": 1, "DR": 1}  # parameters of each process
 _NAMES = {"WN": ("N",), "QN": ("Q",), "GM": ("B", "T"), "RW": ("K",), "DR": ("R",)}
 
 
@@ -176,8 +176,8 @@ def parameter_names(model: Sequence[str]) -> list[str]:
 def _split(model: Sequence[str], params: Params) -> list[tuple[float, ...]]:
     out, i = [], 0
     for comp in model:
-        out.append(tuple(params[i : i + _SIZES[comp]]))
-        i += _SIZES[comp]
+        out.append(tuple(params[i : i + PARAMETER_COUNT[comp]]))
+        i += PARAMETER_COUNT[comp]
     return out
 
 
@@ -185,11 +185,13 @@ def model_wv(model: Sequence[str], params: Params, m: np.ndarray, dt: float) -> 
     """Wavelet variance of the sum of the model's independent processes (physical params)."""
     total = np.zeros(np.asarray(m).shape)
     for comp, p in zip(model, _split(model, params)):
-        total += _component_wv(comp, p, m, dt)
+        total += component_wv(comp, p, m, dt)
     return total
 
 
-def _component_wv(comp: str, p: tuple[float, ...], m: np.ndarray, dt: float) -> np.ndarray:
+def component_wv(comp: str, p: tuple[float, ...], m: np.ndarray, dt: float) -> np.ndarray:
+    """The Haar wavelet variance of one process ``comp`` with parameters ``p`` at scales
+    ``m`` (samples) for sample period ``dt`` s."""
     if comp == "WN":
         return wv_white(m, dt, p[0])
     if comp == "QN":

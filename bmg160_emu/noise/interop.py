@@ -33,7 +33,6 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar_unit
-from bmg160_emu.noise.profile import AxisNoise, Profile
 
 DEG = math.pi / 180.0  # rad per degree
 UNIT_SCALES = {"deg/s": 1.0, "rad/s": DEG, "deg/h": 3600.0}  # value in the unit per deg/s
@@ -160,8 +159,9 @@ def kalibr_yaml(identification: Any, rate_hz: float, topic: str = "/imu0") -> st
     )
 
 
-def profile_from_kalibr(path: str | Path) -> Profile:
-    """N and K of a Kalibr imu.yaml on every axis (no Gauss-Markov term, bias 0)."""
+def kalibr_profile_mapping(path: str | Path) -> dict[str, Any]:
+    """N and K of a Kalibr imu.yaml on every axis (no Gauss-Markov term, bias 0), as the
+    mapping a profile TOML file holds (``profile.load_profile`` checks it as it checks one)."""
     path = Path(path)
     values = _flat_yaml(path)
     try:
@@ -174,8 +174,9 @@ def profile_from_kalibr(path: str | Path) -> Profile:
     if not (N > 0 and math.isfinite(N) and K >= 0 and math.isfinite(K)):
         raise InteropError(f"{path}: gyroscope_noise_density must be > 0 and "
                            "gyroscope_random_walk >= 0")
-    axis = AxisNoise(N=N, B=0.0, T=0.0, K=K, bias=0.0)
-    return Profile(path.stem, axis, axis, axis, description=f"from Kalibr {path.name}")
+    axis = {"N": N, "B": 0.0, "T": 0.0, "K": K, "bias": 0.0}
+    return {"name": path.stem, "description": f"from Kalibr {path.name}",
+            "x": dict(axis), "y": dict(axis), "z": dict(axis)}
 
 
 def _flat_yaml(path: Path) -> dict[str, str]:
@@ -222,8 +223,9 @@ def matlab_gyroparams(identification: Any) -> str:
     )
 
 
-def profile_from_matlab(path: str | Path) -> Profile:
-    """A profile from a gyroparams block: N, K, bias, and BiasInstability as a 1/f bank."""
+def matlab_profile_mapping(path: str | Path) -> dict[str, Any]:
+    """A gyroparams block's N, K, bias, and BiasInstability as a 1/f bank, as the mapping a
+    profile TOML file holds (``profile.load_profile`` checks it as it checks one)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -243,16 +245,17 @@ def profile_from_matlab(path: str | Path) -> Profile:
         found[name] = numbers * 3 if len(numbers) == 1 else numbers
     if "NoiseDensity" not in found:
         raise InteropError(f"{path}: no 'NoiseDensity' in a gyroparams(...) block")
-    axes = []
-    for i in range(3):
+    out: dict[str, Any] = {"name": path.stem,
+                           "description": f"from MATLAB gyroparams {path.name}"}
+    for i, axis in enumerate(("x", "y", "z")):
         bank = flicker_poles(found.get("BiasInstability", [0.0] * 3)[i] / DEG)
-        axes.append(AxisNoise(
-            N=found["NoiseDensity"][i] / DEG, B=0.0, T=0.0,
-            K=found.get("RandomWalk", [0.0] * 3)[i] / DEG,
-            bias=found.get("ConstantBias", [0.0] * 3)[i] / DEG, gm=bank,
-        ))
-    return Profile(path.stem, axes[0], axes[1], axes[2],
-                   description=f"from MATLAB gyroparams {path.name}")
+        out[axis] = {
+            "N": found["NoiseDensity"][i] / DEG, "B": 0.0, "T": 0.0,
+            "K": found.get("RandomWalk", [0.0] * 3)[i] / DEG,
+            "bias": found.get("ConstantBias", [0.0] * 3)[i] / DEG,
+            "gm": [{"B": B, "T": T} for B, T in bank],
+        }
+    return out
 
 
 def flicker_poles(B_flicker: float, span_s: tuple[float, float] = (1.0, 1000.0),

@@ -158,10 +158,12 @@ def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper
 
         try:
             if path.suffix.lower() == ".m":
-                return interop.profile_from_matlab(path)
-            return interop.profile_from_kalibr(path)
+                mapping = interop.matlab_profile_mapping(path)
+            else:
+                mapping = interop.kalibr_profile_mapping(path)
         except interop.InteropError as exc:
             raise ProfileError(str(exc)) from None
+        return profile_from_mapping(mapping, origin=f"profile file {path}")
     if path.is_file():
         try:
             data = path.read_text(encoding="utf-8")
