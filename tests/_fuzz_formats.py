@@ -158,14 +158,14 @@ def _finite(values: Any, what: str) -> None:
 
 
 def load_script(path: Path) -> None:
-    from bmg160_emu.script import parse_script, read_script
+    from bmg160_emu.session.script import parse_script, read_script
 
     parse_script(read_script(path), source=str(path))
 
 
 def load_trace(path: Path) -> None:
-    from bmg160_emu.decode import describe_transaction
     from bmg160_emu.io.trace import read_trace
+    from bmg160_emu.session.decode import describe_transaction
 
     _header, records = read_trace(path)
     for record in records:  # what `bmg160-emu trace` prints for a person
@@ -187,14 +187,14 @@ def load_rate_file(path: Path) -> None:
 
 
 def load_replay(path: Path) -> None:
-    from bmg160_emu.playback import load_replay_data
+    from bmg160_emu.session.playback import load_replay_data
 
     data = load_replay_data(path)
     _finite(data.rate_dps, "replay data")
 
 
 def load_recording(path: Path) -> None:
-    from bmg160_emu.record import read_recording
+    from bmg160_emu.session.record import read_recording
 
     rec = read_recording(path)
     _finite(rec.counts, "recording")
@@ -246,7 +246,7 @@ class FuzzFormat:
 
 FORMATS: tuple[FuzzFormat, ...] = (
     FuzzFormat("script", "bringup.script", load_script,
-               _errors("bmg160_emu.script.ScriptSyntaxError")),
+               _errors("bmg160_emu.session.script.ScriptSyntaxError")),
     FuzzFormat("trace", "session.jsonl", load_trace,
                _errors("bmg160_emu.io.trace.TraceFormatError")),
     FuzzFormat("dump-i2cdump", "dump.i2cdump", load_dump,

@@ -12,7 +12,7 @@ import os
 import socket
 import struct
 
-from bmg160_emu.bus import vhost_user as vu
+from bmg160_emu.linux import vhost_user as vu
 
 RAM_SIZE = 1 << 20
 GUEST_BASE = 0x0  # guest-physical address of the region

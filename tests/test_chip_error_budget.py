@@ -17,7 +17,7 @@ from bmg160_emu.device.chip import BMG160
 from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.device.sensor_errors import SensorErrors
 from bmg160_emu.device.unit_population import draw_unit
-from bmg160_emu.record import record
+from bmg160_emu.session.record import record
 
 WHITE_N = 0.014  # deg/s/sqrt(Hz), the BMG160 data sheet's typical noise density
 WHITE = {"name": "white", **{axis: {"N": WHITE_N, "B": 0.0, "T": 1.0, "K": 0.0, "bias": 0.0}

@@ -35,7 +35,7 @@ SAMPLES = 12
 ADAPTERS = """
 import json, signal, sys, threading
 from pathlib import Path
-from bmg160_emu.bus.i2c_stub import I2CStubAdapter
+from bmg160_emu.linux.i2c_stub import I2CStubAdapter
 from bmg160_emu.clock import RealTimeClock
 from bmg160_emu.device.parts import make_chip
 
@@ -226,7 +226,7 @@ def test_driver_writes_to_registers_the_bmi088_lacks_are_dropped(guest):
 
 
 def test_the_kernels_bmc150_accel_driver_binds_to_the_bma2x2_stand_in(guest):
-    # the stand-in behind i2c-stub (bus/i2c_stub_standin.py): chip ID 0xFA, found by the
+    # the stand-in behind i2c-stub (linux/i2c_stub_standin.py): chip ID 0xFA, found by the
     # driver's probe; it holds registers and produces no motion data, so the raw value is 0
     assert text(guest, "accel_chip_id.txt").strip() == "0xfa"
     assert text(guest, "accel_name.txt").strip() == "bmi055_accel", text(guest, "dmesg.txt")[-3000:]

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import pytest
 
-from bmg160_emu.bus.i2c_stub import I2CStubAdapter
 from bmg160_emu.device.chip import BMG160
+from bmg160_emu.linux.i2c_stub import I2CStubAdapter
 
 
 class StubMemory:
@@ -196,8 +196,8 @@ def test_stub_stats_to_an_unwritable_path_is_refused_before_the_adapter_runs(
 ):
     """`bmg160-emu stub --stats` writes at exit, possibly hours later: a bad path is a
     one-line error at start, before the bus is opened (the bus checks are stubbed here)."""
-    from bmg160_emu.bus import i2c_stub as i2c_stub_adapter
     from bmg160_emu.cli import main
+    from bmg160_emu.linux import i2c_stub as i2c_stub_adapter
 
     monkeypatch.setattr(i2c_stub_adapter, "check_stub_bus", lambda bus, address: tmp_path)
 
@@ -264,7 +264,7 @@ def test_a_restarted_adapter_adopts_the_bound_drivers_configuration(rig):
 
 
 def test_bound_driver_reads_the_sysfs_link(tmp_path):
-    from bmg160_emu.bus.i2c_stub import bound_driver
+    from bmg160_emu.linux.i2c_stub import bound_driver
 
     device = tmp_path / "bus" / "i2c" / "devices" / "0-0068"
     device.mkdir(parents=True)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.playback import load_replay_data
-from bmg160_emu.record import (
+from bmg160_emu.session.playback import load_replay_data
+from bmg160_emu.session.record import (
     Recording,
     RecordingFormatError,
     read_recording,

@@ -11,7 +11,7 @@ from bmg160_emu.device.chip import BMG160
 from bmg160_emu.noise import load_profile
 from bmg160_emu.noise.identification import identify
 from bmg160_emu.noise.profile import AxisNoise, Profile
-from bmg160_emu.record import read_recording, record, write_recording
+from bmg160_emu.session.record import read_recording, record, write_recording
 
 # The noise issue's round trip identifies 6 h at 200 Hz of the paper profile. A record 12x
 # shorter carries the same information when the profile's time scale is 12x shorter:

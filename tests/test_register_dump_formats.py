@@ -6,7 +6,6 @@ import json
 
 import pytest
 
-from bmg160_emu.decode import diff_dumps, format_diff
 from bmg160_emu.device import registers
 from bmg160_emu.io.dump import (
     DumpFormatError,
@@ -20,6 +19,7 @@ from bmg160_emu.io.dump import (
     parse_dump,
     resolve_register_name,
 )
+from bmg160_emu.session.decode import diff_dumps, format_diff
 
 RANGE = registers.address_of("RANGE")
 BW = registers.address_of("BW")

@@ -6,7 +6,7 @@ import pytest
 
 from bmg160_emu.device import spec_choices
 from bmg160_emu.device.chip import BMG160
-from bmg160_emu.script import ScriptFailure, parse_script, run_script
+from bmg160_emu.session.script import ScriptFailure, parse_script, run_script
 
 BRING_UP = """\
 read CHIP_ID == 0x0F
@@ -108,7 +108,7 @@ def test_the_same_script_over_spi_reads_what_it_reads_over_i2c():
     """Whichever front end carries the accesses, a seeded chip gives the same session: the
     SPI port sends read frames (0x80 | reg, auto-increment) and (address, data) pairs."""
     from bmg160_emu.bus.spi import FakeSpiDev
-    from bmg160_emu.script import ScriptRunner, SpiRegisterPort
+    from bmg160_emu.session.script import ScriptRunner, SpiRegisterPort
 
     text = BRING_UP.replace("dump table\n", "") + (
         "write RANGE 0x03 0x04\n"          # two registers in one write: RANGE and BW

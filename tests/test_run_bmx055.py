@@ -16,7 +16,7 @@ pytestmark = pytest.mark.umockdev
 
 def _umockdev_missing() -> str | None:
     try:
-        from bmg160_emu.bus.umockdev import UMockdevUnavailable, load_umockdev, preload_available
+        from bmg160_emu.linux.umockdev import UMockdevUnavailable, load_umockdev, preload_available
 
         load_umockdev()
     except UMockdevUnavailable as exc:

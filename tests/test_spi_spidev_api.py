@@ -138,7 +138,7 @@ def test_a_frame_continued_without_cs_is_logged_from_where_it_stands(spi):
 
 
 def test_spi_log_reads_like_an_i2c_trace():
-    from bmg160_emu.decode import describe_transaction
+    from bmg160_emu.session.decode import describe_transaction
 
     with FakeSpiDev(RegisterFileChip()) as dev:
         dev.xfer2([0x82] + [0] * 6)

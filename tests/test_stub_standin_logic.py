@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from test_kernel_stub_adapter_logic import StubMemory
 
-from bmg160_emu.bus.i2c_stub_standin import StandinStubAdapter
 from bmg160_emu.device.standin import StandinDevice
 from bmg160_emu.io.standin_file import load_standin
+from bmg160_emu.linux.i2c_stub_standin import StandinStubAdapter
 
 
 def _rig(name: str, address: int):

@@ -11,10 +11,10 @@ from bmg160_emu.adcs.faults import FaultSchedule
 from bmg160_emu.bus.i2c import I2CBus
 from bmg160_emu.cli import main
 from bmg160_emu.clock import VirtualClock
-from bmg160_emu.decode import describe_transaction
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.io.trace import TraceHeader, TraceWriter, read_trace
-from bmg160_emu.replay import replay_trace
+from bmg160_emu.session.decode import describe_transaction
+from bmg160_emu.session.replay import replay_trace
 
 SEED = 5
 TRUE_RATE = (3.0, -1.0, 0.5)

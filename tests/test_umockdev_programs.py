@@ -25,7 +25,7 @@ CHIP_OPTIONS = ["--seed", "3", "--true-rate", "20", "-10", "5"]
 
 def _umockdev_missing() -> str | None:
     try:
-        from bmg160_emu.bus.umockdev import (
+        from bmg160_emu.linux.umockdev import (
             UMockdevUnavailable,
             load_umockdev,
             preload_available,
@@ -663,7 +663,7 @@ def test_run_killed_with_sigkill_takes_its_program_and_folder_with_it(tmp_path: 
     import signal
     import time
 
-    from bmg160_emu.bus.umockdev import OWNER_FILE, remove_stale_testbeds
+    from bmg160_emu.linux.umockdev import OWNER_FILE, remove_stale_testbeds
 
     env = dict(os.environ, TMPDIR=str(tmp_path))
     session = subprocess.Popen(

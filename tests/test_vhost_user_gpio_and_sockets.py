@@ -18,15 +18,15 @@ from pathlib import Path
 import pytest
 from _vhost_front_end import FakeFrontEnd
 
-from bmg160_emu.bus import vhost_user as vu
-from bmg160_emu.bus import virtio_gpio as vg
-from bmg160_emu.bus.vhost_user_server import (
+from bmg160_emu.device.chip import BMG160
+from bmg160_emu.linux import vhost_user as vu
+from bmg160_emu.linux import virtio_gpio as vg
+from bmg160_emu.linux.vhost_user_server import (
     Connection,
     Server,
     SocketPathError,
     check_socket_path,
 )
-from bmg160_emu.device.chip import BMG160
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -212,7 +212,7 @@ def test_command_error_is_one_line_and_exit_2(tmp_path):
 
 def test_server_serves_a_front_end_over_its_socket(tmp_path):
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.bus.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
+    from bmg160_emu.linux.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
 
     device = VirtioI2CDevice(I2CBus(0, {0x68: BMG160(seed=1)}))
     server = Server()

@@ -14,11 +14,11 @@ import struct
 import pytest
 from _vhost_front_end import FakeFrontEnd
 
-from bmg160_emu.bus import vhost_user as vu
 from bmg160_emu.bus.i2c import I2CBus
-from bmg160_emu.bus.vhost_user_server import Connection
-from bmg160_emu.bus.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
 from bmg160_emu.device.chip import BMG160
+from bmg160_emu.linux import vhost_user as vu
+from bmg160_emu.linux.vhost_user_server import Connection
+from bmg160_emu.linux.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
 
 
 @pytest.fixture

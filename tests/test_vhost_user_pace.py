@@ -14,10 +14,10 @@ import time
 import pytest
 from _vhost_front_end import FakeFrontEnd
 
-from bmg160_emu.bus import virtio_gpio as vg
-from bmg160_emu.bus.guest_pace import NEVER, GuestPacedClock
-from bmg160_emu.bus.vhost_user_server import Connection
 from bmg160_emu.device.chip import BMG160
+from bmg160_emu.linux import virtio_gpio as vg
+from bmg160_emu.linux.guest_pace import NEVER, GuestPacedClock
+from bmg160_emu.linux.vhost_user_server import Connection
 
 MS = 1_000_000  # ns
 PERIOD = 10 * MS  # ODR 100 Hz

@@ -224,7 +224,7 @@ def test_the_view_ends_when_the_session_does(runtime_dir):
 
 def _umockdev_missing() -> str | None:
     try:
-        from bmg160_emu.bus.umockdev import UMockdevUnavailable, load_umockdev, preload_available
+        from bmg160_emu.linux.umockdev import UMockdevUnavailable, load_umockdev, preload_available
 
         load_umockdev()
     except UMockdevUnavailable as exc:

@@ -82,7 +82,7 @@ def reference_fake_smbus(count: int) -> float:
 
 def through_umockdev(command: list[str]) -> float:
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.bus.umockdev import VirtualI2CDevices
+    from bmg160_emu.linux.umockdev import VirtualI2CDevices
 
     bus = I2CBus(1, {0x68: new_chip()})
     bus.log.enabled = False  # as the reference: measure the route, not the log

@@ -30,11 +30,11 @@ sys.path.insert(0, str(REPO / "tests"))
 from _vhost_front_end import FakeFrontEnd
 
 from bmg160_emu.bus.i2c import I2CBus
-from bmg160_emu.bus.vhost_user import VhostUserDevice, VirtQueue
-from bmg160_emu.bus.vhost_user_server import Connection
-from bmg160_emu.bus.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
 from bmg160_emu.clock import RealTimeClock
 from bmg160_emu.device.chip import BMG160
+from bmg160_emu.linux.vhost_user import VhostUserDevice, VirtQueue
+from bmg160_emu.linux.vhost_user_server import Connection
+from bmg160_emu.linux.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
 
 
 class Bare(VhostUserDevice):

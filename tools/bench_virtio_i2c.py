@@ -78,8 +78,8 @@ echo done > "$GUEST_OUT/done.txt"
 
 def serve_bare(socket_path: str, ready: str) -> int:
     """A virtio-i2c back end with no model: every read is zeros, every request OK."""
-    from bmg160_emu.bus.vhost_user import VhostUserDevice, VirtQueue
-    from bmg160_emu.bus.vhost_user_server import Server
+    from bmg160_emu.linux.vhost_user import VhostUserDevice, VirtQueue
+    from bmg160_emu.linux.vhost_user_server import Server
 
     class Bare(VhostUserDevice):
         num_queues = 1

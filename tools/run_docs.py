@@ -286,7 +286,7 @@ def difference(block: Block, command: Command, actual: list[str]) -> str:
 
 
 def umockdev_missing() -> str | None:
-    from bmg160_emu.bus.umockdev import UMockdevUnavailable, load_umockdev, preload_available
+    from bmg160_emu.linux.umockdev import UMockdevUnavailable, load_umockdev, preload_available
 
     try:
         load_umockdev()

@@ -1,7 +1,7 @@
 """A register byte decoded field by field with the register table's names and labels.
 
 Below every file format and every tool: the ``table`` dump format and the transaction text
-for people (:mod:`bmg160_emu.decode`) both print fields this way, so they cannot disagree.
+for people (:mod:`bmg160_emu.session.decode`) both print fields this way, so they cannot disagree.
 """
 
 from __future__ import annotations

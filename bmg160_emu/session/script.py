@@ -570,13 +570,13 @@ def _seconds_text(seconds: float) -> str:
 
 
 def describe_write(register: int, data: bytes) -> str:
-    from bmg160_emu.decode import describe_write as _describe
+    from bmg160_emu.session.decode import describe_write as _describe
 
     return _describe(register, data)
 
 
 def describe_read(register: int, data: bytes) -> str:
-    from bmg160_emu.decode import describe_read as _describe
+    from bmg160_emu.session.decode import describe_read as _describe
 
     return _describe(register, data)
 

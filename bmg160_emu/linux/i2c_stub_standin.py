@@ -6,7 +6,7 @@ does. Plain i2c-stub memory loaded from a dump would take any write; this adapte
 what the client wrote to the stand-in (write masks, read-only bits, soft reset, the power
 gate) and writes back what the stand-in then reads, so the driver sees the declared chip.
 
-The memory model is i2c-stub's (see bus/i2c_stub.py): slot r holds reg[r] | reg[r+1] << 8
+The memory model is i2c-stub's (see linux/i2c_stub.py): slot r holds reg[r] | reg[r+1] << 8
 so byte, word and block reads agree. A stand-in has no time behaviour: nothing changes
 unless the client writes, so a refresh is a poll of the whole low-byte map (8 block reads)
 and writes only where the stand-in now differs from the stub.

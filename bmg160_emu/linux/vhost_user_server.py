@@ -22,8 +22,7 @@ import struct
 import time
 from collections.abc import Callable
 
-from bmg160_emu.bus.vhost_user import (
-    _U64,
+from bmg160_emu.linux.vhost_user import (
     FLAG_NEED_REPLY,
     FLAG_REPLY,
     HEADER,
@@ -31,6 +30,7 @@ from bmg160_emu.bus.vhost_user import (
     MAX_PAYLOAD,
     MESSAGE_NAMES,
     PROTOCOL_F_REPLY_ACK,
+    U64,
     VERSION,
     VhostUserDevice,
     VhostUserError,
@@ -101,7 +101,7 @@ class Connection:
         if reply is not None:
             self._send(request, reply)
         elif flags & FLAG_NEED_REPLY and device.protocol_features >> PROTOCOL_F_REPLY_ACK & 1:
-            self._send(request, _U64.pack(status))
+            self._send(request, U64.pack(status))
 
     def _send(self, request: int, payload: bytes) -> None:
         self.sock.sendall(HEADER.pack(request, VERSION | FLAG_REPLY, len(payload)) + payload)

@@ -24,7 +24,7 @@ transfer (a read can clear a latched status). A data-ready pulse (300 us, spec_c
 between two polls is known from the chip's per-sample hook, so no pulse is missed however
 late the poll runs.
 
-Pacing (with a :class:`~bmg160_emu.bus.guest_pace.GuestPacedClock`): while a chip's
+Pacing (with a :class:`~bmg160_emu.linux.guest_pace.GuestPacedClock`): while a chip's
 data-ready interrupt reaches a line with a trigger, the chips' time is held just before
 that chip's next sample until the driver has read the rate registers after the last one
 (and a guard has passed, so the next edge does not find the driver's handler still
@@ -41,10 +41,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from bmg160_emu.bus.guest_pace import NEVER, GuestPacedClock
-from bmg160_emu.bus.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
 from bmg160_emu.clock import NS_PER_S
 from bmg160_emu.device.registers import address_of
+from bmg160_emu.linux.guest_pace import NEVER, GuestPacedClock
+from bmg160_emu.linux.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
 
 VIRTIO_GPIO_F_IRQ = 0
 MSG_GET_NAMES = 0x0001

@@ -5,7 +5,7 @@ a time; a chip on wall time goes on producing samples meanwhile, so the guest's 
 misses data-ready interrupts a real machine would have served (86 % of the frames kept at
 200 Hz on this project's loaded 2-core host, docs/virtio-i2c.md). These losses belong to
 the emulation, not to the chip. This clock runs at wall time while the guest keeps up; a
-pacer (:class:`~bmg160_emu.bus.virtio_gpio.VirtioGPIODevice`) may hold it just before a
+pacer (:class:`~bmg160_emu.linux.virtio_gpio.VirtioGPIODevice`) may hold it just before a
 chip's next sample while the guest has not yet read the previous one, and afterwards it
 runs ``catch_up`` times faster than wall time until the lag is made up. Every sample is
 then produced at its own time on the chips' time axis (noise and filter unchanged), one

@@ -25,8 +25,8 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 
 from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
-from bmg160_emu.bus.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
 from bmg160_emu.device.registers import address_of
+from bmg160_emu.linux.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
 
 log = logging.getLogger(__name__)
 

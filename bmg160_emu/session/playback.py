@@ -37,7 +37,7 @@ from bmg160_emu.io.rates import (
     open_npz,
     read_csv_table,
 )
-from bmg160_emu.record import chip_odr_hz
+from bmg160_emu.session.record import chip_odr_hz
 
 UNITS = ("dps", "counts")
 TIME_COLUMNS = ("t_s", "t", "time", "time_s", "timestamp")

@@ -81,7 +81,7 @@ VRING_DESC_F_INDIRECT = 4
 VRING_AVAIL_F_NO_INTERRUPT = 1
 VRING_FD_INVALID = 0x100  # bit 8 of the u64 of SET_VRING_KICK/CALL/ERR: no fd passed
 
-_U64 = struct.Struct("<Q")
+U64 = struct.Struct("<Q")  # a u64 payload (features, status)
 _STATE = struct.Struct("<II")  # vring index, number
 _ADDR = struct.Struct("<IIQQQQ")  # index, flags, descriptor, used, available, log addresses
 _REGION = struct.Struct("<QQQQ")  # guest address, size, user (QEMU) address, mmap offset
@@ -408,7 +408,7 @@ class VhostUserDevice:
         """Answer one message: its reply payload, or None when it has none. An int result
         for REPLY_ACK is given by raising OSError (non-zero) or returning normally (zero)."""
         if request == GET_FEATURES:
-            return _U64.pack(self.offered_features)
+            return U64.pack(self.offered_features)
         if request == SET_FEATURES:
             self.features = _u64(payload)
             for ring in self.rings:
@@ -416,7 +416,7 @@ class VhostUserDevice:
                     self._setup_queue(ring)
             return None
         if request == GET_PROTOCOL_FEATURES:
-            return _U64.pack(self.offered_protocol_features)
+            return U64.pack(self.offered_protocol_features)
         if request == SET_PROTOCOL_FEATURES:
             self.protocol_features = _u64(payload) & self.offered_protocol_features
             return None
@@ -473,7 +473,7 @@ class VhostUserDevice:
                 self.kick(index)  # entries added before the ring was enabled
             return None
         if request == GET_QUEUE_NUM:
-            return _U64.pack(self.num_queues)
+            return U64.pack(self.num_queues)
         if request == GET_CONFIG:
             offset, size, flags = _CONFIG_HEAD.unpack_from(payload)
             data = self.config[offset:offset + size].ljust(size, b"\0")
@@ -525,4 +525,4 @@ class VhostUserDevice:
 def _u64(payload: bytes) -> int:
     if len(payload) < 8:
         raise VhostUserError("message payload shorter than its u64")
-    return _U64.unpack_from(payload)[0]
+    return U64.unpack_from(payload)[0]

@@ -12,7 +12,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bmg160_emu.bus.transactions import Transaction, bytes_from_json, errno_name
-from bmg160_emu.decode import describe_transaction, record_value
 from bmg160_emu.io.trace import (
     FAULT_KIND_PREFIX,
     TRACE_FORMAT_TAG,
@@ -22,6 +21,7 @@ from bmg160_emu.io.trace import (
     parse_fault_entry,
     parse_true_rate_entry,
 )
+from bmg160_emu.session.decode import describe_transaction, record_value
 
 
 @dataclass
