@@ -196,8 +196,11 @@ class I2cDevKernel:
         node = self.nodes.get(fd)
         if node is None:
             return self.real_read(fd, count)
+        count = operator.index(count)  # os.read's Py_ssize_t argument, as CPython converts it
+        if count > sys.maxsize:
+            raise OverflowError("Python int too large to convert to C ssize_t")
         if count < 0:
-            raise ValueError("negative buffersize in read")
+            raise os_error(errno.EINVAL)
         if not node.readable:
             raise os_error(errno.EBADF)
         return node.file.read(count)
@@ -217,6 +220,7 @@ class I2cDevKernel:
         node = self.nodes.get(fd) if fd.__class__ is int else self.nodes.get(_descriptor(fd))
         if node is None:
             return self.real_ioctl(fd, request, arg, mutate_flag)
+        request = operator.index(request) & 0xFFFFFFFF  # fcntl's "I": unsigned, unchecked
         handle = node.file
         if isinstance(arg, int):
             return handle.ioctl(request, _IoctlArgument(_c_int(operator.index(arg)), None))
@@ -340,8 +344,6 @@ def _open_file_object(kernel: I2cDevKernel, file: Any, mode: str, buffering: int
     binary = "b" in modes
     if binary and (encoding is not None or errors is not None or newline is not None):
         raise ValueError("binary mode doesn't take an encoding, errors or newline argument")
-    if buffering == 0 and not binary:
-        raise ValueError("can't have unbuffered text I/O")
     updating = "+" in modes
     flags = _OPEN_FLAGS[kinds[0]]
     if updating:
@@ -354,6 +356,8 @@ def _open_file_object(kernel: I2cDevKernel, file: Any, mode: str, buffering: int
         if buffering == 1 or buffering < 0:
             buffering = PAGE_SIZE
         if buffering == 0:
+            if not binary:  # checked once the file is open, as _io.open does
+                raise ValueError("can't have unbuffered text I/O")
             return raw
         if updating:
             buffer: Any = io.BufferedRandom(raw, buffering)  # "not seekable": as on a real node
