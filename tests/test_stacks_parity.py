@@ -151,8 +151,8 @@ def test_descriptor_calls_convert_their_arguments_as_cpython_does(tmp_path):
             ("ioctl buffer over 1024 bytes", lambda: fcntl.ioctl(fd, I2C_SMBUS, b"x" * 2000)),
             ("ioctl on None", lambda: fcntl.ioctl(None, I2C_SLAVE, 0x68)),
             ("os.open flags of the wrong type", lambda: os.open(node, "x")),
-            ("open mode rw", lambda: open(node, "rw")),  # noqa: SIM115
-            ("binary open with an encoding", lambda: open(node, "rb", encoding="utf-8")),  # noqa: SIM115
+            ("open mode rw", lambda: open(node, "rw")),  # noqa: PLW1501 - the error is the point
+            ("binary open with an encoding", lambda: open(node, "rb", encoding="utf-8")),
             ("missing node", lambda: os.open(f"/dev/i2c-{MISSING}", os.O_RDWR)),
         ]
 

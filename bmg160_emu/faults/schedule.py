@@ -182,9 +182,9 @@ class FaultSchedule:
         failure: OSError | None = None
         wire: Callable[[int, bytes], bytes] | None = None
         for i, fault, targets, is_bus_fault in entries:
-            if fault.conditional or fault.kind == "corrupt_byte":
-                if not fault.selects(address, register, kind):
-                    continue
+            if (fault.conditional or fault.kind == "corrupt_byte") and not fault.selects(
+                    address, register, kind):
+                continue
             if is_bus_fault:
                 addressed = [g for g in targets if g.address == address]
                 if fault.gyro is not None and not addressed and fault.kind != "stuck_bus":
