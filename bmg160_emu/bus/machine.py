@@ -20,13 +20,15 @@ methods follow MicroPython's ``extmod/machine_i2c.c`` and ``machine_spi.c``:
 
 ``micropython_machine`` also gives ``time`` MicroPython's ``sleep_ms``, ``sleep_us``,
 ``ticks_ms``, ``ticks_us``, ``ticks_diff`` and ``ticks_add`` (on ``time.sleep`` and
-``time.monotonic``, so ``bmg160_virtual_time`` moves them too) and ``utime``/``micropython``
-modules when they are missing.
+``time.monotonic``, so ``bmg160_virtual_time`` moves them too), ``utime`` and ``ustruct``
+(MicroPython's names of ``time`` and ``struct``) and a ``micropython`` module (``const``)
+when none is installed.
 """
 
 from __future__ import annotations
 
 import errno
+import struct
 import sys
 import time
 import types
@@ -317,7 +319,7 @@ class micropython_machine(ContextDecorator):
                 __import__("micropython")
             except ImportError:
                 injected["micropython"] = _micropython_module()
-        injected["utime"] = time
+        injected["utime"], injected["ustruct"] = time, struct  # MicroPython's u-names
         for name, value in injected.items():
             self._saved[name] = sys.modules.get(name)
             sys.modules[name] = value
