@@ -6,9 +6,14 @@ Registered as the ``pytest11`` entry point ``bmg160_emu``, so installing the pac
         from mydriver import Gyro            # builds smbus2.SMBus(1) itself
         assert Gyro(bus=1).chip_id() == 0x0F
 
-Fixtures (docs/pytest-plugin.md): ``bmg160_chip`` (a fresh chip), ``bmg160_smbus``
-(``patch_smbus`` with the chip at its address on bus 1; yields the emulated adapter, an
-``I2CBus`` with its transaction log), ``bmg160_spidev`` (``patch_spidev`` with the chip at
+Fixtures (docs/pytest-plugin.md): ``bmg160_chip`` (a fresh chip), ``bmg160_i2c_bus`` (the
+emulated adapter with the chip at its address on bus 1, an ``I2CBus`` with its transaction
+log and the marker's faults), ``bmg160_i2c_dev`` (``patch_i2c_dev`` on it: the in-process
+/dev/i2c-1 for smbus2, smbus3, Adafruit_PureIO, periphery ...), ``bmg160_smbus``
+(``patch_smbus``: the same plus the legacy smbus module; yields the ``I2CBus``),
+``bmg160_faults`` (bus, chip and sample faults on that bus from the rigs' FaultSchedule),
+``bmg160_machine`` and ``bmg160_circuitpython`` (MicroPython's ``machine``, CircuitPython's
+``board``/``busio``/``digitalio`` in ``sys.modules``, wired to the chip), ``bmg160_spidev`` (``patch_spidev`` with the chip at
 /dev/spidev0.0; yields the emulated device, an ``SpiDevNode``), ``bmg160_fake_smbus`` and
 ``bmg160_fake_spidev`` (a ``FakeSMBus`` / ``FakeSpiDev`` already open; ``fake_smbus`` and
 ``fake_spidev`` are the 0.1 names), ``bmg160_virtual_sleep`` (``time.sleep`` advances the
@@ -16,8 +21,9 @@ chip's virtual clock) and ``bmg160_virtual_time`` (so do ``time.monotonic``,
 ``time.perf_counter`` and ``time.time``).
 
 Chip options come from the ``bmg160`` marker, ``@pytest.mark.bmg160(seed=3, noise=False,
-bus=2)``: every keyword except ``bus`` goes to ``BMG160``; an unknown one is a usage error
-that lists the valid ones. The ini options ``bmg160_seed`` and ``bmg160_profile`` set the
+bus=2, faults=[{"kind": "nack", "on_transaction": 3}], fault_seed=1)``: every keyword except
+``bus``, ``faults`` and ``fault_seed`` goes to ``BMG160``; an unknown one, or a fault that
+cannot be built, is a usage error naming the test. The ini options ``bmg160_seed`` and ``bmg160_profile`` set the
 suite's default seed and noise profile; the marker overrides them.
 """
 
@@ -33,7 +39,7 @@ import pytest
 DEFAULT_BUS = 1
 DEFAULT_SEED = 7
 SPI_NODE = (0, 0)  # /dev/spidev0.0
-PLUGIN_KEYS = ("bus",)  # marker keys the plugin uses itself; the others go to BMG160
+PLUGIN_KEYS = ("bus", "faults", "fault_seed")  # marker keys the plugin uses; the others: BMG160
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -75,8 +81,11 @@ def _ini_defaults(config: pytest.Config) -> dict[str, Any]:
             try:
                 defaults["seed"] = int(text, 0)
             except ValueError:
+                defaults["seed"] = -1
+            if defaults["seed"] < 0:  # numpy's SeedSequence refuses negative seeds
                 raise pytest.UsageError(
-                    f"{_ini_name(config)}: bmg160_seed must be an integer or none, not {text!r}"
+                    f"{_ini_name(config)}: bmg160_seed must be an integer >= 0 or none, "
+                    f"not {text!r}"
                 ) from None
     profile = config.getini("bmg160_profile")
     if profile not in (None, ""):
@@ -126,7 +135,28 @@ def _check_marker(item: pytest.Item) -> dict[str, Any]:
             f"{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
             f"valid: {', '.join(sorted(valid))}"
         )
-    return dict(marker.kwargs)
+    options = dict(marker.kwargs)
+    if "faults" in options:
+        options["faults"] = _marker_faults(item.nodeid, options["faults"])
+    return options
+
+
+def _marker_faults(nodeid: str, faults: Any) -> list[Any]:
+    """The marker's ``faults=``: Fault objects or their dictionaries, checked at collection."""
+    from bmg160_emu.faults import Fault, FaultError, fault_from_dict
+
+    __tracebackhide__ = True
+    if isinstance(faults, (dict, Fault)) or not isinstance(faults, (list, tuple)):
+        raise pytest.UsageError(f"{nodeid}: @pytest.mark.bmg160 faults= takes a list of faults "
+                                f"(dictionaries such as {{'kind': 'nack', 'on_transaction': 3}})")
+    built = []
+    for i, entry in enumerate(faults):
+        try:
+            built.append(entry if isinstance(entry, Fault) else
+                         fault_from_dict(dict(entry), f"fault {i + 1}"))
+        except (FaultError, TypeError, ValueError) as exc:
+            raise pytest.UsageError(f"{nodeid}: @pytest.mark.bmg160 faults: {exc}") from None
+    return built
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -159,15 +189,108 @@ def bmg160_chip(request: pytest.FixtureRequest) -> Any:
         ) from None
 
 
+class BusFaults:
+    """What ``bmg160_faults`` yields: faults on the plugin's chip and bus, acted by the same
+    seeded :class:`~bmg160_emu.faults.FaultSchedule` the rigs use. ``add(kind, **params)``
+    schedules one more (``Fault`` keywords: a trigger ``at_s``/``on_transaction``/
+    ``probability``, conditions ``address``/``on_register``, effect parameters); ``events``
+    lists every onset; ``schedules`` holds the marker's schedule first."""
+
+    def __init__(self, chip: Any, bus: Any, seed: int | None) -> None:
+        self.chip, self.bus, self.seed = chip, bus, seed
+        self.schedules: list[Any] = []
+
+    def schedule(self, faults: list[Any], seed: int | None = None) -> Any:
+        """Install a schedule of several faults (one random stream per fault, from ``seed``)."""
+        from bmg160_emu.faults import ChipOnBus, FaultSchedule
+
+        schedule = FaultSchedule(faults, seed=self.seed if seed is None else seed)
+        schedule.install([ChipOnBus(self.chip, self.bus)])
+        self.schedules.append(schedule)
+        return schedule
+
+    def add(self, kind: str, **params: Any) -> Any:
+        """One fault from now on; without a trigger or condition it acts at the chip's
+        current time (the next transaction, for a bus fault)."""
+        if not {"at_s", "on_transaction", "probability", "address", "on_register"} & set(params):
+            params["at_s"] = float(self.chip.time)
+        return self.schedule([{"kind": kind, **params}])
+
+    @property
+    def events(self) -> list[Any]:
+        return [event for schedule in self.schedules for event in schedule.events]
+
+    def remove(self) -> None:
+        for schedule in self.schedules:
+            schedule.remove()
+
+
 @pytest.fixture
-def bmg160_smbus(request: pytest.FixtureRequest, bmg160_chip: Any) -> Iterator[Any]:
-    """``patch_smbus`` with the chip on the I2C bus (1 by default); yields the emulated
-    adapter /dev/i2c-N, an ``I2CBus`` (``.log``, ``.devices``, ``.transaction_hooks``)."""
+def bmg160_i2c_bus(request: pytest.FixtureRequest, bmg160_chip: Any) -> Iterator[Any]:
+    """The emulated I2C adapter /dev/i2c-N (N = the marker's ``bus``, 1 by default) with the
+    chip at its address, an ``I2CBus`` (``.log``, ``.devices``, ``.transaction_hooks``);
+    the marker's ``faults=`` act on it. Nothing is patched: the stack fixtures build on it."""
+    from bmg160_emu.bus.i2c import I2CBus
+
+    options = _options(request)
+    bus = I2CBus(options.get("bus", DEFAULT_BUS), {bmg160_chip.address: bmg160_chip})
+    faults = BusFaults(bmg160_chip, bus, options.get("fault_seed", 0))
+    if options.get("faults"):
+        faults.schedule(options["faults"])
+    request.node.stash[_FAULTS] = faults
+    yield bus
+    faults.remove()
+
+
+_FAULTS = pytest.StashKey[BusFaults]()
+
+
+@pytest.fixture
+def bmg160_faults(request: pytest.FixtureRequest, bmg160_i2c_bus: Any) -> BusFaults:
+    """Faults on the plugin's chip and bus (the marker's first): ``bmg160_faults.add("nack",
+    on_transaction=3)``, ``bmg160_faults.events``."""
+    return request.node.stash[_FAULTS]
+
+
+@pytest.fixture
+def bmg160_i2c_dev(bmg160_i2c_bus: Any) -> Iterator[Any]:
+    """``patch_i2c_dev`` on the plugin's bus: opening /dev/i2c-N from any pure-Python stack
+    (smbus2, smbus3, Adafruit_PureIO and Blinka, periphery, os/fcntl code) reaches the chip;
+    yields the ``I2CBus``."""
+    from bmg160_emu.bus.i2c_dev_node import patch_i2c_dev
+
+    with patch_i2c_dev({bmg160_i2c_bus.number: bmg160_i2c_bus}):
+        yield bmg160_i2c_bus
+
+
+@pytest.fixture
+def bmg160_smbus(bmg160_i2c_bus: Any) -> Iterator[Any]:
+    """``patch_smbus`` with the chip on the I2C bus (1 by default): ``bmg160_i2c_dev`` plus
+    the legacy smbus module; yields the emulated adapter /dev/i2c-N, an ``I2CBus``."""
     from bmg160_emu.bus.patching import patch_smbus
 
-    number = _options(request).get("bus", DEFAULT_BUS)
-    with patch_smbus({number: {bmg160_chip.address: bmg160_chip}}) as buses:
-        yield buses[number]
+    with patch_smbus({bmg160_i2c_bus.number: bmg160_i2c_bus}):
+        yield bmg160_i2c_bus
+
+
+@pytest.fixture
+def bmg160_machine(bmg160_i2c_bus: Any) -> Iterator[Any]:
+    """MicroPython's ``machine`` in ``sys.modules`` for the test: ``machine.I2C(N)`` (N the
+    plugin's bus number) and every ``SoftI2C`` reach the chip; yields the module."""
+    from bmg160_emu.bus.machine import micropython_machine
+
+    with micropython_machine({bmg160_i2c_bus.number: bmg160_i2c_bus}) as machine:
+        yield machine
+
+
+@pytest.fixture
+def bmg160_circuitpython(bmg160_i2c_bus: Any) -> Iterator[Any]:
+    """CircuitPython's ``board``, ``busio`` and ``digitalio`` in ``sys.modules`` for the
+    test, the chip on ``board.SCL``/``board.SDA``; yields the ``board`` module."""
+    from bmg160_emu.bus.board import circuitpython_board
+
+    with circuitpython_board(bmg160_i2c_bus) as board:
+        yield board
 
 
 class SpiDevNode:

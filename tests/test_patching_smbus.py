@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import builtins
+import fcntl
 import importlib
+import io
 import os
 import sys
 
@@ -74,10 +77,19 @@ def test_missing_device_gives_oserror_121_through_real_smbus2():
         assert info.value.errno == 121
 
 
+REAL_CALLS = (os.open, os.close, os.read, os.write, fcntl.ioctl, builtins.open, io.open)
+
+
+def _calls_now():
+    return (os.open, os.close, os.read, os.write, fcntl.ioctl, builtins.open, io.open)
+
+
 def test_everything_is_restored_on_exit():
     with patch_smbus({1: {0x68: RegisterFileChip()}}):
-        assert smbus2_impl.os is not os
-    assert smbus2_impl.os is os
+        assert all(now is not real for now, real in zip(_calls_now(), REAL_CALLS))
+        assert smbus2_impl.ioctl is fcntl.ioctl  # its `from fcntl import ioctl` follows
+    assert _calls_now() == REAL_CALLS
+    assert smbus2_impl.ioctl is REAL_CALLS[4]
     with pytest.raises(FileNotFoundError):
         FakeSMBus(1)
 
@@ -90,8 +102,8 @@ def test_nested_patches_stack_and_unwind():
             assert bus.read_byte_data(0x68, 0) == 0xAA
         with smbus2.SMBus(1) as bus:
             assert bus.read_byte_data(0x68, 0) == 0x00
-        assert smbus2_impl.os is not os
-    assert smbus2_impl.os is os
+        assert os.open is not REAL_CALLS[0]  # the inner exit leaves the outer patch on
+    assert _calls_now() == REAL_CALLS
 
 
 def test_works_as_a_decorator():

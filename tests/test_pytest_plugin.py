@@ -7,7 +7,7 @@ import inspect
 import pytest
 
 from bmg160_emu.device.chip import BMG160
-from bmg160_emu.pytest_plugin import chip_option_names
+from bmg160_emu.pytest_plugin import PLUGIN_KEYS, chip_option_names
 
 pytest_plugins = ["pytester"]
 
@@ -170,7 +170,9 @@ def test_ini_profile_file_is_relative_to_the_ini_file(pytester):
 @pytest.mark.parametrize(
     ("line", "message"),
     [
-        ("bmg160_seed = seven", "bmg160_seed must be an integer or none, not 'seven'"),
+        ("bmg160_seed = seven", "bmg160_seed must be an integer >= 0 or none, not 'seven'"),
+        # issue 24: -1 passed the start-up check and then failed every test at setup
+        ("bmg160_seed = -1", "bmg160_seed must be an integer >= 0 or none, not '-1'"),
         ("bmg160_profile = nosuch", "bmg160_profile: unknown noise profile"),
     ],
 )
@@ -192,5 +194,5 @@ def test_documented_marker_options_are_exactly_the_chip_keywords():
     for row in section.splitlines():
         if row.startswith("| `"):
             documented |= {name.strip("` ") for name in row.split("|")[1].split(",")}
-    assert documented == set(chip_option_names()) | {"bus"}
+    assert documented == set(chip_option_names()) | set(PLUGIN_KEYS)
     assert set(chip_option_names()) < set(inspect.signature(BMG160.__init__).parameters)

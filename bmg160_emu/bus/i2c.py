@@ -48,6 +48,7 @@ __all__ = [
     "I2C_SMBUS_BLOCK_MAX",
     "I2CBus",
     "I2CMessage",
+    "WireFilter",
     "emulated_bus",
     "emulated_bus_for_path",
     "os_error",
@@ -88,6 +89,9 @@ KIND_FUNCS = {
 }
 
 TransactionHook = Callable[["I2CBus", int, int, str], None]
+# What a hook with ``takes_register`` may return: a change to the bytes the host receives,
+# ``wire(offset, data) -> data`` with ``offset`` the place of ``data[0]`` in the transaction.
+WireFilter = Callable[[int, bytes], bytes]
 
 
 def os_error(code: int) -> OSError:
@@ -148,6 +152,10 @@ class I2CBus:
     ``transaction_hooks``: callables ``hook(bus, index, address, kind)`` run before each
     transaction (``index`` counts transactions on this bus from 0); an ``OSError`` raised by a
     hook fails the transaction as a real adapter would (NACK = EREMOTEIO, timeout = ETIMEDOUT).
+    A hook whose attribute ``takes_register`` is true is called as ``hook(bus, index, address,
+    kind, register)`` (the register the transaction names, or None) and may return a
+    :data:`WireFilter`: the bytes the host reads pass through it (a corrupted byte on the
+    wire; the PEC is checked after it, as the host's adapter checks it).
     ``claimed``: addresses a kernel driver has bound; ``I2C_SLAVE`` on them gives EBUSY unless
     forced. ``funcs``: the adapter's functionality mask; a kind whose bit is missing fails with
     EOPNOTSUPP. ``nack_errno``: the errno of an address nobody acknowledges (EREMOTEIO).
@@ -259,14 +267,22 @@ class I2CBus:
             raise os_error(errno.EOPNOTSUPP)
         chip = self.devices.get(address)
         if self.transaction_hooks:
+            wires: list[WireFilter] = []
             for hook in list(self.transaction_hooks):
                 try:
-                    hook(self, index, address, kind)
+                    if getattr(hook, "takes_register", False):
+                        wire = hook(self, index, address, kind, register)  # type: ignore[call-arg]
+                        if wire is not None:
+                            wires.append(wire)
+                    else:
+                        hook(self, index, address, kind)
                 except OSError as exc:
                     self._record(
                         chip, address, kind, register, written, b"", errno_name(exc.errno or 0)
                     )
                     raise
+            if wires and chip is not None:
+                return _Wire(chip, wires)
         if chip is None:
             raise self._fail(None, address, kind, register, self.nack_errno, written)
         return chip
@@ -480,6 +496,30 @@ class I2CBus:
     def __repr__(self) -> str:
         devices = ", ".join(f"0x{a:02x}" for a in sorted(self.devices))
         return f"<I2CBus {self.number} devices [{devices}]>"
+
+
+class _Wire:
+    """The chip as the host hears it during one transaction whose read bytes a hook changes:
+    every read primitive's result goes through the wire filters, at its offset in the
+    transaction; everything else is the chip's."""
+
+    def __init__(self, chip: Any, wires: list[WireFilter]) -> None:
+        self.chip, self.wires, self.offset = chip, wires, 0
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.chip, name)
+
+    def _heard(self, data: bytes) -> bytes:
+        offset, self.offset = self.offset, self.offset + len(data)
+        for wire in self.wires:
+            data = wire(offset, data)
+        return data
+
+    def read(self, register: int, count: int) -> bytes:
+        return self._heard(self.chip.read(register, count))
+
+    def i2c_read(self, count: int) -> bytes:
+        return self._heard(self.chip.i2c_read(count))
 
 
 # --------------------------------------------------------------------------- registry

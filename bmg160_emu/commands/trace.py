@@ -42,6 +42,7 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.device.parts import part_table
     from bmg160_emu.io.trace import TraceFormatError, read_trace
     from bmg160_emu.session.decode import describe_transaction
     from bmg160_emu.session.replay import replay_trace
@@ -54,13 +55,15 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(exc)) from None
     if not args.replay:
         try:
-            standins = {config.address: config.spec for config in TraceHeader.from_dict(header).configs()
-                        if hasattr(config, "spec")}
+            configs = TraceHeader.from_dict(header).configs()
         except (TraceFormatError, ValueError) as exc:
             raise CommandError(f"{args.file}: {exc}") from None
+        standins = {c.address: c.spec for c in configs if hasattr(c, "spec")}
+        parts: dict[int, Any] = {c.address: part_table(c.part).registers
+                                 for c in configs if hasattr(c, "part")}
         for record in records:
             try:
-                text = describe_transaction(record, standins)
+                text = describe_transaction(record, standins, parts)
             except (ValueError, TypeError, KeyError) as exc:
                 raise CommandError(f"{args.file}:{record['_line']}: cannot decode: {exc}") from None
             try:

@@ -6,10 +6,11 @@ for people (:mod:`bmg160_emu.session.decode`) both print fields this way, so the
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from bmg160_emu.device import registers, spec_choices
-from bmg160_emu.device.registers import REGISTER_COUNT
+from bmg160_emu.device.registers import REGISTER_COUNT, Register
 
 
 def ascii_text(text: str) -> str:
@@ -50,16 +51,17 @@ class DecodedField:
         return f"{self.name}={self.value_text}" + (f" ({self.label})" if self.label else "")
 
 
-def register_name(register: int) -> str:
-    """The spec name of a register (``RESERVED_0x01`` for reserved ones)."""
-    return registers.REGISTERS[register].name
+def register_name(register: int, table: Sequence[Register] = registers.REGISTERS) -> str:
+    """The spec name of a register (``RESERVED_0x01`` for reserved ones); ``table``: a
+    part's own register table (device.part_spec) instead of the BMG160's."""
+    return table[register].name
 
 
-def register_label(register: int) -> str:
+def register_label(register: int, table: Sequence[Register] = registers.REGISTERS) -> str:
     """``0x0F RANGE``: address and name, as every log line names a register."""
     if not 0 <= register < REGISTER_COUNT:
         return f"0x{register:02X} (outside the map)"
-    return f"0x{register:02X} {register_name(register)}"
+    return f"0x{register:02X} {register_name(register, table)}"
 
 
 def resolve_register_name(name: str) -> int | None:
@@ -70,13 +72,15 @@ def resolve_register_name(name: str) -> int | None:
         return None
 
 
-def decode_register(register: int, value: int, sensitivity: str | None = None) -> list[DecodedField]:
-    """The fields of one register byte, decoded with the register table.
+def decode_register(register: int, value: int, sensitivity: str | None = None,
+                    table: Sequence[Register] = registers.REGISTERS) -> list[DecodedField]:
+    """The fields of one register byte, decoded with the register table (``table``: a
+    part's own, whose absent registers have no fields and narrowed ones fewer).
 
     With ``sensitivity`` (``binary`` or ``nominal``, spec 5.1), the RANGE field's label also
     gives the LSB per deg/s of that range.
     """
-    reg = registers.REGISTERS[register]
+    reg = table[register]
     named = [f for f in reg.fields if f.values and set(f.values.values()) != {"off", "on"}]
     decoded = []
     for f in reg.fields:
@@ -84,9 +88,9 @@ def decode_register(register: int, value: int, sensitivity: str | None = None) -
         on_off = set(f.values.values()) == {"off", "on"}
         label = ascii_text(f.values.get(raw, ""))
         if sensitivity and reg.name == "RANGE" and f.name == "range":
-            table = spec_choices.SENSITIVITY_TABLES[sensitivity]
-            code = raw if raw < len(table) else spec_choices.RESERVED_RANGE_AS_CODE
-            label += f", {table[code]:g} LSB/(deg/s)"
+            lsb_per_dps = spec_choices.SENSITIVITY_TABLES[sensitivity]
+            code = raw if raw < len(lsb_per_dps) else spec_choices.RESERVED_RANGE_AS_CODE
+            label += f", {lsb_per_dps[code]:g} LSB/(deg/s)"
         decoded.append(DecodedField(f.name, raw, label, on_off, len(named) > 1, f.msb - f.lsb + 1))
     return decoded
 

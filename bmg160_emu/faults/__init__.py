@@ -11,6 +11,8 @@ transaction, drawn from the schedule's seed) and an *effect*:
 | --- | --- | --- |
 | ``nack`` | bus | the transaction fails with ``OSError(EREMOTEIO)`` (121), as a NACK does |
 | ``timeout`` | bus | the transaction fails with ``OSError(ETIMEDOUT)`` (110) after ``stall_s`` |
+| ``stuck_bus`` | bus | every transaction on the bus fails with ``OSError(EBUSY)`` (16) for ``duration_s`` (None: for ever), as while a device holds SDA low |
+| ``corrupt_byte`` | bus | bit ``bit`` of the ``byte``-th byte the host reads is inverted (with PEC: EBADMSG) |
 | ``stuck_axis`` | sample | ``axis`` repeats its last value for ``duration_s`` (None: for ever) |
 | ``bias_step`` | sample | ``step_dps`` added to ``axis`` (or to all axes) from then on |
 | ``spike`` | sample | ``amplitude_dps`` added to ``axis`` for ``samples`` output samples |
@@ -29,6 +31,10 @@ it touches): its description, then a JSON line of what it did (:func:`fault_entr
 from which a trace replay acts it again (:func:`replay_schedule`); every output sample a
 fault touched carries its :data:`FAULT_FLAGS` bit in the rig's truth record, and a bus or
 chip fault flags the gyro's next output sample.
+
+Conditions: ``address`` (a 7-bit address) and ``on_register`` (the register a transaction
+names) restrict a fault to the transactions that meet them; alone, without a trigger, they
+select the first such transaction.
 
 Triggers: ``at_s`` acts exactly at that time for sample faults and at the first transaction
 at or after it for bus and chip faults; ``on_transaction`` counts the transactions of the
@@ -52,12 +58,18 @@ from bmg160_emu.faults.model import (
     describe_flags,
     fault_from_dict,
 )
-from bmg160_emu.faults.schedule import FaultSchedule, fault_entry_text, inject, replay_schedule
+from bmg160_emu.faults.schedule import (
+    ChipOnBus,
+    FaultSchedule,
+    fault_entry_text,
+    inject,
+    replay_schedule,
+)
 from bmg160_emu.io.trace import parse_fault_entry
 
 __all__ = [
     "AXES", "BUS_KINDS", "CHIP_KINDS", "FAULT_FLAGS", "FAULT_KINDS", "SAMPLE_KINDS",
-    "SATURATED_DPS", "Fault", "FaultError", "FaultEvent", "FaultSchedule", "GyroTarget",
+    "SATURATED_DPS", "ChipOnBus", "Fault", "FaultError", "FaultEvent", "FaultSchedule", "GyroTarget",
     "describe_flags", "fault_entry_text", "fault_from_dict", "inject", "parse_fault_entry",
     "replay_schedule",
 ]

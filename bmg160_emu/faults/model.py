@@ -13,14 +13,22 @@ from typing import Any, Protocol
 
 import numpy as np
 
-BUS_KINDS = ("nack", "timeout")
+BUS_KINDS = ("nack", "timeout", "stuck_bus", "corrupt_byte")
 SAMPLE_KINDS = ("stuck_axis", "bias_step", "spike", "saturation", "lost_samples",
                 "temperature_ramp")
 CHIP_KINDS = ("seu", "brownout")
 FAULT_KINDS = BUS_KINDS + SAMPLE_KINDS + CHIP_KINDS
 
-# One bit per kind in the truth record's ``fault_flags`` column.
-FAULT_FLAGS = {kind: 1 << i for i, kind in enumerate(FAULT_KINDS)}
+# One bit per kind in the truth record's ``fault_flags`` column; kinds added later take the
+# next bits, so the bits of a saved truth record keep their meaning.
+_FLAG_ORDER = ("nack", "timeout", *SAMPLE_KINDS, *CHIP_KINDS, "stuck_bus", "corrupt_byte")
+FAULT_FLAGS = {kind: 1 << i for i, kind in enumerate(_FLAG_ORDER)}
+
+# Transaction kinds (I2CBus's words) that carry data from the chip: a corrupt_byte fault can
+# only act on these.
+READ_KINDS = frozenset(("read_byte", "read_byte_data", "read_word_data", "process_call",
+                        "read_block_data", "block_process_call", "read_i2c_block_data",
+                        "i2c_read"))
 
 SATURATED_DPS = 1.0e6  # far beyond +-2000 deg/s: the chip clips it to +-32767 counts
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -60,9 +68,10 @@ class FaultEvent:
 
 _NUMBER_FIELDS = ("at_s", "probability", "duration_s", "step_dps", "amplitude_dps",
                   "rate_c_per_s", "stall_s")
-_COUNT_FIELDS = ("on_transaction", "gyro", "samples", "register", "bit", "max_count")
+_COUNT_FIELDS = ("on_transaction", "gyro", "samples", "register", "bit", "max_count", "address",
+                 "on_register", "byte")
 _OPTIONAL_FIELDS = {"at_s", "probability", "duration_s", "on_transaction", "gyro", "register",
-                    "max_count"}
+                    "max_count", "address", "on_register"}
 
 
 @dataclass
@@ -85,6 +94,9 @@ class Fault:
     tc_bias_dps_per_c: np.ndarray = field(default_factory=lambda: np.zeros(3))
     stall_s: float = 0.0
     max_count: int | None = None
+    address: int | None = None
+    on_register: int | None = None
+    byte: int = 0
 
     def __post_init__(self) -> None:
         if self.kind not in FAULT_KINDS:
@@ -92,10 +104,26 @@ class Fault:
         self._check_types()
         triggers = [self.at_s is not None, self.on_transaction is not None,
                     self.probability is not None]
+        if sum(triggers) == 0 and self.conditional:
+            self.at_s = 0.0  # a condition alone: the first transaction that meets it
+            triggers[0] = True
         if sum(triggers) != 1:
             raise FaultError(
                 f"{self.kind}: give exactly one trigger: at_s, on_transaction or probability"
             )
+        if self.address is not None and not 0 <= self.address <= 0x7F:
+            raise FaultError(f"{self.kind}: address must be a 7-bit address 0x00..0x7f")
+        if self.on_register is not None and not 0 <= self.on_register <= 0xFF:
+            raise FaultError(f"{self.kind}: on_register must be a register 0x00..0xff")
+        if self.conditional and self.layer == "sample":
+            raise FaultError(f"{self.kind}: address and on_register select transactions; a "
+                             "sample fault acts on samples (give at_s, on_transaction or "
+                             "probability)")
+        if self.kind == "corrupt_byte":
+            if not 0 <= self.bit <= 7:
+                raise FaultError("corrupt_byte: bit must be 0..7")
+            if self.byte < 0:
+                raise FaultError("corrupt_byte: byte must be >= 0 (its place in the data read)")
         if self.probability is not None and not 0.0 <= self.probability <= 1.0:
             raise FaultError(f"{self.kind}: probability must be within 0..1, not {self.probability}")
         if self.on_transaction is not None and self.on_transaction < 0:
@@ -151,6 +179,20 @@ class Fault:
                 raise FaultError(f"{self.kind}: {name} must be a whole number, not {value!r}")
 
     @property
+    def conditional(self) -> bool:
+        """The fault acts only on transactions to ``address`` or naming ``on_register``."""
+        return self.address is not None or self.on_register is not None
+
+    def selects(self, address: int, register: int | None, kind: str) -> bool:
+        """Whether a transaction (7-bit address, register it names, I2CBus kind) is one the
+        fault may act on: its conditions hold, and a corrupt_byte needs data read."""
+        if self.address is not None and address != self.address:
+            return False
+        if self.on_register is not None and register != self.on_register:
+            return False
+        return self.kind != "corrupt_byte" or kind in READ_KINDS
+
+    @property
     def layer(self) -> str:
         if self.kind in BUS_KINDS:
             return "bus"
@@ -163,9 +205,14 @@ class Fault:
             "spike": f" {self.amplitude_dps:+g} deg/s x{self.samples}",
             "lost_samples": f" {self.samples} periods",
             "seu": f" register 0x{self.register or 0:02x} bit {self.bit}",
+            "corrupt_byte": f" byte {self.byte} bit {self.bit}",
             "temperature_ramp": f" {self.rate_c_per_s:+g} degC/s",
         }.get(self.kind, "")
         span = "" if self.duration_s is None else f" for {self.duration_s:g} s"
+        if self.on_register is not None:
+            span += f" on register 0x{self.on_register:02x}"
+        if self.address is not None:
+            span += f" to 0x{self.address:02x}"
         return f"{self.kind}{where}{extra}{span}"
 
 

@@ -1,4 +1,5 @@
-"""The fault engine: a seeded :class:`FaultSchedule` acting :class:`Fault` entries on a rig.
+"""The fault engine: a seeded :class:`FaultSchedule` acting :class:`Fault` entries on a rig,
+or on one chip on one bus (:class:`ChipOnBus`: the pytest plugin's chip and bus).
 
 Bus faults act in ``I2CBus.transaction_hooks``, sample faults in ``BMG160.sample_hooks``,
 chip faults between two transactions; every onset is logged (see :mod:`bmg160_emu.faults`).
@@ -9,7 +10,8 @@ from __future__ import annotations
 import errno
 import json
 import math
-from collections.abc import Iterable, Sequence
+import os
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,6 +45,41 @@ class _Activation:
 # (the bus, the gyros on it, [(fault index, fault, its targets on the bus, a bus fault?)])
 _BusPlan = tuple[Any, list[GyroTarget], list[tuple[int, Fault, list[GyroTarget], bool]]]
 
+# errno and text of each failing bus fault (Linux Documentation/i2c/fault-codes.rst): a NACK
+# of the address is EREMOTEIO on most adapters; ETIMEDOUT "an operation took too much
+# time"; EBUSY "the bus was busy for longer than allowed ... needs some fault recovery",
+# what an adapter reports while a device holds SDA low (a stuck bus)
+_BUS_ERRORS = {"nack": errno.EREMOTEIO, "timeout": errno.ETIMEDOUT, "stuck_bus": errno.EBUSY}
+
+
+@dataclass
+class ChipOnBus:
+    """One chip on one I2C bus as a fault target, outside any rig (the pytest plugin's
+    chip on its bus): bus faults act on that bus, the others on the chip."""
+
+    chip: Any
+    bus: Any
+    address: int = -1  # the chip's own address unless given
+    index: int = 0
+
+    def __post_init__(self) -> None:
+        if self.address < 0:
+            self.address = int(getattr(self.chip, "address", 0x68))
+
+
+class _BusHook:
+    """The schedule's transaction hook: it needs the register a transaction names
+    (``on_register``) and may change the bytes read (``corrupt_byte``)."""
+
+    takes_register = True
+
+    def __init__(self, schedule: FaultSchedule) -> None:
+        self.schedule = schedule
+
+    def __call__(self, bus: Any, index: int, address: int, kind: str,
+                 register: int | None = None) -> Callable[[int, bytes], bytes] | None:
+        return self.schedule._transaction_hook(bus, index, address, kind, register)
+
 
 class FaultSchedule:
     """Faults to inject into a rig of gyros; seeded, so a run can be repeated exactly."""
@@ -67,6 +104,8 @@ class FaultSchedule:
         self._base_temperature: dict[int, float] = {}
         # gyro -> (time, flag) of bus and chip faults not yet on a sample
         self._pending: dict[int, list[tuple[float, int]]] = {}
+        self._hook = _BusHook(self)
+        self._installed: list[tuple[list[Any], Any]] = []  # (hook list, hook) to remove
 
     # ----------------------------------------------------------------- installation
 
@@ -87,15 +126,28 @@ class FaultSchedule:
         seen: set[int] = set()
         for gyro in self._gyros:
             self._sample_flags[gyro.index] = {}
-            gyro.chip.sample_hooks.append(self._sample_hook_for(gyro))
+            sample_hook = self._sample_hook_for(gyro)
+            gyro.chip.sample_hooks.append(sample_hook)
+            self._installed.append((gyro.chip.sample_hooks, sample_hook))
             if gyro.bus is not None and id(gyro.bus) not in seen:
                 seen.add(id(gyro.bus))
-                gyro.bus.transaction_hooks.append(self._transaction_hook)
+                gyro.bus.transaction_hooks.append(self._hook)
+                self._installed.append((gyro.bus.transaction_hooks, self._hook))
             # time-triggered sample faults act on exact sample times, so they are known now
         for i, fault in enumerate(self.faults):
             if fault.layer == "sample" and fault.at_s is not None:
                 for gyro in self._targets(fault):
                     self._activate(i, gyro, fault.at_s, None)
+
+    def remove(self) -> None:
+        """Take the schedule's hooks out of the chips and buses (a fault window still open
+        ends here); its events and flags stay readable."""
+        for hooks, hook in self._installed:
+            for i in range(len(hooks) - 1, -1, -1):
+                if hooks[i] is hook:
+                    del hooks[i]
+                    break
+        self._installed = []
 
     def _targets(self, fault: Fault) -> list[GyroTarget]:
         if fault.gyro is None:
@@ -123,22 +175,33 @@ class FaultSchedule:
         plan = self._bus_plans[id(bus)] = (bus, gyros_here, entries)
         return plan
 
-    def _transaction_hook(self, bus: Any, index: int, address: int, kind: str) -> None:
+    def _transaction_hook(self, bus: Any, index: int, address: int, kind: str,
+                          register: int | None = None) -> Callable[[int, bytes], bytes] | None:
         _, gyros_here, entries = self._bus_plan(bus)
         now = _clock_time(gyros_here[0].chip) if gyros_here else 0.0
         failure: OSError | None = None
+        wire: Callable[[int, bytes], bytes] | None = None
         for i, fault, targets, is_bus_fault in entries:
+            if (fault.conditional or fault.kind == "corrupt_byte") and not fault.selects(
+                    address, register, kind):
+                continue
             if is_bus_fault:
                 addressed = [g for g in targets if g.address == address]
-                if fault.gyro is not None and not addressed:
+                if fault.gyro is not None and not addressed and fault.kind != "stuck_bus":
                     continue
-                if self._bus_fault_now(i, fault, bus, index, now) and failure is None:
-                    failure = self._bus_failure(fault, index, now, address, addressed, gyros_here)
+                if not self._bus_fault_now(i, fault, bus, index, now) or failure is not None:
+                    continue
+                event = self._bus_event(fault, index, now, address, addressed, gyros_here)
+                if fault.kind == "corrupt_byte":
+                    wire = wire or _flip(fault.byte, fault.bit)
+                else:
+                    failure = OSError(event, os.strerror(event))
             elif self._triggered(i, fault, bus, index, now):
                 for gyro in targets:
                     self._activate(i, gyro, now, index)
         if failure is not None:
             raise failure
+        return wire
 
     def _triggered(self, i: int, fault: Fault, bus: Any, index: int, now: float) -> bool:
         """One-shot or random trigger of a sample or chip fault at this transaction."""
@@ -158,26 +221,28 @@ class FaultSchedule:
             return True
         if not self._triggered(i, fault, bus, index, now):
             return False
-        if fault.duration_s is not None:
+        if fault.duration_s is not None or fault.kind == "stuck_bus":  # stuck: for ever
             start = now if fault.at_s is None else fault.at_s
-            self._bus_windows[i].append((start, start + fault.duration_s))
+            length = math.inf if fault.duration_s is None else fault.duration_s
+            self._bus_windows[i].append((start, start + length))
         self._fired[i] += 1
         return True
 
-    def _bus_failure(self, fault: Fault, index: int, now: float, address: int,
-                     addressed: list[GyroTarget], gyros_here: list[GyroTarget]) -> OSError:
+    def _bus_event(self, fault: Fault, index: int, now: float, address: int,
+                   addressed: list[GyroTarget], gyros_here: list[GyroTarget]) -> int:
+        """Record a bus fault acting on a transaction; its errno (0: the transaction goes on
+        with a corrupted byte)."""
         gyro = addressed[0].index if addressed else None
-        if fault.kind == "nack":
-            code, text = errno.EREMOTEIO, "Remote I/O error"
-        else:
-            code, text = errno.ETIMEDOUT, "Connection timed out"
-            if fault.stall_s > 0 and gyros_here:
-                _stall(gyros_here[0].chip, fault.stall_s)
+        code = _BUS_ERRORS.get(fault.kind, 0)
+        if fault.kind in ("timeout", "stuck_bus") and fault.stall_s > 0 and gyros_here:
+            _stall(gyros_here[0].chip, fault.stall_s)
         self.events.append(FaultEvent(now, fault.kind, gyro, index,
                                       f"{fault.describe()} at address 0x{address:02x}"))
         if gyro is not None:
             self._pending.setdefault(gyro, []).append((now, FAULT_FLAGS[fault.kind]))
-        return OSError(code, text)
+        if not code and self.log_to_bus and gyro is not None:
+            self._note(self.events[-1], addressed[0], fault, event_too=False)
+        return code
 
     # ----------------------------------------------------------------- chip and sample side
 
@@ -374,6 +439,20 @@ def replay_schedule(entries: Sequence[dict[str, Any]], target: GyroTarget) -> Fa
     return schedule
 
 
+def _flip(byte: int, bit: int) -> Callable[[int, bytes], bytes]:
+    """The wire filter of a corrupt_byte fault: bit ``bit`` of the ``byte``-th byte the host
+    reads in the transaction is inverted (a glitch the host samples)."""
+    def wire(offset: int, data: bytes) -> bytes:
+        place = byte - offset
+        if not 0 <= place < len(data):
+            return data
+        out = bytearray(data)
+        out[place] ^= 1 << bit
+        return bytes(out)
+
+    return wire
+
+
 # ----------------------------------------------------------------- chip access, in one place
 
 
@@ -440,20 +519,31 @@ def _parse_value(text: str) -> Any:
     return text
 
 
-def inject(chip: Any, kind: str, *args: str, **params: Any) -> FaultSchedule:
+def inject(chip: Any, kind: str, *args: str, bus: Any = None, seed: int | None = 0,
+           **params: Any) -> FaultSchedule:
     """Inject one fault into a lone chip from now on: ``inject(chip, "stuck_axis", "axis=y")``.
 
     Arguments are ``key=value`` strings (as a script line gives them) or keywords. Without a
-    trigger the fault starts at the chip's current time. Bus faults (nack, timeout) need a bus
-    and are refused here: use a :class:`~bmg160_emu.adcs.rig.GyroRig`.
+    trigger the fault starts at the chip's current time. With ``bus`` (the ``I2CBus`` the
+    chip is on, such as the pytest plugin's) every kind is accepted, bus faults included,
+    and transactions trigger and count as on a rig's bus (``seed``: the random stream of a
+    ``probability`` trigger); without it bus faults are refused.
     """
     for arg in args:
         key, sep, value = arg.partition("=")
         if not sep or not key:
             raise FaultError(f"{kind}: expected key=value, not {arg!r}")
         params[key] = _parse_value(value)
+    if bus is not None:
+        if not {"at_s", "on_transaction", "probability", "address", "on_register"} & set(params):
+            params["at_s"] = float(chip.time)
+        schedule = FaultSchedule([fault_from_dict({"kind": kind, **params}, kind)], seed=seed)
+        schedule.install([ChipOnBus(chip, bus)])
+        return schedule
     if kind in BUS_KINDS:
-        raise FaultError(f"{kind} is a bus fault: inject it through a GyroRig's bus")
+        raise FaultError(f"{kind} is a bus fault: give the bus the chip is on, "
+                         f"inject(chip, {kind!r}, bus=...) (the pytest plugin's bmg160_smbus), "
+                         "or use a GyroRig")
     if {"on_transaction", "probability"} & set(params):
         raise FaultError(f"{kind}: a lone chip has no transactions to count; give at_s")
     now = float(chip.time)

@@ -7,7 +7,7 @@ the same text); this module adds reads, writes, bursts, SPI frames and whole tra
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,7 +23,7 @@ from bmg160_emu.device.fields import (
     register_name,
     resolve_register_name,
 )
-from bmg160_emu.device.registers import REGISTER_COUNT
+from bmg160_emu.device.registers import REGISTER_COUNT, REGISTERS, Register
 from bmg160_emu.io.dump import RegisterDump
 from bmg160_emu.io.trace import FAULT_KIND_PREFIX, TRUE_RATE_KIND, parse_fault_entry
 
@@ -47,8 +47,11 @@ def _register_span(register: int, count: int) -> str:
     return f"0x{register:02X}..0x{min(last, 0xFF):02X}"
 
 
-def _field_text(register: int, value: int) -> str:
-    parts = [f.text for f in decode_register(register, value) if f.text]
+Table = Sequence[Register]  # a register table: the BMG160's, or a part's (device.part_spec)
+
+
+def _field_text(register: int, value: int, table: Table = REGISTERS) -> str:
+    parts = [f.text for f in decode_register(register, value, table=table) if f.text]
     return f" ({'; '.join(parts)})" if parts else ""
 
 
@@ -72,27 +75,31 @@ def _rate_words(register: int, data: bytes) -> str | None:
     return text
 
 
-def describe_write(register: int, data: bytes) -> str:
-    """'write 0x0F RANGE <- 0x02 (+-500 deg/s)': one register, or each byte of a burst."""
+def describe_write(register: int, data: bytes, table: Table = REGISTERS) -> str:
+    """'write 0x0F RANGE <- 0x02 (+-500 deg/s)': one register, or each byte of a burst
+    (``table``: the part's register table, for its names and fields)."""
     if len(data) == 1:
-        return f"write {register_label(register)} <- 0x{data[0]:02x}{_field_text(register, data[0])}"
+        return (f"write {register_label(register, table)} <- 0x{data[0]:02x}"
+                f"{_field_text(register, data[0], table)}")
     parts = []
     for offset, value in enumerate(data):
         reg = register + offset
         if reg >= REGISTER_COUNT:
             parts.append(f"0x{reg:02X} <- 0x{value:02x} (outside the map, ignored)")
         else:
-            parts.append(f"{register_label(reg)} <- 0x{value:02x}{_field_text(reg, value)}")
+            parts.append(f"{register_label(reg, table)} <- 0x{value:02x}"
+                         f"{_field_text(reg, value, table)}")
     return f"burst write {_register_span(register, len(data))}: " + ", ".join(parts)
 
 
-def describe_read(register: int, data: bytes) -> str:
+def describe_read(register: int, data: bytes, table: Table = REGISTERS) -> str:
     """'burst read 0x02..0x07 -> x=-12 y=3 z=40' or 'read 0x00 CHIP_ID -> 0x0f (...)'."""
     if len(data) == 1:
         value = data[0]
         if register >= REGISTER_COUNT:
             return f"read 0x{register:02X} (outside the map) -> 0x{value:02x}"
-        return f"read {register_label(register)} -> 0x{value:02x}{_field_text(register, value)}"
+        return (f"read {register_label(register, table)} -> 0x{value:02x}"
+                f"{_field_text(register, value, table)}")
     span = _register_span(register, len(data))
     words = _rate_words(register, data)
     if words is not None:
@@ -104,7 +111,8 @@ def describe_read(register: int, data: bytes) -> str:
     parts = []
     for offset, value in enumerate(data):
         reg = min(register + offset, FIFO_DATA) if register < FIFO_DATA else register
-        parts.append(f"{register_name(reg) if reg < REGISTER_COUNT else hex(reg)}=0x{value:02x}")
+        name = register_name(reg, table) if reg < REGISTER_COUNT else hex(reg)
+        parts.append(f"{name}=0x{value:02x}")
     return f"burst read {span} -> " + " ".join(parts)
 
 
@@ -146,11 +154,14 @@ def _describe_standin(spec: Any, register: int, read: bytes, written: bytes) -> 
     return f"burst {verb} 0x{register:02X} x{len(data)} {arrow} " + ", ".join(parts)
 
 
-def describe_transaction(record: dict, standins: dict[int, Any] | None = None) -> str:
+def describe_transaction(record: dict, standins: dict[int, Any] | None = None,
+                         parts: dict[int, Table] | None = None) -> str:
     """One line for a person from a transaction dictionary (``Transaction.to_dict()``).
 
     ``standins`` maps an address to its stand-in declaration (a trace header's), whose
-    traffic is told with the stand-in's register names rather than the BMG160's."""
+    traffic is told with the stand-in's register names rather than the BMG160's; ``parts``
+    maps an address to the register table of the part there (a BMI088 gyroscope's
+    INT3_INT4_IO_CONF, not the BMG160's INT_EN_1; no field the part lacks)."""
     time_s = record_value(record, "time", "time_s", default=float("nan"))
     bus = record_value(record, "bus", default="?")
     address = record_value(record, "address")
@@ -166,27 +177,34 @@ def describe_transaction(record: dict, standins: dict[int, Any] | None = None) -
         return head + f"FAULT injected: {detail or kind[len(FAULT_KIND_PREFIX):]}  [{kind}]"
     if kind == TRUE_RATE_KIND:  # the session changed the chip's input, not bus traffic
         return head + f"{written.decode('utf-8', 'replace').partition(chr(10))[0]}  [{kind}]"
+    table = (parts or {}).get(address, REGISTERS) if isinstance(address, int) else REGISTERS
     if kind == "spi_xfer" and written and not error:  # a raw frame, command byte first
-        return head + _describe_spi_frame(written, read) + f"  [{kind}]"
+        return head + _describe_spi_frame(written, read, table) + f"  [{kind}]"
     if kind == "spi_write" and isinstance(register, int) and len(written) > 1 and not error:
         # one register, then (address, data) pairs in the same frame (spec 2.2)
-        return head + _describe_spi_frame(bytes([register & 0x7F]) + written, b"") + f"  [{kind}]"
-    if error:
-        target = f" {register_label(register)}" if isinstance(register, int) and register < REGISTER_COUNT else ""
-        return head + f"{kind}{target} failed: {error}"
+        frame = bytes([register & 0x7F]) + written
+        return head + _describe_spi_frame(frame, b"", table) + f"  [{kind}]"
     standin = (standins or {}).get(address) if isinstance(address, int) else None
-    if standin is not None and isinstance(register, int) and (read or written):
-        return head + _describe_standin(standin, register, read, written) + f"  [{kind}]"
+    if error:
+        if standin is not None and isinstance(register, int):
+            return head + f"{kind} {_standin_label(standin, register)} failed: {error}"
+        named = isinstance(register, int) and register < REGISTER_COUNT
+        target = f" {register_label(register, table)}" if named else ""
+        return head + f"{kind}{target} failed: {error}"
+    if standin is not None and isinstance(register, int):
+        if read or written:
+            return head + _describe_standin(standin, register, read, written) + f"  [{kind}]"
+        return head + f"set pointer {_standin_label(standin, register)}  [{kind}]"
     if isinstance(register, int):
         if read and written:  # process calls: write from register on, then read on from there
             after = min(register + len(written), FIFO_DATA) if register < FIFO_DATA else register
-            return (head + describe_write(register, written) + "; then "
-                    + describe_read(after, read) + f"  [{kind}]")
+            return (head + describe_write(register, written, table) + "; then "
+                    + describe_read(after, read, table) + f"  [{kind}]")
         if read:
-            return head + describe_read(register, read) + f"  [{kind}]"
+            return head + describe_read(register, read, table) + f"  [{kind}]"
         if written:
-            return head + describe_write(register, written) + f"  [{kind}]"
-        return head + f"set pointer {register_label(register)}  [{kind}]"
+            return head + describe_write(register, written, table) + f"  [{kind}]"
+        return head + f"set pointer {register_label(register, table)}  [{kind}]"
     if read:
         return head + f"{kind} -> {read.hex(' ')}"
     return head + f"{kind} {written.hex(' ')}".rstrip()
@@ -198,17 +216,19 @@ def iter_descriptions(records: Iterable[dict]) -> Iterator[str]:
         yield describe_transaction(record)
 
 
-def _describe_spi_frame(mosi: bytes, miso: bytes) -> str:
+def _describe_spi_frame(mosi: bytes, miso: bytes, table: Table = REGISTERS) -> str:
     """An SPI frame (spec 2.2): command byte, then read data, or write data and pairs."""
     command, register = mosi[0], mosi[0] & 0x7F
     if command & 0x80:
-        return "SPI " + describe_read(register, miso[1:]) if len(mosi) > 1 else "SPI read command only"
+        if len(mosi) > 1:
+            return "SPI " + describe_read(register, miso[1:], table)
+        return "SPI read command only"
     if len(mosi) < 2:
         return f"SPI write command 0x{register:02X} without data"
-    parts = [describe_write(register, mosi[1:2])]
+    parts = [describe_write(register, mosi[1:2], table)]
     rest = mosi[2:]
     for i in range(0, len(rest) - 1, 2):  # further (address, data) pairs in the same frame
-        parts.append(describe_write(rest[i] & 0x7F, rest[i + 1 : i + 2]))
+        parts.append(describe_write(rest[i] & 0x7F, rest[i + 1 : i + 2], table))
     return "SPI " + "; ".join(parts)
 
 
