@@ -40,29 +40,35 @@ class Clock(Protocol):
 
 
 class VirtualClock:
-    """Time that moves only when told to; shared by chips that must stay in step."""
+    """Time that moves only when told to; shared by chips that must stay in step.
+
+    ``ns``, the time now in integer nanoseconds, is a public attribute: ``now_ns()`` returns
+    it, and a chip on this clock that holds ``lock`` reads it, and moves it forward, directly
+    (``advance_ns`` inlined on a polling driver's hot path, tools/bench_fake_smbus.py; one
+    method call costs more than the attribute). Anyone else moves it with ``advance_ns``,
+    ``advance`` or ``sleep``: time only goes forward."""
 
     realtime = False
 
     def __init__(self, start_s: float = 0.0) -> None:
-        self._ns = seconds_to_ns(start_s)
+        self.ns = seconds_to_ns(start_s)
         # Chips on this clock take this lock as theirs: one acquisition then covers a chip's
         # state and the time it advances (a polling driver's hot path, bench_fake_smbus).
         self.lock = threading.RLock()
 
     def now_ns(self) -> int:
-        return self._ns
+        return self.ns
 
     def now(self) -> float:
-        return self._ns / NS_PER_S
+        return self.ns / NS_PER_S
 
     def advance_ns(self, ns: int) -> int:
         """Move time forward by ``ns`` nanoseconds; return the new time in ns."""
         if ns < 0:
             raise ValueError("virtual time cannot go backwards")
         with self.lock:
-            self._ns += ns
-            return self._ns
+            self.ns += ns
+            return self.ns
 
     def advance(self, seconds: float) -> None:
         """Move time forward by ``seconds`` (>= 0)."""

@@ -130,9 +130,9 @@ def test_sample_hook_can_replace_and_drop_samples():
     s = chip.sensitivity
     assert rates(chip) == (round(2 * s),) * 3
     before = chip.read(0x02, 6)
-    seq = chip._sample_seq
+    seq = chip.state.sample_seq
     chip.advance(period_s(chip))
-    assert chip.read(0x02, 6) == before and chip._sample_seq == seq
+    assert chip.read(0x02, 6) == before and chip.state.sample_seq == seq
     assert calls[0][1] == pytest.approx([1.0, 1.0, 1.0])
 
 

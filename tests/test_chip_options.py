@@ -16,7 +16,7 @@ def _parse(*argv):
 
 def test_defaults_give_one_noisy_chip_at_0x68():
     chips = chips_from_args(_parse("--seed", "1"))
-    assert list(chips) == [0x68] and chips[0x68]._noise_gen is not None
+    assert list(chips) == [0x68] and chips[0x68].state.path.noise.generator is not None
 
 
 def test_two_addresses_share_one_clock():

@@ -7,7 +7,7 @@ from bmg160_emu.device.chip import BMG160
 
 
 def _sample_count(chip):
-    return chip._sample_seq
+    return chip.state.sample_seq
 
 
 def test_soft_reset_restores_the_reset_map_and_empties_the_fifo():

@@ -40,7 +40,7 @@ def _run(chip, ops):
         else:
             chip.write(op[1], bytes([op[2]]))
         assert chip.peek(0x0E) & 0x7F <= 100
-        assert chip._fifo.count <= 100
+        assert chip.state.fifo.count <= 100
 
 
 SETTINGS = settings(max_examples=60, deadline=None,
@@ -67,7 +67,7 @@ def test_soft_reset_always_restores_the_reset_map(ops):
         if reg.nvm:
             expected = chip.nvm_image[reg.address - 0x36]
         if reg.address == 0x33:
-            expected = (chip._nvm.remain << 4) | (dump[0x33] & 0x04)
+            expected = (chip.state.nvm.remain << 4) | (dump[0x33] & 0x04)
         if reg.address == 0x3C:
             expected = 0x00  # rate_ok after start-up
         assert dump[reg.address] == expected, reg.name

@@ -65,8 +65,8 @@ def test_queued_rates_are_computed_when_read_all_due_at_once(monkeypatch):
     chip.write(0x10, bytes([0x04]))
     chip.write(0x3E, bytes([0x80]))
     built = []
-    build = chip._path.build
-    monkeypatch.setattr(chip._path, "build", lambda k0, body, *a, **k: (
+    build = chip.state.path.build
+    monkeypatch.setattr(chip.state.path, "build", lambda k0, body, *a, **k: (
         built.append(len(body)), build(k0, body, *a, **k))[1])
     rates = _rates(40, seed=2)
     for rate in rates[:20]:  # settle in: the first queued rate catches up what was due

@@ -39,7 +39,7 @@ def test_self_test_after_soft_reset_as_qc_does_it():
 
 
 def _offset_registers(chip, x, y, z):
-    set_offsets(chip._regs, (x, y, z))  # as the bytes of 4.24 below check
+    set_offsets(chip.state.regs, (x, y, z))  # as the bytes of 4.24 below check
     return chip.read(0x36, 6)
 
 

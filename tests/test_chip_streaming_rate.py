@@ -129,8 +129,8 @@ def test_stream_true_rate_holds_the_rate_and_computes_one_sample_a_step(monkeypa
     chip = BMG160(seed=SEED)
     chip.write(0x10, bytes([0x04]))
     built = []
-    build = chip._path.build
-    monkeypatch.setattr(chip._path, "build", lambda k0, body, *a, **k: (
+    build = chip.state.path.build
+    monkeypatch.setattr(chip.state.path, "build", lambda k0, body, *a, **k: (
         built.append(len(body)), build(k0, body, *a, **k))[1])
     for rate in _rates(50, seed=4):
         chip.stream_true_rate(rate)

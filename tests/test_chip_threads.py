@@ -44,7 +44,7 @@ def test_reader_and_configuration_threads_never_see_a_torn_sample():
         threads[0].join()
     finally:
         sys.setswitchinterval(interval)
-    assert chip._sample_seq > 100  # the configuration thread did run alongside
+    assert chip.state.sample_seq > 100  # the configuration thread did run alongside
     assert errors == []
 
 

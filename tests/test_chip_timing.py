@@ -15,30 +15,30 @@ def test_advance_produces_exactly_one_sample_per_output_period(code, odr):
     chip.write(0x10, bytes([code]))
     chip.read(0x00)
     assert chip.odr_hz == odr
-    start = chip._sample_seq
+    start = chip.state.sample_seq
     for _ in range(1000):
         chip.advance(1.0 / odr)
         # 1/odr is not exact in binary floating point: counting must not drift
-    assert chip._sample_seq - start == 1000
+    assert chip.state.sample_seq - start == 1000
 
 
 def test_long_advance_counts_samples_exactly():
     chip = quiet_chip()
     chip.read(0x00)  # sample 0, at t = 0
-    start = chip._sample_seq
+    start = chip.state.sample_seq
     chip.advance(12.3456)  # 2000 Hz -> floor(24691.2) samples
-    assert chip._sample_seq - start == 24691
+    assert chip.state.sample_seq - start == 24691
 
 
 def test_odr_change_keeps_the_sample_grid_from_the_last_sample():
     chip = quiet_chip()
     chip.advance(0.0005)
     chip.write(0x10, b"\x05")  # 100 Hz
-    start = chip._sample_seq
+    start = chip.state.sample_seq
     chip.advance(0.0099)
-    assert chip._sample_seq == start
+    assert chip.state.sample_seq == start
     chip.advance(0.0001)
-    assert chip._sample_seq == start + 1
+    assert chip.state.sample_seq == start + 1
 
 
 def test_two_chips_on_one_clock_stay_in_step():
@@ -48,7 +48,7 @@ def test_two_chips_on_one_clock_stay_in_step():
     a.advance(0.25)  # advancing through one chip moves the shared clock
     assert b.time == a.time == 0.25
     b.read(0x00)
-    assert a._sample_seq == b._sample_seq
+    assert a.state.sample_seq == b.state.sample_seq
 
 
 def test_real_time_clock_chip_produces_samples_in_real_time():
@@ -57,12 +57,12 @@ def test_real_time_clock_chip_produces_samples_in_real_time():
     t_before_first = time.monotonic()
     chip.read(0x00)
     t_after_first = time.monotonic()
-    start = chip._sample_seq
+    start = chip.state.sample_seq
     time.sleep(0.1)
     t_before_second = time.monotonic()
     chip.read(0x00)
     t_after_second = time.monotonic()
-    produced = chip._sample_seq - start
+    produced = chip.state.sample_seq - start
     # the samples due between the two reads, bounded by the times around them (+-1 edge)
     assert (t_before_second - t_after_first) * 100 - 1 <= produced
     assert produced <= (t_after_second - t_before_first) * 100 + 1

@@ -20,16 +20,16 @@ TAU_MIN_S = (215.0, 875.0)
 @pytest.mark.parametrize("name", [p for p in PART_NAMES if p != "bmg160"])
 def test_each_part_defaults_to_its_data_sheet_profile(name):
     chip = make_chip(name, seed=1)
-    profile = chip._noise_gen.profile
+    profile = chip.state.path.noise.generator.profile
     assert profile.name == part_table(name).noise_profile == name.split("_")[0] + "_datasheet"
     # 0.014 deg/s/sqrt(Hz): BMI088 DS table 5; for the BMI055/BMX055 the BMG160 die's figure
     assert all(axis.N == 0.014 and axis.bias == 0.0 for axis in profile.axes)
 
 
 def test_the_bmg160_keeps_its_default_and_a_given_profile_wins():
-    assert make_chip("bmg160", seed=1)._noise_gen.profile.name == "paper"
+    assert make_chip("bmg160", seed=1).state.path.noise.generator.profile.name == "paper"
     chip = make_chip("bmi088_gyro", seed=1, profile="bmi055_d455")
-    assert chip._noise_gen.profile.name == "bmi055_d455"
+    assert chip.state.path.noise.generator.profile.name == "bmi055_d455"
 
 
 @pytest.mark.parametrize("axis", range(3))

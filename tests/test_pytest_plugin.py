@@ -141,12 +141,12 @@ def test_ini_seed_and_profile_apply_suite_wide_and_the_marker_overrides(pytester
 
         def test_suite_defaults(bmg160_chip):
             assert bmg160_chip.seed == 11
-            assert bmg160_chip._noise_gen.profile.name == "datasheet"
+            assert bmg160_chip.state.path.noise.generator.profile.name == "datasheet"
 
         @pytest.mark.bmg160(seed=2, profile="paper")
         def test_marker_wins(bmg160_chip):
             assert bmg160_chip.seed == 2
-            assert bmg160_chip._noise_gen.profile.name == "paper"
+            assert bmg160_chip.state.path.noise.generator.profile.name == "paper"
     """, ini=ini)
     result.assert_outcomes(passed=2)
 
@@ -161,7 +161,7 @@ def test_ini_profile_file_is_relative_to_the_ini_file(pytester):
     ini = "[pytest]\nbmg160_profile = profiles/mygyro.toml\n"
     result = run(pytester, """
         def test_profile_from_file(bmg160_chip):
-            profile = bmg160_chip._noise_gen.profile
+            profile = bmg160_chip.state.path.noise.generator.profile
             assert profile.name == "mygyro" and profile.axes[0].N == 0.0321
     """, ini=ini)
     result.assert_outcomes(passed=1)

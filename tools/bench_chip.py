@@ -68,7 +68,7 @@ def main() -> int:
             rd(2, 6)
 
     chip_advance_read(1000)  # warm up: first block, filter design
-    before = chip._k
+    before = chip.state.k
     results = {
         "dict lookup": _per_op(dict_lookup, args.n, args.repeat),
         "dict-backed 6-byte read": _per_op(dict_read6, args.n, args.repeat),
@@ -76,7 +76,7 @@ def main() -> int:
         "chip.advance(period) + chip.read(0x02, 6)": _per_op(chip_advance_read, args.n,
                                                              args.repeat),
     }
-    new_samples = chip._k - before
+    new_samples = chip.state.k - before
 
     # Where advance+read goes (speed section of issue 10): the same loop on chips without
     # noise and with a moving true rate (the low-pass then runs on every block), and the
@@ -96,7 +96,7 @@ def main() -> int:
         return loop
 
     block = np.random.default_rng(0).standard_normal((1024, 3))
-    filt = moving._path.filter
+    filt = moving.state.path.filter
 
     def lowpass_blocks(n: int) -> None:
         for _ in range(n // len(block)):

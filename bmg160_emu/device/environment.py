@@ -4,7 +4,8 @@ Why a module of its own: the deterministic errors of a unit (bmg160_emu.device.s
 depend on the die temperature (the same one TEMP reports), on the acceleration the chip feels
 (g-sensitivity) and on the power cycle (turn-on bias); the chip's data path applies them to
 the sensor-frame true rate before its low-pass filter (issue 16). ``ErrorBudget`` is that
-stage; ``EnvironmentInputs`` gives the chip its public inputs (``set_acceleration``) and views.
+stage; the chip's public inputs and views of it are ``BMG160.set_acceleration``,
+``sensor_errors`` and ``turn_on_bias_dps``.
 
 Which errors a chip has, in order of precedence: ``errors=`` given to the chip, else unit
 ``unit=`` of the part drawn from the data sheet's tolerances and the chip's seed
@@ -74,12 +75,14 @@ class ErrorBudget:
         self._times_ns = times_ns
 
     @classmethod
-    def of(cls, chip: Any, errors: Any, unit: int | None, acceleration_g: Any,
-           generator_or_profile: Any) -> ErrorBudget:
-        """The budget of ``chip`` from its constructor's options."""
+    def of(cls, errors: Any, unit: int | None, acceleration_g: Any, generator_or_profile: Any,
+           *, seed: int | None, address: int, thermometer: Any,
+           times_ns: Callable[[int, int], np.ndarray]) -> ErrorBudget:
+        """The budget of a chip from its constructor's options, its thermometer and the
+        times of its samples (``state.ChipState.times_ns``)."""
         profile = getattr(generator_or_profile, "profile", generator_or_profile)
-        budget = cls(errors_for(errors, unit, chip.seed, profile), chip.seed, chip.address,
-                     chip._thermometer, chip._times_ns)
+        budget = cls(errors_for(errors, unit, seed, profile), seed, address, thermometer,
+                     times_ns)
         budget.set_acceleration(acceleration_g)
         return budget
 
@@ -130,28 +133,3 @@ def _evaluate(function: Callable[[Any], Any], times_s: Any, shape: tuple[int, ..
         raise ValueError(f"the {what} function must return finite values of shape "
                          f"{shape[1:] or 'one number'} per time")
     return out
-
-
-class EnvironmentInputs:
-    """The chip's inputs and views of its error budget (a mixin of BMG160)."""
-
-    _budget: ErrorBudget
-    lock: Any
-
-    def set_acceleration(self, acceleration_g: Any) -> None:
-        """Acceleration the chip feels, in g in its own frame (3 numbers, or a callable of t
-        in seconds): it drives the g-sensitivity of the unit's errors from the next sample."""
-        with self.lock:
-            self._catch_up(self.clock.now_ns())  # type: ignore[attr-defined]
-            self._invalidate()  # type: ignore[attr-defined]
-            self._budget.set_acceleration(acceleration_g)
-
-    @property
-    def sensor_errors(self) -> SensorErrors:
-        """The unit's deterministic errors (bmg160_emu.device.sensor_errors)."""
-        return self._budget.errors
-
-    @property
-    def turn_on_bias_dps(self) -> np.ndarray:
-        """The turn-on bias of the current power cycle, deg/s per axis."""
-        return self._budget.turn_on_bias_dps.copy()

@@ -19,6 +19,7 @@ from typing import Any
 
 from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import regmap
+from bmg160_emu.device.engines import Nvm
 from bmg160_emu.device.registers import (
     ABSENT_READ,
     REGISTER_COUNT,
@@ -28,6 +29,7 @@ from bmg160_emu.device.registers import (
     markdown_table,
 )
 from bmg160_emu.device.spec_choices import VALID_ADDRESSES
+from bmg160_emu.device.state import ChipState
 
 
 @dataclass(frozen=True)
@@ -62,9 +64,9 @@ class Part:
     absent: frozenset[int] = frozenset()
     reset_values: bytes = b""
     write_masks: bytes = b""
-    peek_at: tuple[Callable[[Any, int], int] | None, ...] = ()
-    action_at: tuple[Callable[[Any, int, int], None] | None, ...] = ()
-    effect_at: tuple[Callable[[Any, int, int, int], None] | None, ...] = ()
+    peek_at: tuple[Callable[[ChipState, int], int] | None, ...] = ()  # regmap.PEEK by address
+    action_at: tuple[Callable[[ChipState, int, int], None] | None, ...] = ()
+    effect_at: tuple[Callable[[ChipState, int, int, int], None] | None, ...] = ()
 
     def address_of(self, name: str) -> int:
         """Address of a register by the part's name or its BMG160 name."""
@@ -84,7 +86,7 @@ class Part:
             return self.stream_depth
         return fifo_mod.Fifo.capacity
 
-    def load_nvm(self, nvm: Any, regs: bytearray) -> None:
+    def load_nvm(self, nvm: Nvm, regs: bytearray) -> None:
         """Power-up and soft reset: the NVM-backed registers the part has get their image."""
         nvm.load_into(regs)
         for address in self.absent:
@@ -101,9 +103,9 @@ class Part:
         return [f"0x{r.address:02X} {r.describe(v)}" for r, v in zip(self.registers, dump)]
 
 
-def _masked(hook: Callable[[Any, int], int], bits: int) -> Callable[[Any, int], int]:
-    def peek(chip: Any, now: int) -> int:
-        return hook(chip, now) & bits
+def _masked(hook: Callable[[ChipState, int], int], bits: int) -> Callable[[ChipState, int], int]:
+    def peek(s: ChipState, now: int) -> int:
+        return hook(s, now) & bits
 
     return peek
 

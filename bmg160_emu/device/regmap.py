@@ -1,15 +1,16 @@
 """What each register does beyond being stored, keyed by its spec name (Zephyr's register-map
 emulator idea: the table in ``registers.py`` is the data, only leftover behaviour lives here).
 
-Three kinds of hook, each a function of the chip:
+Three kinds of hook, each a function of ``s``, the chip's state (``state.ChipState``: the
+hooks see the chip only through it):
 
-- ``PEEK[name](chip, now_ns) -> byte``: the content of a register the chip computes (status,
+- ``PEEK[name](s, now_ns) -> byte``: the content of a register the chip computes (status,
   counters, FIFO head); a register without one reads as stored. Reads and dumps use it.
-- ``ACTIONS[name](chip, value, now_ns)``: what a bus *write* does beyond storing (triggers,
+- ``ACTIONS[name](s, value, now_ns)``: what a bus *write* does beyond storing (triggers,
   soft reset, emptying the FIFO). An upset (``poke``) does not trigger them.
-- ``EFFECTS[name](chip, old, new, now_ns)``: what follows from the stored content changing
+- ``EFFECTS[name](s, old, new, now_ns)``: what follows from the stored content changing
   (data path, schedule, engines). Bus writes and ``poke`` share them: one table, so an upset
-  and a write that leave the same content leave the same chip. A write runs its action first
+  and a write that leave the same content leave the same s. A write runs its action first
   and the effect of the content after (a FIFO configuration write empties the FIFO, then the
   FIFO interrupt is evaluated for the new configuration).
 
@@ -26,7 +27,7 @@ Decisions where the spec leaves room (documented in docs/device-model.md):
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from bmg160_emu.device import engines
 from bmg160_emu.device import fifo as fifo_mod
@@ -41,13 +42,12 @@ from bmg160_emu.device.engines import (
 )
 from bmg160_emu.device.interrupts import latch_hold_ns
 from bmg160_emu.device.registers import REGISTERS, address_of, field_of, offset_mask
-
-if TYPE_CHECKING:
-    from bmg160_emu.device.chip import BMG160
+from bmg160_emu.device.spec_choices import bw_code, range_code
+from bmg160_emu.device.state import ChipState
 
 SOFTRESET_KEY = 0xB6  # 4.13: the one BGW_SOFTRESET value that resets
 
-_LPM1, _LPM2, _BW = address_of("LPM1"), address_of("LPM2"), address_of("BW")
+_LPM1, _LPM2 = address_of("LPM1"), address_of("LPM2")
 _A_FOC, _TRIM_NVM_CTRL = address_of("A_FOC"), address_of("TRIM_NVM_CTRL")
 _ANY_TH, _INT_EN_0, _INT_RST_LATCH = (
     address_of("ANY_TH"), address_of("INT_EN_0"), address_of("INT_RST_LATCH"))
@@ -60,10 +60,6 @@ _FIFO_WM = field_of("FIFO_WM_EN", "fifo_wm_en").mask
 _FIFO_TAG = field_of("FIFO_CONFIG_0", "tag").mask
 _FIFO_WATERMARK = field_of("FIFO_CONFIG_0", "fifo_water_mark_level_trigger_retain")
 _FIFO_SELECT = field_of("FIFO_CONFIG_1", "fifo_data_select")
-_FIFO_MODE = field_of("FIFO_CONFIG_1", "fifo_mode")
-_FIFO_MODE_RESERVED = 3  # 4.26: fifo_mode 3 is reserved
-_RANGE_CODE = field_of("RANGE", "range")
-_BW_CODE = field_of("BW", "bw")
 _DATA_HIGH_BW = field_of("RATE_HBW", "data_high_bw").mask
 _SHADOW_DIS = field_of("RATE_HBW", "shadow_dis").mask
 _DATA_EN = field_of("INT_EN_0", "data_en").mask
@@ -77,58 +73,42 @@ _FIFO_OVERRUN = field_of("FIFO_STATUS", "fifo_overrun").lsb
 _FOC_RUNNING = field_of("A_FOC", "fast_offset_en").mask
 
 
-def bw_code(bw: int) -> int:
-    """The BW code a BW byte behaves as: codes 8..15 as code & 7 (4.9, unconfirmed)."""
-    return _BW_CODE.extract(bw) % len(choice.BANDWIDTHS)
-
-
-def bandwidth(bw: int) -> tuple[int, float]:
-    """(ODR Hz, filter bandwidth Hz) of a BW byte (5.3)."""
-    return choice.BANDWIDTHS[bw_code(bw)]
-
-
-def range_code(range_reg: int) -> int:
-    """The RANGE code the data is scaled for: reserved codes as spec_choices says (4.8)."""
-    code = _RANGE_CODE.extract(range_reg)
-    return code if code < len(choice.SENSITIVITY_BINARY) else choice.RESERVED_RANGE_AS_CODE
-
-
 # ------------------------------------------------------------------------------- reads
 
 
-def _peek_int_status_0(chip: BMG160, now: int) -> int:
-    return chip._irq.status_0(chip._regs, now)
+def _peek_int_status_0(s: ChipState, now: int) -> int:
+    return s.irq.status_0(s.regs, now)
 
 
-def _peek_int_status_1(chip: BMG160, now: int) -> int:
-    return chip._irq.status_1(chip._regs, now, data_int(chip, now))
+def _peek_int_status_1(s: ChipState, now: int) -> int:
+    return s.irq.status_1(s.regs, now, data_int(s, now))
 
 
-def _peek_fifo_status(chip: BMG160, now: int) -> int:
-    count = fifo_count(chip)
-    return chip._fifo.overrun << _FIFO_OVERRUN | count
+def _peek_fifo_status(s: ChipState, now: int) -> int:
+    count = fifo_count(s)
+    return s.fifo.overrun << _FIFO_OVERRUN | count
 
 
-def _peek_bist(chip: BMG160, now: int) -> int:
-    rate_ok = chip.power_mode in engines.SAMPLING_MODES and now >= chip._data_start_ns
-    return chip._bist.register(now, rate_ok, chip.inject_bist_failure)
+def _peek_bist(s: ChipState, now: int) -> int:
+    rate_ok = s.power_mode in engines.SAMPLING_MODES and now >= s.data_start_ns
+    return s.bist.register(now, rate_ok, s.chip.inject_bist_failure)
 
 
-def _peek_fifo_data(chip: BMG160, now: int) -> int:
-    sync_bypass(chip)
-    axis, tag = frame_format(chip)
-    return chip._fifo.peek(axis.stop - axis.start, bool(tag))
+def _peek_fifo_data(s: ChipState, now: int) -> int:
+    sync_bypass(s)
+    axis, tag = frame_format(s)
+    return s.fifo.peek(axis.stop - axis.start, bool(tag))
 
 
-PEEK: dict[str, Callable[[Any, int], int]] = {
-    "TEMP": lambda chip, now: chip._thermometer.raw(chip._have_sample, chip._last_sample_ns),
+PEEK: dict[str, Callable[[ChipState, int], int]] = {
+    "TEMP": lambda s, now: s.thermometer.raw(s.have_sample, s.last_sample_ns),
     "INT_STATUS_0": _peek_int_status_0,
     "INT_STATUS_1": _peek_int_status_1,
-    "INT_STATUS_2": lambda chip, now: chip._irq.int_status_2,
-    "INT_STATUS_3": lambda chip, now: chip._irq.int_status_3,
+    "INT_STATUS_2": lambda s, now: s.irq.int_status_2,
+    "INT_STATUS_3": lambda s, now: s.irq.int_status_3,
     "FIFO_STATUS": _peek_fifo_status,
-    "A_FOC": lambda chip, now: chip._regs[_A_FOC] | (_FOC_RUNNING if chip._foc else 0),
-    "TRIM_NVM_CTRL": lambda chip, now: chip._nvm.register(chip._regs[_TRIM_NVM_CTRL], now),
+    "A_FOC": lambda s, now: s.regs[_A_FOC] | (_FOC_RUNNING if s.foc else 0),
+    "TRIM_NVM_CTRL": lambda s, now: s.nvm.register(s.regs[_TRIM_NVM_CTRL], now),
     "BIST": _peek_bist,
     "FIFO_DATA": _peek_fifo_data,
 }
@@ -136,49 +116,49 @@ PEEK: dict[str, Callable[[Any, int], int]] = {
 # ------------------------------------------------------------------------------ writes
 
 
-def _softreset(chip: BMG160, value: int, now: int) -> None:
+def _softreset(s: ChipState, value: int, now: int) -> None:
     if value == SOFTRESET_KEY:
-        chip._reset_state(now, powered=False)
+        s.reset(now, powered=False)
 
 
-def _int_rst_latch(chip: BMG160, value: int, now: int) -> None:
+def _int_rst_latch(s: ChipState, value: int, now: int) -> None:
     if value & _RESET_INT:
-        chip._irq.reset_int()
+        s.irq.reset_int()
     if value & _OFFSET_RESET:
-        engines.set_offsets(chip._regs, (0, 0, 0))
-        chip._invalidate()
+        engines.set_offsets(s.regs, (0, 0, 0))
+        s.invalidate()
 
 
-def _a_foc(chip: BMG160, value: int, now: int) -> None:
+def _a_foc(s: ChipState, value: int, now: int) -> None:
     if value & _FAST_OFFSET_EN:
-        start_foc(chip)
+        start_foc(s)
 
 
-def _nvm_command(chip: BMG160, value: int, now: int) -> None:
+def _nvm_command(s: ChipState, value: int, now: int) -> None:
     if value & _NVM_LOAD:
-        if chip._nvm.ready(now):
-            chip._nvm.load_into(chip._regs)
-            chip._invalidate()
+        if s.nvm.ready(now):
+            s.nvm.load_into(s.regs)
+            s.invalidate()
         else:
-            chip._strict("nvm_load while NVM busy ignored (6.10)")
-    if value & _NVM_PROG_TRIG and not chip._nvm.program(chip._regs, now):
-        chip._strict("nvm_prog_trig ignored: needs nvm_prog_mode, nvm_rdy and cycles")
+            s.strict_warning("nvm_load while NVM busy ignored (6.10)")
+    if value & _NVM_PROG_TRIG and not s.nvm.program(s.regs, now):
+        s.strict_warning("nvm_prog_trig ignored: needs nvm_prog_mode, nvm_rdy and cycles")
 
 
-def _bist(chip: BMG160, value: int, now: int) -> None:
+def _bist(s: ChipState, value: int, now: int) -> None:
     if value & _TRIG_BIST:
-        chip._bist.trigger(now)
+        s.bist.trigger(now)
 
 
-def _empty_fifo(overrun: bool) -> Callable[[Any, int, int], None]:
-    def action(chip: BMG160, value: int, now: int) -> None:
-        chip._fifo.clear(overrun=overrun)  # 4.26: any write empties it
-        chip._bypass_seq = chip._sample_seq
+def _empty_fifo(overrun: bool) -> Callable[[ChipState, int, int], None]:
+    def action(s: ChipState, value: int, now: int) -> None:
+        s.fifo.clear(overrun=overrun)  # 4.26: any write empties it
+        s.bypass_seq = s.sample_seq
 
     return action
 
 
-ACTIONS: dict[str, Callable[[Any, int, int], None]] = {
+ACTIONS: dict[str, Callable[[ChipState, int, int], None]] = {
     "BGW_SOFTRESET": _softreset,
     "INT_RST_LATCH": _int_rst_latch,
     "A_FOC": _a_foc,
@@ -191,62 +171,62 @@ ACTIONS: dict[str, Callable[[Any, int, int], None]] = {
 # ----------------------------------------------------------------------------- effects
 
 
-def _range(chip: BMG160, old: int, new: int, now: int) -> None:
-    if chip._sensitivity[range_code(old)] != chip._sensitivity[range_code(new)]:
-        chip._invalidate()
+def _range(s: ChipState, old: int, new: int, now: int) -> None:
+    if s.sensitivity_table[range_code(old)] != s.sensitivity_table[range_code(new)]:
+        s.invalidate()
 
 
-def _bw(chip: BMG160, old: int, new: int, now: int) -> None:
+def _bw(s: ChipState, old: int, new: int, now: int) -> None:
     if bw_code(old) != bw_code(new):
-        change_bandwidth(chip)
+        change_bandwidth(s)
 
 
-def _lpm(chip: BMG160, old: int, new: int, now: int, *, lpm1: bool) -> None:
-    r = chip._regs
+def _lpm(s: ChipState, old: int, new: int, now: int, *, lpm1: bool) -> None:
+    r = s.regs
     old_mode = engines.power_mode(old, r[_LPM2]) if lpm1 else engines.power_mode(r[_LPM1], old)
-    power_transition(chip, old_mode, _LPM1 if lpm1 else _LPM2, new, now)
+    power_transition(s, old_mode, _LPM1 if lpm1 else _LPM2, new, now)
 
 
-def _rate_hbw(chip: BMG160, old: int, new: int, now: int) -> None:
+def _rate_hbw(s: ChipState, old: int, new: int, now: int) -> None:
     if (old ^ new) & _DATA_HIGH_BW:
-        chip._invalidate()
+        s.invalidate()
     if new & _SHADOW_DIS:
-        chip._msb_latch = [None, None, None]
-        chip._latched = False
+        s.msb_latch = [None, None, None]
+        s.latched = False
 
 
-def _offsets(address: int) -> Callable[[Any, int, int, int], None]:
+def _offsets(address: int) -> Callable[[ChipState, int, int, int], None]:
     mask = offset_mask(address)
 
-    def effect(chip: BMG160, old: int, new: int, now: int) -> None:
+    def effect(s: ChipState, old: int, new: int, now: int) -> None:
         if (old ^ new) & mask:
-            chip._invalidate()
+            s.invalidate()
 
     return effect
 
 
-def _int_en_0(chip: BMG160, old: int, new: int, now: int) -> None:
+def _int_en_0(s: ChipState, old: int, new: int, now: int) -> None:
     if new & ~old & _DATA_EN:
         # 6.3: data_int is set only by samples taken while data_en = 1, so a held
         # data_int (hold_data_int) starts from the first sample after enabling
-        chip._data_ready_pending = False
-    engine_config_changed(chip, now)
+        s.data_ready_pending = False
+    engine_config_changed(s, now)
 
 
-def _engines(chip: BMG160, old: int, new: int, now: int) -> None:
-    engine_config_changed(chip, now)
+def _engines(s: ChipState, old: int, new: int, now: int) -> None:
+    engine_config_changed(s, now)
 
 
-def _fifo_config(chip: BMG160, old: int, new: int, now: int) -> None:
-    update_engine_flags(chip)
-    update_fifo_int(chip, now)
+def _fifo_config(s: ChipState, old: int, new: int, now: int) -> None:
+    s.update_engine_flags()
+    update_fifo_int(s, now)
 
 
-EFFECTS: dict[str, Callable[[Any, int, int, int], None]] = {
+EFFECTS: dict[str, Callable[[ChipState, int, int, int], None]] = {
     "RANGE": _range,
     "BW": _bw,
-    "LPM1": lambda chip, old, new, now: _lpm(chip, old, new, now, lpm1=True),
-    "LPM2": lambda chip, old, new, now: _lpm(chip, old, new, now, lpm1=False),
+    "LPM1": lambda s, old, new, now: _lpm(s, old, new, now, lpm1=True),
+    "LPM2": lambda s, old, new, now: _lpm(s, old, new, now, lpm1=False),
     "RATE_HBW": _rate_hbw,
     **{reg.name: _offsets(reg.address) for reg in REGISTERS if offset_mask(reg.address)},
     "INT_EN_0": _int_en_0,
@@ -263,138 +243,122 @@ EFFECTS: dict[str, Callable[[Any, int, int, int], None]] = {
 # ------------------------------------------------------------- behaviour behind the hooks
 
 
-def power_transition(chip: BMG160, old_mode: str, addr: int, value: int, now: int) -> None:
+def power_transition(s: ChipState, old_mode: str, addr: int, value: int, now: int) -> None:
     """LPM1/LPM2 changed (6.7): stop or start sampling; leaving deep suspend is a reset."""
-    new_mode = chip.power_mode
+    new_mode = s.power_mode
     if {old_mode, new_mode} in ({SUSPEND, DEEP_SUSPEND}, {FAST_POWER_UP, DEEP_SUSPEND}):
-        chip._strict(f"direct switch {old_mode} -> {new_mode} (spec 6.7)")
+        s.strict_warning(f"direct switch {old_mode} -> {new_mode} (spec 6.7)")
     if old_mode == new_mode:
         return
     if old_mode == DEEP_SUSPEND and choice.LEAVING_DEEP_SUSPEND_RESETS:
-        chip._reset_state(now, powered=False)
+        s.reset(now, powered=False)
         if addr == _LPM1:  # the write that woke the chip is stored on the reset map
-            mask = chip.part.write_masks[_LPM1]
-            chip._regs[_LPM1] = (chip._regs[_LPM1] & ~mask) | (value & mask)
-        if chip.power_mode not in SAMPLING_MODES:
-            chip._stop_sampling()
+            mask = s.part.write_masks[_LPM1]
+            s.regs[_LPM1] = (s.regs[_LPM1] & ~mask) | (value & mask)
+        if s.power_mode not in SAMPLING_MODES:
+            s.stop_sampling()
         return
     was, now_sampling = old_mode in SAMPLING_MODES, new_mode in SAMPLING_MODES
     if was and not now_sampling:
-        chip._stop_sampling()
+        s.stop_sampling()
     elif now_sampling and not was:
-        wake = choice.FAST_POWER_UP_WAKE_NS if old_mode == FAST_POWER_UP else chip._startup_ns
-        chip._start_sampling(now + wake)
+        wake = choice.FAST_POWER_UP_WAKE_NS if old_mode == FAST_POWER_UP else s.startup_ns
+        s.start_sampling(now + wake)
 
 
-def change_bandwidth(chip: BMG160) -> None:
+def change_bandwidth(s: ChipState) -> None:
     """A new BW code: new filter from the last output, next sample one new period on."""
-    chip._invalidate()
-    old_odr = chip._odr
-    chip._set_filter(running=True)
-    if chip._odr != old_odr and chip._next_ns < NEVER:
+    s.invalidate()
+    old_odr = s.odr
+    s.set_filter(running=True)
+    if s.odr != old_odr and s.next_ns < NEVER:
         # next sample one new period after the last one (or the pending first one)
-        if chip._have_sample and chip._last_sample_ns >= chip._data_start_ns:
-            chip._next_ns = chip._last_sample_ns + chip._period_ns
-        chip._anchor_ns, chip._anchor_k = chip._next_ns, chip._k + 1
+        if s.have_sample and s.last_sample_ns >= s.data_start_ns:
+            s.next_ns = s.last_sample_ns + s.period_ns
+        s.anchor_ns, s.anchor_k = s.next_ns, s.k + 1
 
 
-def frame_format(chip: BMG160) -> tuple[slice, bytes]:
+def frame_format(s: ChipState) -> tuple[slice, bytes]:
     """The FIFO frame: the selected axes and the tag bytes if on (4.26)."""
-    select = _FIFO_SELECT.extract(chip._regs[_FIFO_CONFIG_1])
+    select = _FIFO_SELECT.extract(s.regs[_FIFO_CONFIG_1])
     tag = b""
-    if chip._regs[_FIFO_CONFIG_0] & _FIFO_TAG:
-        tag = choice.fifo_tag_bytes(*pins(chip, chip.clock.now_ns()))
+    if s.regs[_FIFO_CONFIG_0] & _FIFO_TAG:
+        tag = choice.fifo_tag_bytes(*pins(s, s.chip.clock.now_ns()))
     return fifo_mod.AXIS_SLICES[select], tag
 
 
-def sync_bypass(chip: BMG160) -> None:
+def sync_bypass(s: ChipState) -> None:
     """Bypass mode holds the newest sample only (6.5): put it there when read."""
-    if chip._fifo_mode == fifo_mod.BYPASS and chip._have_sample \
-            and chip._bypass_seq != chip._sample_seq:
-        axis, tag = frame_format(chip)
-        chip._fifo.replace(chip._cur[axis] + tag)
-        chip._bypass_seq = chip._sample_seq
+    if s.fifo_mode == fifo_mod.BYPASS and s.have_sample and s.bypass_seq != s.sample_seq:
+        axis, tag = frame_format(s)
+        s.fifo.replace(s.cur[axis] + tag)
+        s.bypass_seq = s.sample_seq
 
 
-def fifo_count(chip: BMG160) -> int:
-    sync_bypass(chip)
-    return chip._fifo.count
+def fifo_count(s: ChipState) -> int:
+    sync_bypass(s)
+    return s.fifo.count
 
 
-def update_fifo_int(chip: BMG160, now: int) -> None:
+def update_fifo_int(s: ChipState, now: int) -> None:
     """fifo_int: at the watermark, or at 100 frames without one (6.5, spec_choices)."""
-    r = chip._regs
+    r = s.regs
     if r[_INT_EN_0] & _FIFO_EN:
-        count = fifo_count(chip)
+        count = fifo_count(s)
         if r[_FIFO_WM_EN] & _FIFO_WM:
             condition = count >= max(_FIFO_WATERMARK.extract(r[_FIFO_CONFIG_0]), 1)
         else:
-            condition = count >= chip._fifo.capacity
+            condition = count >= s.fifo.capacity
     else:
         condition = False
-    chip._irq.status["fifo"].update(condition, now, latch_hold_ns(r[_INT_RST_LATCH]))
+    s.irq.status["fifo"].update(condition, now, latch_hold_ns(r[_INT_RST_LATCH]))
 
 
-def start_foc(chip: BMG160) -> None:
+def start_foc(s: ChipState) -> None:
     """fast_offset_en written (6.9): average from the next sample on."""
-    chip._irq.offset_started()
-    chip._foc = FastOffset(chip._regs[_A_FOC], chip._regs[_ANY_TH])
-    update_engine_flags(chip)
+    s.irq.offset_started()
+    s.foc = FastOffset(s.regs[_A_FOC], s.regs[_ANY_TH])
+    s.update_engine_flags()
 
 
-def update_engine_flags(chip: BMG160) -> None:
-    """What runs per sample, from the registers: engines, FIFO mode, FIFO interrupt."""
-    r = chip._regs
-    chip._irq.configure(r)
-    chip._fifo_int_on = bool(r[_INT_EN_0] & _FIFO_EN)
-    mode = _FIFO_MODE.extract(r[_FIFO_CONFIG_1])
-    if mode == _FIFO_MODE_RESERVED:
-        mode = choice.FIFO_RESERVED_MODE_AS
-    chip._fifo_mode = mode
-    chip._fifo_store_mode = mode if mode in (fifo_mod.FIFO, fifo_mod.STREAM) else 0
-    chip._fifo.capacity = chip.part.fifo_depth(mode)  # a part's stream depth (part_spec)
-    chip._per_sample = bool(chip._irq.any_axes or chip._irq.high_axes or chip._foc is not None)
-    chip._plain = not (chip._per_sample or chip._fifo_store_mode or chip._fifo_int_on)
-
-
-def engine_config_changed(chip: BMG160, now: int) -> None:
+def engine_config_changed(s: ChipState, now: int) -> None:
     """An interrupt engine register changed: engines, flags and fifo_int follow."""
-    chip._irq.reconfigure(chip._regs, now)
-    update_engine_flags(chip)
-    update_fifo_int(chip, now)
+    s.irq.reconfigure(s.regs, now)
+    s.update_engine_flags()
+    update_fifo_int(s, now)
 
 
-def finish_foc(chip: BMG160) -> None:
+def finish_foc(s: ChipState) -> None:
     """The FOC average is complete: offsets written, fast_offset_int raised (6.9)."""
-    foc, chip._foc = chip._foc, None
+    foc, s.foc = s.foc, None
     if foc is None:
         return
-    engines.set_offsets(chip._regs, foc.offsets_lsb(chip.offset_lsb_dps, engines.OFFSET_BITS))
-    chip._invalidate()
-    chip._irq.offset_done()
-    update_engine_flags(chip)
+    engines.set_offsets(s.regs, foc.offsets_lsb(s.offset_lsb_dps, engines.OFFSET_BITS))
+    s.invalidate()
+    s.irq.offset_done()
+    s.update_engine_flags()
 
 
-def data_int(chip: BMG160, now: int) -> bool:
+def data_int(s: ChipState, now: int) -> bool:
     """data_int (6.3): a pulse after each new sample, or held until read (hold_data_int)."""
-    if not (chip._regs[_INT_EN_0] & _DATA_EN and chip._have_sample):
+    if not (s.regs[_INT_EN_0] & _DATA_EN and s.have_sample):
         return False
-    if chip.hold_data_int:
-        return chip._data_ready_pending
-    return now - chip._last_sample_ns < choice.DATA_READY_PULSE_NS
+    if s.chip.hold_data_int:
+        return s.data_ready_pending
+    return now - s.last_sample_ns < choice.DATA_READY_PULSE_NS
 
 
-def pins(chip: BMG160, now: int) -> tuple[bool, bool]:
+def pins(s: ChipState, now: int) -> tuple[bool, bool]:
     """(INT1, INT2) asserted."""
-    return chip._irq.pins(chip._regs, now, data_int(chip, now))
+    return s.irq.pins(s.regs, now, data_int(s, now))
 
 
-def pin_level(chip: BMG160, pin: int, now: int) -> int:
+def pin_level(s: ChipState, pin: int, now: int) -> int:
     """Electrical level 0/1 of INT1 or INT2 for a push-pull output (INT_EN_1 lvl bit)."""
     if pin not in (1, 2):
         raise ValueError("pin must be 1 or 2")
-    active = pins(chip, now)[pin - 1]
-    active_high = bool(chip._regs[_INT_EN_1] & _INT_LVL[pin - 1])
+    active = pins(s, now)[pin - 1]
+    active_high = bool(s.regs[_INT_EN_1] & _INT_LVL[pin - 1])
     return int(active == active_high)
 
 

@@ -6,7 +6,7 @@ with their reasons; change a behaviour here, not in the model.
 
 from __future__ import annotations
 
-from bmg160_emu.device.registers import address_of
+from bmg160_emu.device.registers import address_of, field_of
 
 # 2.1: the I2C address is 0x68 with SDO low, 0x69 with SDO high; the chip answers nowhere else.
 VALID_ADDRESSES = (0x68, 0x69)
@@ -33,6 +33,26 @@ BANDWIDTHS = {
     6: (200, 64.0),
     7: (100, 32.0),
 }
+_RANGE_CODE = field_of("RANGE", "range")
+_BW_CODE = field_of("BW", "bw")
+
+
+def range_code(range_reg: int) -> int:
+    """The RANGE code the data is scaled for: reserved codes as RESERVED_RANGE_AS_CODE (4.8)."""
+    code = _RANGE_CODE.extract(range_reg)
+    return code if code < len(SENSITIVITY_BINARY) else RESERVED_RANGE_AS_CODE
+
+
+def bw_code(bw: int) -> int:
+    """The BW code a BW byte behaves as: codes 8..15 as code & 7 (4.9, unconfirmed)."""
+    return _BW_CODE.extract(bw) % len(BANDWIDTHS)
+
+
+def bandwidth(bw: int) -> tuple[int, float]:
+    """(ODR Hz, filter bandwidth Hz) of a BW byte (5.3)."""
+    return BANDWIDTHS[bw_code(bw)]
+
+
 # The chip's filter is not documented: a Butterworth low-pass of this order at the table's
 # bandwidth, unity DC gain (5.3, unconfirmed).
 LOWPASS_ORDER = 2
