@@ -33,6 +33,7 @@ class FakeFrontEnd:
         self.next_free = 0x40000
         self.queues: dict[int, dict] = {}
         self.event_idx = True
+        self.backend_channel: socket.socket | None = None  # our end of SET_SLAVE_REQ_FD's
 
     # ---------------------------------------------------------------- messages
 
@@ -60,10 +61,16 @@ class FakeFrontEnd:
     def u64(self, request: int, value: int, fds=(), need_reply=False) -> None:
         self.send(request, struct.pack("<Q", value), fds, need_reply)
 
-    def handshake(self, features: int | None = None, num_queues: int = 1) -> int:
+    def handshake(self, features: int | None = None, num_queues: int = 1,
+                  backend_channel: bool = False) -> int:
+        """QEMU's start-up sequence; ``backend_channel``: also hand over the back end's
+        request socket (SET_SLAVE_REQ_FD) when SLAVE_REQ is offered, as UML's virtio_uml
+        does (it gets the device's IRQ number from that step)."""
         offered = struct.unpack("<Q", self.call(vu.GET_FEATURES))[0]
         proto = struct.unpack("<Q", self.call(vu.GET_PROTOCOL_FEATURES))[0]
         self.u64(vu.SET_PROTOCOL_FEATURES, proto)
+        if backend_channel and proto >> vu.PROTOCOL_F_SLAVE_REQ & 1:
+            assert self.set_backend_channel() == 0
         self.send(vu.SET_OWNER)
         chosen = offered if features is None else features
         self.event_idx = bool(chosen >> vu.VIRTIO_RING_F_EVENT_IDX & 1)
@@ -75,6 +82,19 @@ class FakeFrontEnd:
         for index in range(num_queues):
             self.setup_queue(index)
         return offered
+
+    def set_backend_channel(self) -> int:
+        """SET_SLAVE_REQ_FD with a new socket pair (no payload, the fd in ancillary data,
+        NEED_REPLY as with REPLY_ACK); keep our end in ``backend_channel``; the ack status."""
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            self.send(vu.SET_SLAVE_REQ_FD, b"", [theirs.fileno()], need_reply=True)
+        finally:
+            theirs.close()  # the back end holds its own copy now
+        if self.backend_channel is not None:
+            self.backend_channel.close()
+        self.backend_channel = ours
+        return struct.unpack("<Q", self.reply()[2])[0]
 
     def setup_queue(self, index: int) -> None:
         base = 0x1000 + index * 0x4000
@@ -171,6 +191,8 @@ class FakeFrontEnd:
         return [bytes(self.ram[a:a + n]) for a, n in zip(addrs, sizes)]
 
     def close(self) -> None:
+        if self.backend_channel is not None:
+            self.backend_channel.close()
         self.ram.close()
         os.close(self.fd)
         for q in self.queues.values():

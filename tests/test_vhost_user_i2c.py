@@ -57,7 +57,45 @@ def test_offers_the_features_qemu_and_the_driver_need(rig):
                 vu.VHOST_USER_F_PROTOCOL_FEATURES, vu.VIRTIO_F_VERSION_1):
         assert offered >> bit & 1, bit
     assert device.offered_protocol_features >> vu.PROTOCOL_F_REPLY_ACK & 1
+    # UML's virtio_uml allocates the device's IRQ only when it can set up this channel
+    assert device.offered_protocol_features >> vu.PROTOCOL_F_SLAVE_REQ & 1
     assert device.memory.regions and device.rings[0].ready
+
+
+def test_the_backend_request_channel_is_acked_kept_and_closed_with_the_connection():
+    """UML's start-up: SET_SLAVE_REQ_FD (no payload, one fd, NEED_REPLY) is acked with 0;
+    the back end keeps the socket open (the front end would take EOF on it as the back end
+    gone) until a new one replaces it or the connection ends."""
+    device = VirtioI2CDevice(I2CBus(0, {0x68: BMG160(seed=3)}))
+    front, back = socket.socketpair()
+    connection = Connection(back, device)
+    fe = FakeFrontEnd(front, connection.receive)
+    try:
+        fe.handshake(backend_channel=True)
+        first = fe.backend_channel
+        assert device.slave_req_fd is not None and first is not None
+        first.setblocking(False)
+        with pytest.raises(BlockingIOError):  # open, nothing sent: the back end holds it
+            first.recv(1)
+        *_, status_w, status_r, data = register_read(fe, device, 0x68, 0x00, 1)
+        assert (status_w, status_r, data) == (0, 0, b"\x0f")
+        fe.backend_channel = None  # keep ``first`` to see it closed
+        assert fe.set_backend_channel() == 0  # a second one replaces the first
+        assert first.recv(1) == b""  # EOF: the back end closed its copy of the old one
+        second = fe.backend_channel
+        second.setblocking(False)  # a channel left open fails the test instead of hanging
+        connection.close()
+        assert device.slave_req_fd is None
+        assert second.recv(1) == b""
+        first.close()
+    finally:
+        fe.close()
+
+
+def test_backend_request_channel_without_its_fd_ends_the_connection(rig):
+    fe, _, _, _ = rig
+    with pytest.raises(vu.VhostUserError, match="SET_SLAVE_REQ_FD with 0"):
+        fe.send(vu.SET_SLAVE_REQ_FD, b"", need_reply=True)
 
 
 @pytest.mark.parametrize("indirect", [True, False])

@@ -8,11 +8,11 @@ backend with share=on), and hands over one eventfd per queue for each direction:
 
 Written from the vhost-user specification (QEMU docs/interop/vhost-user.rst) and the split
 virtqueue layout of the virtio 1.x specification (section 2.7). Only what the two devices
-need is offered: protocol features REPLY_ACK and CONFIG, ring features INDIRECT_DESC and
-EVENT_IDX (QEMU negotiates both with the guest whatever the back end offers; see
-linux-kernel-notes.md). Ring memory is read and written in place through ``mmap``; the
-stores rely on x86-TSO ordering (the used element is stored before the used index), which
-holds for the x86-64 hosts QEMU runs this on.
+need is offered: protocol features REPLY_ACK, SLAVE_REQ (for UML) and CONFIG, ring features
+INDIRECT_DESC and EVENT_IDX (QEMU negotiates both with the guest whatever the back end
+offers; see linux-kernel-notes.md). Ring memory is read and written in place through
+``mmap``; the stores rely on x86-TSO ordering (the used element is stored before the used
+index), which holds for the x86-64 hosts QEMU and UML run this on.
 """
 
 from __future__ import annotations
@@ -46,6 +46,7 @@ GET_PROTOCOL_FEATURES = 15
 SET_PROTOCOL_FEATURES = 16
 GET_QUEUE_NUM = 17
 SET_VRING_ENABLE = 18
+SET_SLAVE_REQ_FD = 21  # the spec now calls it SET_BACKEND_REQ_FD
 SET_VRING_ENDIAN = 23
 GET_CONFIG = 24
 SET_CONFIG = 25
@@ -66,6 +67,11 @@ MAX_FDS = 8  # VHOST_MEMORY_BASELINE_NREGIONS: at most one fd per region
 
 # Protocol feature bits.
 PROTOCOL_F_REPLY_ACK = 3
+# The back end's own channel to the front end (now called BACKEND_REQ). We never send on
+# it, but UML's virtio_uml allocates a device's interrupt number only when it sets this
+# channel up: without it the device's IRQ stays 0 and i2c-virtio's probe fails with -EBUSY
+# against the timer (linux-kernel-notes.md, "User-mode Linux", fix 3).
+PROTOCOL_F_SLAVE_REQ = 5
 PROTOCOL_F_CONFIG = 9
 
 # Virtio feature bits (virtio 1.x, 6 "Reserved Feature Bits") and vhost-user's own bit 30.
@@ -325,6 +331,7 @@ class VhostUserDevice:
         self.features = 0
         self.protocol_features = 0
         self.owner = False
+        self.slave_req_fd: int | None = None  # SET_SLAVE_REQ_FD's socket, kept, unused
         self.on_fds_changed: Callable[[], None] | None = None  # the server re-reads kick fds
 
     # ---------------------------------------------------------------- feature words
@@ -337,7 +344,7 @@ class VhostUserDevice:
 
     @property
     def offered_protocol_features(self) -> int:
-        features = 1 << PROTOCOL_F_REPLY_ACK
+        features = 1 << PROTOCOL_F_REPLY_ACK | 1 << PROTOCOL_F_SLAVE_REQ
         if self.config:
             features |= 1 << PROTOCOL_F_CONFIG
         return features
@@ -386,9 +393,15 @@ class VhostUserDevice:
         self.rings = [Vring(i) for i in range(self.num_queues)]
         self.queues = [None] * self.num_queues
         self.memory.close()
+        self._close_slave_req()
         self.features = 0
         self.protocol_features = 0
         self.owner = False
+
+    def _close_slave_req(self) -> None:
+        if self.slave_req_fd is not None:
+            os.close(self.slave_req_fd)
+            self.slave_req_fd = None
 
     # ---------------------------------------------------------------- messages
 
@@ -471,6 +484,15 @@ class VhostUserDevice:
             if ring.ready:
                 self.ring_started(index)
                 self.kick(index)  # entries added before the ring was enabled
+            return None
+        if request == SET_SLAVE_REQ_FD:
+            # QEMU sends no payload, UML none or a u64; the fd is what counts
+            if len(fds) != 1:
+                for fd in fds:
+                    os.close(fd)
+                raise VhostUserError(f"SET_SLAVE_REQ_FD with {len(fds)} file descriptors")
+            self._close_slave_req()
+            self.slave_req_fd = fds[0]
             return None
         if request == GET_QUEUE_NUM:
             return U64.pack(self.num_queues)
