@@ -45,7 +45,7 @@ from bmg160_emu.clock import NS_PER_S
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.linux.guest_pace import NEVER, GuestPacedClock
 from bmg160_emu.linux.vhost_user import VhostUserDevice
-from bmg160_emu.linux.virtqueue import Chain, VhostUserError, VirtQueue
+from bmg160_emu.linux.virtqueue import Chain, VhostUserError, VirtQueue, fence
 
 VIRTIO_GPIO_F_IRQ = 0
 MSG_GET_NAMES = 0x0001
@@ -276,6 +276,7 @@ class VirtioGPIODevice(VhostUserDevice):
         self.memory.write(addr, bytes([status]))
         old = queue.ring.used_idx
         queue.push(chain.head, 1)
+        fence()
         queue.notify(old)
         if status == IRQ_STATUS_VALID:
             line.interrupts += 1

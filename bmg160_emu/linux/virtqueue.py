@@ -10,8 +10,8 @@ handled because QEMU negotiates both with the guest whatever the back end offers
 
 Ordering: the stores rely on x86-TSO (the used element is stored before the used index);
 where a store must be seen before a later load (avail_event before the avail index is
-looked at again), :meth:`VirtQueue.settle` fences. The x86-64 hosts QEMU and UML run this on
-give both.
+looked at again, the used index before used_event), :func:`fence` stands between them. The
+x86-64 hosts QEMU and UML run this on give both.
 """
 
 from __future__ import annotations
@@ -37,11 +37,21 @@ _USED_PAIR = struct.Struct("<IIII")
 _TABLE_MAX = 16  # indirect tables up to this many entries are read with one unpack
 _TABLES = [struct.Struct("<" + "QIHH" * n) for n in range(_TABLE_MAX + 1)]
 _U16S = [struct.Struct(f"<{n}H") for n in range(9)]  # 1..8 heads taken at once
-_FENCE = threading.Lock()  # see VirtQueue.settle
+_FENCE = threading.Lock()  # see fence()
 
 
 def _u16s(count: int) -> struct.Struct:
     return _U16S[count] if count < len(_U16S) else struct.Struct(f"<{count}H")
+
+
+def fence() -> None:
+    """Make our stores to the ring visible before our next load from it. The driver stores
+    its index, then loads ours (avail_event, the used index); we store ours, then load its
+    (the available index, used_event): x86 may pass a load ahead of an older store, never
+    across a locked instruction (the barrier of virtio 1.x 2.7.10). An uncontended lock is
+    one."""
+    _FENCE.acquire()
+    _FENCE.release()
 
 
 class VhostUserError(Exception):
@@ -58,7 +68,8 @@ class MemoryRegion:
 
 
 class GuestMemory:
-    """The guest's RAM as QEMU shared it: guest-physical and QEMU-virtual address lookups."""
+    """The guest's RAM as the front end shared it: guest-physical and front-end-virtual
+    (QEMU's or UML's) address lookups."""
 
     def __init__(self) -> None:
         self.regions: list[MemoryRegion] = []
@@ -110,11 +121,8 @@ class GuestMemory:
 
     def guest(self, address: int, length: int) -> tuple[mmap.mmap, int]:
         """(mapping, offset) of a guest-physical range (descriptor buffers)."""
-        end = address + length
-        for start, stop, mapping, delta in self._spans:
-            if start <= address and end <= stop:
-                return mapping, address + delta
-        return self._find(address, length, user=False)  # raises
+        located = self.locate(address, length)
+        return located if located is not None else self._find(address, length, user=False)
 
     def user(self, address: int, length: int) -> tuple[mmap.mmap, int]:
         """(mapping, offset) of a QEMU-virtual range (the ring addresses of SET_VRING_ADDR)."""
@@ -328,12 +336,7 @@ class VirtQueue:
         ring = self.ring
         if self.event_idx:
             _U16.pack_into(self._used_map, self._used_base + 4 + 8 * self.num, ring.last_avail)
-        # Our stores (used index, avail_event) must be visible before we load the driver's
-        # (avail index, used_event), as the driver stores its index before loading ours:
-        # x86 may pass a load ahead of an older store, a locked instruction may not (the
-        # virtio_mb of 2.7.10). An uncontended lock is one.
-        _FENCE.acquire()
-        _FENCE.release()
+        fence()  # the used index and avail_event out before the available index comes in
         return _U16.unpack_from(self._avail_map, self._avail_base + 2)[0] != ring.last_avail
 
     def used_event(self) -> int:
@@ -343,7 +346,7 @@ class VirtQueue:
 
     def notify(self, old_used: int) -> None:
         """Call the driver if it wants an interrupt for the entries used since ``old_used``
-        (after :meth:`settle`, whose fence orders the used index before used_event)."""
+        (after :meth:`settle` or :func:`fence`: the used index out before used_event in)."""
         ring = self.ring
         if ring.call_fd is None or ring.used_idx == old_used:
             return
