@@ -43,7 +43,7 @@ from _vhost_front_end import FakeFrontEnd
 from bmg160_emu.bus.i2c import I2CBus
 from bmg160_emu.clock import RealTimeClock
 from bmg160_emu.device.chip import BMG160
-from bmg160_emu.linux.vhost_user import VhostUserDevice, VirtQueue
+from bmg160_emu.linux.vhost_user import VhostUserDevice, VirtQueue  # (as older trees have it)
 from bmg160_emu.linux.vhost_user_server import Connection, Server
 from bmg160_emu.linux.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
 
