@@ -19,6 +19,13 @@ GUEST_BASE = 0x0  # guest-physical address of the region
 USER_BASE = 0x7F00_0000_0000  # the region's address in "QEMU": ring addresses use it
 QUEUE_SIZE = 8
 ARENA = 0x10000  # bytes of request buffers, reused round-robin
+# Descriptor flags (virtio 1.x, 2.7.5): the driver's own copy, not the back end's
+DESC_F_NEXT = 1
+DESC_F_WRITE = 2
+DESC_F_INDIRECT = 4
+# vhost-user (QEMU docs/interop/vhost-user.rst): the front end's own copy as well
+PROTOCOL_F_SLAVE_REQ = 5
+SET_SLAVE_REQ_FD = 21
 
 
 class FakeFrontEnd:
@@ -33,6 +40,7 @@ class FakeFrontEnd:
         self.next_free = 0x40000
         self.queues: dict[int, dict] = {}
         self.event_idx = True
+        self.backend_channel: socket.socket | None = None  # our end of SET_SLAVE_REQ_FD's
 
     # ---------------------------------------------------------------- messages
 
@@ -60,21 +68,40 @@ class FakeFrontEnd:
     def u64(self, request: int, value: int, fds=(), need_reply=False) -> None:
         self.send(request, struct.pack("<Q", value), fds, need_reply)
 
-    def handshake(self, features: int | None = None, num_queues: int = 1) -> int:
+    def handshake(self, features: int | None = None, num_queues: int = 1,
+                  backend_channel: bool = False) -> int:
+        """QEMU's start-up sequence; ``backend_channel``: also hand over the back end's
+        request socket (SET_SLAVE_REQ_FD) when SLAVE_REQ is offered, as UML's virtio_uml
+        does (it gets the device's IRQ number from that step)."""
         offered = struct.unpack("<Q", self.call(vu.GET_FEATURES))[0]
         proto = struct.unpack("<Q", self.call(vu.GET_PROTOCOL_FEATURES))[0]
         self.u64(vu.SET_PROTOCOL_FEATURES, proto)
+        if backend_channel and proto >> PROTOCOL_F_SLAVE_REQ & 1:
+            assert self.set_backend_channel() == 0
         self.send(vu.SET_OWNER)
         chosen = offered if features is None else features
         self.event_idx = bool(chosen >> vu.VIRTIO_RING_F_EVENT_IDX & 1)
         self.u64(vu.SET_FEATURES, chosen)
         table = struct.pack("<II", 1, 0) + struct.pack("<QQQQ", GUEST_BASE, RAM_SIZE, USER_BASE, 0)
-        self.send(vu.SET_MEM_TABLE, table, [os.dup(self.fd)], need_reply=True)
+        self.send(vu.SET_MEM_TABLE, table, [self.fd], need_reply=True)  # the receiver gets a copy
         status = struct.unpack("<Q", self.reply()[2])[0]
         assert status == 0
         for index in range(num_queues):
             self.setup_queue(index)
         return offered
+
+    def set_backend_channel(self) -> int:
+        """SET_SLAVE_REQ_FD with a new socket pair (no payload, the fd in ancillary data,
+        NEED_REPLY as with REPLY_ACK); keep our end in ``backend_channel``; the ack status."""
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            self.send(SET_SLAVE_REQ_FD, b"", [theirs.fileno()], need_reply=True)
+        finally:
+            theirs.close()  # the back end holds its own copy now
+        if self.backend_channel is not None:
+            self.backend_channel.close()
+        self.backend_channel = ours
+        return struct.unpack("<Q", self.reply()[2])[0]
 
     def setup_queue(self, index: int) -> None:
         base = 0x1000 + index * 0x4000
@@ -112,26 +139,26 @@ class FakeFrontEnd:
         """Add one request (device-readable buffers, device-writable sizes); its token."""
         q = self.queues[index]
         parts = [(self.put(b), len(b), 0) for b in readable]
-        parts += [(self.alloc(n), n, vu.VRING_DESC_F_WRITE) for n in writable]
+        parts += [(self.alloc(n), n, DESC_F_WRITE) for n in writable]
         head = q["free"] % QUEUE_SIZE
         q["free"] += 1 if indirect else len(parts)
         if indirect:
             table = b"".join(
-                struct.pack("<QIHH", a, n, f | (vu.VRING_DESC_F_NEXT if i < len(parts) - 1
+                struct.pack("<QIHH", a, n, f | (DESC_F_NEXT if i < len(parts) - 1
                                                   else 0), i + 1)
                 for i, (a, n, f) in enumerate(parts))
             addr = self.put(table)
-            self._desc(q, head, addr, len(table), vu.VRING_DESC_F_INDIRECT, 0)
+            self._desc(q, head, addr, len(table), DESC_F_INDIRECT, 0)
         else:
             for i, (a, n, f) in enumerate(parts):
                 last = i == len(parts) - 1
                 self._desc(q, (head + i) % QUEUE_SIZE, a, n,
-                           f | (0 if last else vu.VRING_DESC_F_NEXT), (head + i + 1) % QUEUE_SIZE)
+                           f | (0 if last else DESC_F_NEXT), (head + i + 1) % QUEUE_SIZE)
         slot = q["avail"] + 4 + 2 * (q["avail_idx"] % QUEUE_SIZE)
         self.ram[slot:slot + 2] = struct.pack("<H", head)
         q["avail_idx"] = (q["avail_idx"] + 1) & 0xFFFF
         self.ram[q["avail"] + 2:q["avail"] + 4] = struct.pack("<H", q["avail_idx"])
-        q["tokens"][head] = [a for a, _, f in parts if f & vu.VRING_DESC_F_WRITE]
+        q["tokens"][head] = [a for a, _, f in parts if f & DESC_F_WRITE]
         return head
 
     def _desc(self, q, i: int, addr: int, length: int, flags: int, nxt: int) -> None:
@@ -171,6 +198,8 @@ class FakeFrontEnd:
         return [bytes(self.ram[a:a + n]) for a, n in zip(addrs, sizes)]
 
     def close(self) -> None:
+        if self.backend_channel is not None:
+            self.backend_channel.close()
         self.ram.close()
         os.close(self.fd)
         for q in self.queues.values():

@@ -124,6 +124,27 @@ def test_data_ready_edges_raise_one_interrupt_per_queued_buffer(gpio):
     assert fe.used(1) == [(head, 1)]
 
 
+def test_an_i2c_transfer_looks_at_the_lines_while_a_trigger_is_set(gpio):
+    """The I2C device's after-transfer hook follows the lines (a read can clear a latched
+    status) once the driver has set a trigger type: here it sees the data-ready edge of
+    a sample the transfer produced, without the server's poll."""
+    fe, device, chips = gpio
+    chip = chips[0x68]
+    chip.write(0x10, b"\x07")  # ODR 100 Hz
+    chip.write(0x18, b"\x01")  # int1_data
+    chip.write(0x15, b"\x80")  # data_en
+    device.after_transfer()  # no trigger yet: nothing to follow
+    request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING)
+    head = queue_event(fe, device, 0)
+    chip.advance(0.0005)
+    device.after_transfer()
+    assert fe.used(1) == []  # no sample since the type was set: no edge
+    chip.advance(0.010)  # a transfer that found a new sample
+    assert fe.used(1) == []
+    device.after_transfer()
+    assert fe.used(1) == [(head, 1)] and fe.read_back(1, head, [1])[0] == b"\x01"
+
+
 def test_disabling_the_interrupt_returns_the_buffer_invalid(gpio):
     fe, device, chips = gpio
     request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING)
@@ -239,6 +260,60 @@ def test_server_serves_a_front_end_over_its_socket(tmp_path):
         fe.close()
         server.close()
     assert not path.exists()
+
+
+def _open_fds() -> set[str]:
+    return set(os.listdir("/proc/self/fd"))
+
+
+def test_server_keeps_serving_when_its_pollers_stop_asking_and_leaves_no_fd(tmp_path):
+    """A poller that wants no further call (returns None) leaves the loop waiting on its
+    sockets alone, not on a deadline at infinity; the kick fds it watches (its own
+    duplicates) and every socket are closed when the server closes."""
+    from bmg160_emu.bus.i2c import I2CBus
+    from bmg160_emu.linux.virtio_i2c import FLAG_FAIL_NEXT, FLAG_M_RD, VirtioI2CDevice
+
+    before = _open_fds()
+    calls = []
+    server = Server()
+    server.pollers.append(lambda now_s: calls.append(now_s))  # returns None
+    device = VirtioI2CDevice(I2CBus(0, {0x68: BMG160(seed=1)}))
+    server.add(str(tmp_path / "vu" / "i2c.sock"), device)
+    failures = []
+
+    def run():
+        try:
+            server.run()
+        except BaseException as exc:  # noqa: BLE001 - reported by the test below
+            failures.append(exc)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    client = socket.socket(socket.AF_UNIX)
+    client.settimeout(10)  # a server that died fails the test rather than hang it
+    client.connect(str(tmp_path / "vu" / "i2c.sock"))
+    fe = FakeFrontEnd(client, lambda: None)
+    try:
+        fe.handshake(backend_channel=True)
+        for _ in range(3):
+            fe.add(0, [struct.pack("<HHI", 0x68 << 1, 0, FLAG_FAIL_NEXT), b"\x00"], [1])
+            head = fe.add(0, [struct.pack("<HHI", 0x68 << 1, 0, FLAG_M_RD)], [1, 1])
+            os.eventfd_write(fe.queues[0]["kick"], 1)
+            import select
+
+            assert select.select([fe.queues[0]["call"]], [], [], 10)[0], failures or "no call"
+            fe.called(0)
+            assert len(fe.used(0)) == 2
+            fe.set_used_event(0, fe.queues[0]["used_seen"])  # interrupt me for the next
+            assert fe.read_back(0, head, [1, 1]) == [b"\x0f", b"\x00"]
+    finally:
+        fe.close()  # the front end goes first: the server drops the connection
+        server.stop()
+        thread.join(10)
+        server.close()
+    assert not failures and not thread.is_alive()
+    assert len(calls) == 1  # called at the start, never again: it asked for nothing more
+    assert _open_fds() == before, {f: os.readlink(f"/proc/self/fd/{f}") for f in _open_fds() - before}
 
 
 def test_an_edge_whose_sample_the_driver_already_read_is_dropped(gpio):

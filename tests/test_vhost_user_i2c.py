@@ -12,7 +12,7 @@ import socket
 import struct
 
 import pytest
-from _vhost_front_end import FakeFrontEnd
+from _vhost_front_end import DESC_F_INDIRECT, USER_BASE, FakeFrontEnd
 
 from bmg160_emu.bus.i2c import I2CBus
 from bmg160_emu.device.chip import BMG160
@@ -57,7 +57,45 @@ def test_offers_the_features_qemu_and_the_driver_need(rig):
                 vu.VHOST_USER_F_PROTOCOL_FEATURES, vu.VIRTIO_F_VERSION_1):
         assert offered >> bit & 1, bit
     assert device.offered_protocol_features >> vu.PROTOCOL_F_REPLY_ACK & 1
+    # UML's virtio_uml allocates the device's IRQ only when it can set up this channel
+    assert device.offered_protocol_features >> vu.PROTOCOL_F_SLAVE_REQ & 1
     assert device.memory.regions and device.rings[0].ready
+
+
+def test_the_backend_request_channel_is_acked_kept_and_closed_with_the_connection():
+    """UML's start-up: SET_SLAVE_REQ_FD (no payload, one fd, NEED_REPLY) is acked with 0;
+    the back end keeps the socket open (the front end would take EOF on it as the back end
+    gone) until a new one replaces it or the connection ends."""
+    device = VirtioI2CDevice(I2CBus(0, {0x68: BMG160(seed=3)}))
+    front, back = socket.socketpair()
+    connection = Connection(back, device)
+    fe = FakeFrontEnd(front, connection.receive)
+    try:
+        fe.handshake(backend_channel=True)
+        first = fe.backend_channel
+        assert device.slave_req_fd is not None and first is not None
+        first.setblocking(False)
+        with pytest.raises(BlockingIOError):  # open, nothing sent: the back end holds it
+            first.recv(1)
+        *_, status_w, status_r, data = register_read(fe, device, 0x68, 0x00, 1)
+        assert (status_w, status_r, data) == (0, 0, b"\x0f")
+        fe.backend_channel = None  # keep ``first`` to see it closed
+        assert fe.set_backend_channel() == 0  # a second one replaces the first
+        assert first.recv(1) == b""  # EOF: the back end closed its copy of the old one
+        second = fe.backend_channel
+        second.setblocking(False)  # a channel left open fails the test instead of hanging
+        connection.close()
+        assert device.slave_req_fd is None
+        assert second.recv(1) == b""
+        first.close()
+    finally:
+        fe.close()
+
+
+def test_backend_request_channel_without_its_fd_ends_the_connection(rig):
+    fe, _, _, _ = rig
+    with pytest.raises(vu.VhostUserError, match="SET_SLAVE_REQ_FD with 0"):
+        fe.send(vu.SET_SLAVE_REQ_FD, b"", need_reply=True)
 
 
 @pytest.mark.parametrize("indirect", [True, False])
@@ -223,8 +261,110 @@ def test_unknown_message_with_need_reply_gets_a_failure_status(rig):
 def test_request_outside_guest_memory_ends_the_connection(rig):
     fe, device, _, _ = rig
     q = fe.queues[0]
-    fe._desc(q, 0, 0x10_0000_0000, 16, vu.VRING_DESC_F_INDIRECT, 0)
+    fe._desc(q, 0, 0x10_0000_0000, 16, DESC_F_INDIRECT, 0)
     fe.ram[q["avail"] + 4:q["avail"] + 6] = b"\x00\x00"
     fe.ram[q["avail"] + 2:q["avail"] + 4] = b"\x01\x00"
     with pytest.raises(vu.VhostUserError, match="outside the memory table"):
         device.kick(0)
+
+
+def test_a_register_read_pair_outside_guest_memory_ends_the_connection(rig):
+    """The register-read shortcut never serves what the general path would refuse."""
+    fe, device, _, bus = rig
+    fe.add(0, [header(0x68, FLAG_FAIL_NEXT), b"\x00"], [1])
+    fe.add(0, [header(0x68, FLAG_M_RD)], [1, 1])
+    q = fe.queues[0]
+    fe._desc(q, 0, 0x10_0000_0000, 48, DESC_F_INDIRECT, 0)  # the write's table: nowhere
+    with pytest.raises(vu.VhostUserError, match="outside the memory table"):
+        device.kick(0)
+    assert len(bus.log) == 0
+
+
+def test_reads_whose_entries_wrap_round_the_rings_end(rig):
+    """After one lone request, every fourth register read's two entries straddle the end
+    of the ring (size 8): the available heads taken and the used pair put across it keep
+    their order and lengths."""
+    fe, device, chip, bus = rig
+    # used_event lies just past the last available entry: give it a value no head has
+    fe.set_used_event(0, 0x1234)
+    fe.add(0, [header(0x68, 0), bytes([0x0F, 0x01])], [1])  # RANGE = 1000 deg/s
+    device.kick(0)
+    assert len(fe.used(0)) == 1
+    expected = chip.dump()
+    for n in range(12):
+        register = n % 8
+        used, (w, r), status_w, status_r, data = register_read(fe, device, 0x68, register, 2)
+        assert used == {w: 1, r: 3} and (status_w, status_r) == (0, 0)
+        assert data == expected[register:register + 2]
+        assert fe.avail_event(0) == 1 + 2 * (n + 1)  # kick me for the entry after these
+    assert [e.kind for e in bus.log][1:] == ["read_i2c_block_data"] * 12
+
+
+def test_several_transfers_on_one_kick_are_answered_in_order_with_one_call(rig):
+    """Reads, a write, a NACK and a read again queued before one kick: each gets its own
+    result, the log shows them in order, and the driver is called once for all."""
+    fe, device, chip, bus = rig
+    fe.called(0)
+    heads = []
+    for address, register, length in ((0x68, 0x00, 1), (0x68, 0x0F, 1)):
+        heads.append(fe.add(0, [header(address, FLAG_FAIL_NEXT), bytes([register])], [1]))
+        heads.append(fe.add(0, [header(address, FLAG_M_RD)], [length, 1]))
+    heads.append(fe.add(0, [header(0x68, 0), bytes([0x0F, 0x02])], [1]))  # RANGE = 500
+    heads.append(fe.add(0, [header(0x50, FLAG_FAIL_NEXT), b"\x00"], [1]))  # nobody there
+    heads.append(fe.add(0, [header(0x50, FLAG_M_RD)], [1, 1]))
+    assert len(heads) == 7 and fe.called(0) == 0
+    device.kick(0)
+    used = fe.used(0)
+    assert [h for h, _ in used] == heads and [n for _, n in used] == [1, 2, 1, 2, 1, 1, 1]
+    assert fe.called(0) == 1
+    writes = [fe.read_back(0, heads[i], [1])[0] for i in (0, 2, 4, 5)]
+    assert writes == [b"\x00", b"\x00", b"\x00", b"\x01"]  # the last one: NACK
+    assert fe.read_back(0, heads[1], [1, 1]) == [b"\x0f", b"\x00"]  # chip ID
+    assert fe.read_back(0, heads[3], [1, 1]) == [b"\x00", b"\x00"]  # RANGE at reset
+    assert fe.read_back(0, heads[6], [1, 1])[1] == b"\x01"  # its group fails with it
+    assert chip.peek(0x0F) == 0x02
+    assert [(e.kind, e.address) for e in bus.log] == [
+        ("read_i2c_block_data", 0x68), ("read_i2c_block_data", 0x68), ("i2c_write", 0x68),
+        ("i2c_write", 0x50)]
+    assert device.stats.failed == 2
+
+
+def test_more_entries_than_the_ring_holds_end_the_connection(rig):
+    fe, device, _, _ = rig
+    q = fe.queues[0]
+    fe.ram[q["avail"] + 2:q["avail"] + 4] = struct.pack("<H", 9)  # ring size 8
+    with pytest.raises(vu.VhostUserError, match="9 entries added to a ring of 8"):
+        device.kick(0)
+
+
+def test_a_new_ring_size_unmaps_the_ring_until_its_addresses_come_again(rig):
+    fe, device, _, _ = rig
+    fe.send(vu.SET_VRING_NUM, struct.pack("<II", 0, 8))  # the same size: nothing changes
+    assert device.rings[0].ready
+    fe.send(vu.SET_VRING_NUM, struct.pack("<II", 0, 16))
+    assert not device.rings[0].ready and device.queues[0] is None
+    device.kick(0)  # a kick now serves nothing (and does not fail)
+    fe.send(vu.SET_VRING_NUM, struct.pack("<II", 0, 8))
+    q = fe.queues[0]
+    fe.send(vu.SET_VRING_ADDR, struct.pack("<IIQQQQ", 0, 0, USER_BASE + q["desc"],
+                                           USER_BASE + q["used"], USER_BASE + q["avail"], 0))
+    assert device.rings[0].ready
+    *_, status_w, status_r, data = register_read(fe, device, 0x68, 0x00, 1)
+    assert (status_w, status_r, data) == (0, 0, b"\x0f")
+
+
+def test_a_request_added_while_the_device_works_is_served_in_the_same_kick(rig):
+    """The driver may add a request after the device took the ring's entries and before
+    it wrote avail_event (so it did not kick): the device looks again before it stops."""
+    fe, device, _, bus = rig
+    added = []
+
+    def driver_adds_one_more(_entry):
+        if not added:
+            added.append(fe.add(0, [header(0x68, 0), bytes([0x0F, 0x03])], [1]))
+
+    bus.log.sinks.append(driver_adds_one_more)
+    used, (w, r), *_ = register_read(fe, device, 0x68, 0x00, 1)
+    assert used == {w: 1, r: 2, added[0]: 1}
+    assert [e.kind for e in bus.log] == ["read_i2c_block_data", "i2c_write"]
+    assert fe.avail_event(0) == 3

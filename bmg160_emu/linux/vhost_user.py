@@ -6,24 +6,22 @@ connects to a UNIX socket, shares the guest's RAM as file descriptors (a memfd m
 backend with share=on), and hands over one eventfd per queue for each direction: the guest
 "kicks" when it adds buffers, the back end "calls" when it has used them.
 
-Written from the vhost-user specification (QEMU docs/interop/vhost-user.rst) and the split
-virtqueue layout of the virtio 1.x specification (section 2.7). Only what the two devices
-need is offered: protocol features REPLY_ACK and CONFIG, ring features INDIRECT_DESC and
-EVENT_IDX (QEMU negotiates both with the guest whatever the back end offers; see
-linux-kernel-notes.md). Ring memory is read and written in place through ``mmap``; the
-stores rely on x86-TSO ordering (the used element is stored before the used index), which
-holds for the x86-64 hosts QEMU runs this on.
+Written from the vhost-user specification (QEMU docs/interop/vhost-user.rst). Only what the
+two devices need is offered: protocol features REPLY_ACK, SLAVE_REQ (for UML) and CONFIG,
+ring features INDIRECT_DESC and EVENT_IDX (QEMU negotiates both with the guest whatever the
+back end offers; see linux-kernel-notes.md). The rings themselves, in the guest's RAM, are
+virtqueue.py's.
 """
 
 from __future__ import annotations
 
 import errno
 import logging
-import mmap
 import os
 import struct
 from collections.abc import Callable
-from dataclasses import dataclass, field
+
+from bmg160_emu.linux.virtqueue import GuestMemory, VhostUserError, VirtQueue, Vring
 
 log = logging.getLogger(__name__)
 
@@ -46,6 +44,7 @@ GET_PROTOCOL_FEATURES = 15
 SET_PROTOCOL_FEATURES = 16
 GET_QUEUE_NUM = 17
 SET_VRING_ENABLE = 18
+SET_SLAVE_REQ_FD = 21  # the spec now calls it SET_BACKEND_REQ_FD
 SET_VRING_ENDIAN = 23
 GET_CONFIG = 24
 SET_CONFIG = 25
@@ -66,6 +65,11 @@ MAX_FDS = 8  # VHOST_MEMORY_BASELINE_NREGIONS: at most one fd per region
 
 # Protocol feature bits.
 PROTOCOL_F_REPLY_ACK = 3
+# The back end's own channel to the front end (now called BACKEND_REQ). We never send on
+# it, but UML's virtio_uml allocates a device's interrupt number only when it sets this
+# channel up: without it the device's IRQ stays 0 and i2c-virtio's probe fails with -EBUSY
+# against the timer (linux-kernel-notes.md, "User-mode Linux", fix 3).
+PROTOCOL_F_SLAVE_REQ = 5
 PROTOCOL_F_CONFIG = 9
 
 # Virtio feature bits (virtio 1.x, 6 "Reserved Feature Bits") and vhost-user's own bit 30.
@@ -74,239 +78,12 @@ VIRTIO_RING_F_EVENT_IDX = 29
 VHOST_USER_F_PROTOCOL_FEATURES = 30
 VIRTIO_F_VERSION_1 = 32
 
-# Split virtqueue descriptor flags (virtio 1.x, 2.7.5).
-VRING_DESC_F_NEXT = 1
-VRING_DESC_F_WRITE = 2
-VRING_DESC_F_INDIRECT = 4
-VRING_AVAIL_F_NO_INTERRUPT = 1
 VRING_FD_INVALID = 0x100  # bit 8 of the u64 of SET_VRING_KICK/CALL/ERR: no fd passed
 
 U64 = struct.Struct("<Q")  # a u64 payload (features, status)
 _STATE = struct.Struct("<II")  # vring index, number
 _ADDR = struct.Struct("<IIQQQQ")  # index, flags, descriptor, used, available, log addresses
-_REGION = struct.Struct("<QQQQ")  # guest address, size, user (QEMU) address, mmap offset
 _CONFIG_HEAD = struct.Struct("<III")  # offset, size, flags
-_DESC = struct.Struct("<QIHH")  # address, length, flags, next
-_U16 = struct.Struct("<H")
-_USED_ELEM = struct.Struct("<II")
-
-
-class VhostUserError(Exception):
-    """The front end sent something the protocol does not allow; the connection ends."""
-
-
-@dataclass
-class MemoryRegion:
-    guest_addr: int
-    size: int
-    user_addr: int
-    mapping: mmap.mmap
-    offset: int  # where the region starts inside the mapping (the message's mmap offset)
-
-
-class GuestMemory:
-    """The guest's RAM as QEMU shared it: guest-physical and QEMU-virtual address lookups."""
-
-    def __init__(self) -> None:
-        self.regions: list[MemoryRegion] = []
-        # (guest start, guest end, mapping, mapping offset - guest start) per region: the
-        # descriptor lookups of every request go through this (no attribute walks)
-        self._spans: list[tuple[int, int, mmap.mmap, int]] = []
-
-    def set_table(self, payload: bytes, fds: list[int]) -> None:
-        """Map the regions of a SET_MEM_TABLE message (each fd once; it is closed after)."""
-        if len(payload) < 8:
-            raise VhostUserError("SET_MEM_TABLE payload too short")
-        count = struct.unpack_from("<I", payload)[0]
-        if count != len(fds) or count > MAX_FDS or len(payload) < 8 + count * _REGION.size:
-            raise VhostUserError(f"SET_MEM_TABLE with {count} regions and {len(fds)} fds")
-        self.close()
-        try:
-            for i in range(count):
-                gpa, size, uva, offset = _REGION.unpack_from(payload, 8 + i * _REGION.size)
-                mapping = mmap.mmap(fds[i], size + offset, mmap.MAP_SHARED,
-                                    mmap.PROT_READ | mmap.PROT_WRITE)
-                self.regions.append(MemoryRegion(gpa, size, uva, mapping, offset))
-            self._spans = [(r.guest_addr, r.guest_addr + r.size, r.mapping,
-                            r.offset - r.guest_addr) for r in self.regions]
-        finally:
-            for fd in fds:
-                os.close(fd)
-
-    def close(self) -> None:
-        for region in self.regions:
-            region.mapping.close()
-        self.regions = []
-        self._spans = []
-
-    def _find(self, address: int, length: int, user: bool) -> tuple[mmap.mmap, int]:
-        for region in self.regions:
-            base = region.user_addr if user else region.guest_addr
-            if base <= address and address + length <= base + region.size:
-                return region.mapping, region.offset + address - base
-        kind = "QEMU address" if user else "guest address"
-        raise VhostUserError(f"{kind} 0x{address:x}+{length} is outside the memory table")
-
-    def guest(self, address: int, length: int) -> tuple[mmap.mmap, int]:
-        """(mapping, offset) of a guest-physical range (descriptor buffers)."""
-        end = address + length
-        for start, stop, mapping, delta in self._spans:
-            if start <= address and end <= stop:
-                return mapping, address + delta
-        return self._find(address, length, user=False)  # raises
-
-    def user(self, address: int, length: int) -> tuple[mmap.mmap, int]:
-        """(mapping, offset) of a QEMU-virtual range (the ring addresses of SET_VRING_ADDR)."""
-        return self._find(address, length, user=True)
-
-    def read(self, address: int, length: int) -> bytes:
-        mapping, offset = self.guest(address, length)
-        return mapping[offset:offset + length]
-
-    def write(self, address: int, data: bytes) -> None:
-        mapping, offset = self.guest(address, len(data))
-        mapping[offset:offset + len(data)] = data
-
-
-@dataclass(slots=True)
-class Chain:
-    """One descriptor chain taken from the available ring: its head and its buffers as
-    (guest address, length) lists, device-readable first, then device-writable."""
-
-    head: int
-    readable: list[tuple[int, int]]
-    writable: list[tuple[int, int]]
-
-
-@dataclass
-class Vring:
-    """A split virtqueue as the back end sees it."""
-
-    index: int
-    num: int = 0
-    desc: tuple[mmap.mmap, int] | None = None
-    avail: tuple[mmap.mmap, int] | None = None
-    used: tuple[mmap.mmap, int] | None = None
-    last_avail: int = 0
-    used_idx: int = 0
-    kick_fd: int | None = None
-    call_fd: int | None = None
-    err_fd: int | None = None
-    enabled: bool = False
-    started: bool = False
-    signalled_used: int = 0  # used index at the last call (EVENT_IDX suppression)
-    signalled_valid: bool = False
-    notifications: int = 0
-    extra: dict = field(default_factory=dict)
-
-    @property
-    def ready(self) -> bool:
-        return self.started and self.enabled and self.desc is not None
-
-    def close_fds(self) -> None:
-        for name in ("kick_fd", "call_fd", "err_fd"):
-            fd = getattr(self, name)
-            if fd is not None:
-                os.close(fd)
-                setattr(self, name, None)
-
-
-class VirtQueue:
-    """Operations on one ring in guest memory: pop chains, push used elements, notify."""
-
-    def __init__(self, ring: Vring, memory: GuestMemory, event_idx: bool, indirect: bool) -> None:
-        self.ring = ring
-        self.memory = memory
-        self.event_idx = event_idx
-        self.indirect = indirect
-
-    def _avail_idx(self) -> int:
-        mapping, base = self.ring.avail  # type: ignore[misc]
-        return _U16.unpack_from(mapping, base + 2)[0]
-
-    def pending(self) -> bool:
-        return self._avail_idx() != self.ring.last_avail
-
-    def pop(self) -> Chain | None:
-        """The next available chain, or None when the driver has added nothing new."""
-        ring = self.ring
-        mapping, base = ring.avail  # type: ignore[misc]
-        if _U16.unpack_from(mapping, base + 2)[0] == ring.last_avail:
-            return None
-        head = _U16.unpack_from(mapping, base + 4 + 2 * (ring.last_avail % ring.num))[0]
-        ring.last_avail = (ring.last_avail + 1) & 0xFFFF
-        if head >= ring.num:
-            raise VhostUserError(f"queue {ring.index}: descriptor head {head} >= size {ring.num}")
-        return Chain(head, *self._walk(head))
-
-    def _walk(self, head: int) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
-        readable: list[tuple[int, int]] = []
-        writable: list[tuple[int, int]] = []
-        table, table_base = self.ring.desc  # type: ignore[misc]
-        size = self.ring.num
-        index = head
-        seen = 0
-        indirect_done = False
-        unpack = _DESC.unpack_from
-        while True:
-            addr, length, flags, nxt = unpack(table, table_base + 16 * index)
-            if flags & VRING_DESC_F_INDIRECT:
-                # 2.7.5.3: an indirect table replaces the chain; it cannot nest or chain on
-                if indirect_done or flags & VRING_DESC_F_NEXT or length % 16 or not length:
-                    raise VhostUserError(f"queue {self.ring.index}: bad indirect descriptor")
-                table, table_base = self.memory.guest(addr, length)
-                size = length // 16
-                index, seen, indirect_done = 0, 0, True
-                continue
-            if flags & VRING_DESC_F_WRITE:
-                writable.append((addr, length))
-            elif writable:
-                raise VhostUserError(f"queue {self.ring.index}: readable after writable")
-            else:
-                readable.append((addr, length))
-            seen += 1
-            if not flags & VRING_DESC_F_NEXT:
-                return readable, writable
-            if nxt >= size or seen >= size:
-                raise VhostUserError(f"queue {self.ring.index}: descriptor chain loops or ends")
-            index = nxt
-
-    def push(self, head: int, written: int) -> None:
-        """Put a used element (chain head, bytes written) on the used ring."""
-        ring = self.ring
-        mapping, base = ring.used  # type: ignore[misc]
-        _USED_ELEM.pack_into(mapping, base + 4 + 8 * (ring.used_idx % ring.num), head, written)
-        ring.used_idx = (ring.used_idx + 1) & 0xFFFF
-        _U16.pack_into(mapping, base + 2, ring.used_idx)
-
-    def publish_avail_event(self) -> None:
-        """EVENT_IDX: ask the driver to kick when it adds the entry after those we took."""
-        if self.event_idx:
-            ring = self.ring
-            mapping, base = ring.used  # type: ignore[misc]
-            _U16.pack_into(mapping, base + 4 + 8 * ring.num, ring.last_avail)
-
-    def used_event(self) -> int:
-        """EVENT_IDX: the used index the driver has consumed up to (it writes it as it takes
-        used buffers, when it wants interrupts)."""
-        mapping, base = self.ring.avail  # type: ignore[misc]
-        return _U16.unpack_from(mapping, base + 4 + 2 * self.ring.num)[0]
-
-    def notify(self, old_used: int) -> None:
-        """Call the driver if it wants an interrupt for the entries used since ``old_used``."""
-        ring = self.ring
-        if ring.call_fd is None or ring.used_idx == old_used:
-            return
-        mapping, base = ring.avail  # type: ignore[misc]
-        if self.event_idx:
-            used_event = _U16.unpack_from(mapping, base + 4 + 2 * ring.num)[0]
-            # vring_need_event (2.7.10): did new_idx pass used_event since old_idx?
-            if (ring.used_idx - used_event - 1) & 0xFFFF >= (ring.used_idx - old_used) & 0xFFFF:
-                return
-        elif _U16.unpack_from(mapping, base)[0] & VRING_AVAIL_F_NO_INTERRUPT:
-            return
-        os.eventfd_write(ring.call_fd, 1)
-        ring.notifications += 1
 
 
 class VhostUserDevice:
@@ -325,6 +102,7 @@ class VhostUserDevice:
         self.features = 0
         self.protocol_features = 0
         self.owner = False
+        self.slave_req_fd: int | None = None  # SET_SLAVE_REQ_FD's socket, kept, unused
         self.on_fds_changed: Callable[[], None] | None = None  # the server re-reads kick fds
 
     # ---------------------------------------------------------------- feature words
@@ -337,7 +115,7 @@ class VhostUserDevice:
 
     @property
     def offered_protocol_features(self) -> int:
-        features = 1 << PROTOCOL_F_REPLY_ACK
+        features = 1 << PROTOCOL_F_REPLY_ACK | 1 << PROTOCOL_F_SLAVE_REQ
         if self.config:
             features |= 1 << PROTOCOL_F_CONFIG
         return features
@@ -366,12 +144,10 @@ class VhostUserDevice:
         if queue is None or not self.rings[index].ready:
             return
         old_used = queue.ring.used_idx
-        while True:
+        self.process(queue)
+        while queue.settle():  # looked again after avail_event: no kick can be lost
             self.process(queue)
-            queue.publish_avail_event()
-            if not queue.pending():  # re-check after avail_event: no kick can be lost
-                break
-        queue.notify(old_used)
+        queue.notify(old_used)  # one call for all the kick's chains
         self.answered(index)
 
     def kick_fds(self) -> dict[int, int]:
@@ -386,9 +162,15 @@ class VhostUserDevice:
         self.rings = [Vring(i) for i in range(self.num_queues)]
         self.queues = [None] * self.num_queues
         self.memory.close()
+        self._close_slave_req()
         self.features = 0
         self.protocol_features = 0
         self.owner = False
+
+    def _close_slave_req(self) -> None:
+        if self.slave_req_fd is not None:
+            os.close(self.slave_req_fd)
+            self.slave_req_fd = None
 
     # ---------------------------------------------------------------- messages
 
@@ -437,7 +219,12 @@ class VhostUserDevice:
             index, num = _STATE.unpack_from(payload)
             if num == 0 or num > 32768 or num & (num - 1):
                 raise VhostUserError(f"queue size {num} is not a power of 2 up to 32768")
-            self._ring(index).num = num
+            ring = self._ring(index)
+            if num != ring.num and ring.desc is not None:
+                # the queue's areas were mapped for the old size: SET_VRING_ADDR maps again
+                ring.desc = ring.avail = ring.used = None
+                self.queues[index] = None
+            ring.num = num
             return None
         if request == SET_VRING_ADDR:
             index, _flags, desc, used, avail, _log = _ADDR.unpack_from(payload)
@@ -471,6 +258,15 @@ class VhostUserDevice:
             if ring.ready:
                 self.ring_started(index)
                 self.kick(index)  # entries added before the ring was enabled
+            return None
+        if request == SET_SLAVE_REQ_FD:
+            # QEMU sends no payload, UML none or a u64; the fd is what counts
+            if len(fds) != 1:
+                for fd in fds:
+                    os.close(fd)
+                raise VhostUserError(f"SET_SLAVE_REQ_FD with {len(fds)} file descriptors")
+            self._close_slave_req()
+            self.slave_req_fd = fds[0]
             return None
         if request == GET_QUEUE_NUM:
             return U64.pack(self.num_queues)

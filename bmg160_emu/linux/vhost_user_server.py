@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import errno
 import logging
+import math
 import os
-import selectors
+import select
 import socket
 import stat
 import struct
@@ -174,25 +175,42 @@ Poller = Callable[[float], "float | None"]  # poll(now_s) -> next deadline (mono
 
 
 class Server:
-    """Listen on one socket per device; serve messages, kicks and pollers until stopped."""
+    """Listen on one socket per device; serve messages, kicks and pollers until stopped.
+
+    The loop is ``epoll`` with one handler per file descriptor: a guest's kick costs one
+    wait, one eventfd read and the device's :meth:`~VhostUserDevice.kick`. A kick fd is
+    watched through a duplicate of our own, so it leaves the epoll set exactly when we
+    stop watching it, whenever the device closes its copy (the front end still holds the
+    eventfd: a registration of a closed descriptor would otherwise keep firing).
+    """
 
     def __init__(self) -> None:
-        self.selector = selectors.DefaultSelector()
+        self._epoll = select.epoll()
+        self._handlers: dict[int, Callable[[], None]] = {}
         self.pollers: list[Poller] = []
         self._stop = False
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
-        self.selector.register(self._wake_r, selectors.EVENT_READ, ("wake", None))
+        self._watch(self._wake_r, self._drain_wake)
         self.listeners: list[tuple[socket.socket, str]] = []
         self.connections: dict[VhostUserDevice, Connection] = {}
-        self._kicks: dict[VhostUserDevice, dict[int, int]] = {}
+        self._kicks: dict[VhostUserDevice, list[int]] = {}  # our duplicates of its kick fds
         self._deadlines: dict[Poller, float] = {}  # {poller: monotonic time to call it}
+        self._next_due = math.inf  # the earliest of them
+
+    def _watch(self, fd: int, handler: Callable[[], None]) -> None:
+        self._epoll.register(fd, select.EPOLLIN)
+        self._handlers[fd] = handler
+
+    def _unwatch(self, fd: int) -> None:
+        if self._handlers.pop(fd, None) is not None:
+            self._epoll.unregister(fd)
 
     def add(self, path: str, device: VhostUserDevice) -> None:
         sock = listen(path)
         self.listeners.append((sock, path))
-        self.selector.register(sock, selectors.EVENT_READ, ("listen", device))
+        self._watch(sock.fileno(), lambda: self._accept(sock, device))
         device.on_fds_changed = lambda d=device: self._update_kicks(d)
 
     def stop(self) -> None:
@@ -203,16 +221,41 @@ class Server:
         except OSError:
             pass
 
+    def _drain_wake(self) -> None:
+        try:
+            os.read(self._wake_r, 64)
+        except BlockingIOError:
+            pass
+
     def _update_kicks(self, device: VhostUserDevice) -> None:
-        for fd in self._kicks.pop(device, {}):
+        for fd in self._kicks.pop(device, []):
+            self._unwatch(fd)
+            os.close(fd)
+        watched = []
+        for fd, index in device.kick_fds().items():
+            ours = os.dup(fd)
+            self._watch(ours, self._kick_handler(device, index, ours))
+            watched.append(ours)
+        self._kicks[device] = watched
+
+    def _kick_handler(self, device: VhostUserDevice, index: int, fd: int) -> Callable[[], None]:
+        kick = device.kick
+        eventfd_read = os.eventfd_read
+
+        def on_kick() -> None:
             try:
-                self.selector.unregister(fd)
-            except (KeyError, ValueError):
+                eventfd_read(fd)
+            except BlockingIOError:
                 pass
-        kicks = device.kick_fds()
-        for fd, index in kicks.items():
-            self.selector.register(fd, selectors.EVENT_READ, ("kick", (device, index)))
-        self._kicks[device] = kicks
+            try:
+                kick(index)
+            except VhostUserError as exc:  # the guest broke the ring: stop serving this one
+                log.error("%s: queue %d: %s; closing the connection", device.name, index, exc)
+                connection = self.connections.get(device)
+                if connection is not None:
+                    self._drop(connection)
+
+        return on_kick
 
     def _accept(self, listener: socket.socket, device: VhostUserDevice) -> None:
         sock, _ = listener.accept()
@@ -222,12 +265,12 @@ class Server:
             return
         connection = Connection(sock, device)
         self.connections[device] = connection
-        self.selector.register(sock, selectors.EVENT_READ, ("message", connection))
+        self._watch(sock.fileno(), lambda: self._message(connection))
         log.info("%s: front end connected", device.name)
 
     def _drop(self, connection: Connection) -> None:
         device = connection.device
-        self.selector.unregister(connection.sock)
+        self._unwatch(connection.sock.fileno())
         self.connections.pop(device, None)
         connection.close()
         self._update_kicks(device)
@@ -240,56 +283,41 @@ class Server:
         current = self._deadlines.get(poller)
         if current is None or at_s < current:
             self._deadlines[poller] = at_s
+            self._next_due = min(self._next_due, at_s)
+
+    def _run_due(self, now: float) -> None:
+        deadlines = self._deadlines
+        for poller, deadline in list(deadlines.items()):
+            if deadline <= now:
+                del deadlines[poller]
+                self.schedule(poller, poller(now))
+        self._next_due = min(deadlines.values(), default=math.inf)
 
     def run(self, duration_s: float | None = None) -> None:
         """Serve until :meth:`stop` (or ``duration_s``). A poller returns the monotonic
         time it wants to be called again, or None: only when :meth:`schedule` asks."""
-        end = None if duration_s is None else time.monotonic() + duration_s
-        deadlines = self._deadlines
+        end = math.inf if duration_s is None else time.monotonic() + duration_s
         for poller in self.pollers:
-            deadlines.setdefault(poller, 0.0)
-        select = self.selector.select
+            if poller not in self._deadlines:
+                self.schedule(poller, 0.0)
+        poll = self._epoll.poll
+        handlers = self._handlers
+        monotonic = time.monotonic
         while not self._stop:
-            now = time.monotonic()
-            timeout = None
-            if deadlines:
-                for poller, deadline in list(deadlines.items()):
-                    if deadline <= now:
-                        del deadlines[poller]
-                        self.schedule(poller, poller(now))
-                if deadlines:
-                    timeout = max(min(deadlines.values()) - now, 0.0)
-            if end is not None:
+            timeout = -1.0
+            if self._next_due != math.inf or end != math.inf:
+                now = monotonic()
                 if now >= end:
                     break
-                timeout = end - now if timeout is None else min(timeout, end - now)
-            for key, _ in select(timeout):
-                kind, target = key.data
-                if kind == "kick":
-                    device, index = target
-                    try:
-                        os.eventfd_read(key.fd)
-                    except BlockingIOError:
-                        pass
-                    self._kick(device, index)
-                elif kind == "message":
-                    self._message(target)
-                elif kind == "listen":
-                    self._accept(key.fileobj, target)  # type: ignore[arg-type]
-                else:
-                    try:
-                        os.read(self._wake_r, 64)
-                    except BlockingIOError:
-                        pass
-
-    def _kick(self, device: VhostUserDevice, index: int) -> None:
-        try:
-            device.kick(index)
-        except VhostUserError as exc:  # the guest broke the ring: stop serving this one
-            log.error("%s: queue %d: %s; closing the connection", device.name, index, exc)
-            connection = self.connections.get(device)
-            if connection is not None:
-                self._drop(connection)
+                if now >= self._next_due:
+                    self._run_due(now)
+                due = min(self._next_due, end)
+                if due != math.inf:  # (the pollers may want no call any more)
+                    timeout = max(due - now, 0.0)
+            for fd, _ in poll(timeout):
+                handler = handlers.get(fd)
+                if handler is not None:  # (one handled earlier in this batch may drop it)
+                    handler()
 
     def _message(self, connection: Connection) -> None:
         try:
@@ -307,14 +335,18 @@ class Server:
         for connection in list(self.connections.values()):
             self._drop(connection)
         for sock, path in self.listeners:
-            self.selector.unregister(sock)
+            self._unwatch(sock.fileno())
             sock.close()
             try:
                 os.unlink(path)
             except FileNotFoundError:
                 pass
         self.listeners = []
-        self.selector.unregister(self._wake_r)
+        for device in list(self._kicks):
+            for fd in self._kicks.pop(device):
+                self._unwatch(fd)
+                os.close(fd)
+        self._unwatch(self._wake_r)
         os.close(self._wake_r)
         os.close(self._wake_w)
-        self.selector.close()
+        self._epoll.close()

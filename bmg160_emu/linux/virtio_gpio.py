@@ -44,7 +44,8 @@ from typing import Any
 from bmg160_emu.clock import NS_PER_S
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.linux.guest_pace import NEVER, GuestPacedClock
-from bmg160_emu.linux.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
+from bmg160_emu.linux.vhost_user import VhostUserDevice
+from bmg160_emu.linux.virtqueue import Chain, VhostUserError, VirtQueue, fence
 
 VIRTIO_GPIO_F_IRQ = 0
 MSG_GET_NAMES = 0x0001
@@ -162,6 +163,7 @@ class VirtioGPIODevice(VhostUserDevice):
         # read_taken(address): the guest has the answer to its last rate read (virtio-i2c)
         self.read_taken = read_taken
         self._pace: dict[int, _Pace] = {}
+        self._armed = False  # a line has a trigger type set
         self.given_up = 0  # samples whose edge the guest never answered (paced)
         self.held_samples = 0  # samples the chips' time waited for (paced)
         # the server's "look again at" (monotonic s); set by whoever runs the loop
@@ -235,6 +237,7 @@ class VirtioGPIODevice(VhostUserDevice):
 
     def _set_irq_type(self, line: GpioLine, irq_type: int) -> None:
         line.irq_type = irq_type
+        self._armed = any(o.irq_type != IRQ_TYPE_NONE for o in self.lines)
         # The per-sample hook costs the model its block fast path: only while needed.
         wanted = any(o.irq_type != IRQ_TYPE_NONE for o in self.lines if o.chip is line.chip)
         hooks = line.chip.truth_hooks
@@ -273,6 +276,7 @@ class VirtioGPIODevice(VhostUserDevice):
         self.memory.write(addr, bytes([status]))
         old = queue.ring.used_idx
         queue.push(chain.head, 1)
+        fence()
         queue.notify(old)
         if status == IRQ_STATUS_VALID:
             line.interrupts += 1
@@ -438,8 +442,11 @@ class VirtioGPIODevice(VhostUserDevice):
         return deadline
 
     def after_transfer(self) -> None:
-        """Hook for the I2C device: a transfer may have changed a line (clear-on-read...)."""
-        self.look()
+        """Hook for the I2C device: a transfer may have changed a line (clear-on-read...).
+        With no trigger on any line there is nothing to follow and nothing to pace (the
+        look after the request that cleared the last one left it so): no look."""
+        if self._armed:
+            self.look()
 
     def line_summary(self) -> list[dict[str, Any]]:
         return [{"line": i, "name": line.name, "irq_type": line.irq_type,

@@ -23,10 +23,18 @@ import time
 from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass
+from operator import itemgetter
 
 from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
 from bmg160_emu.device.registers import address_of
-from bmg160_emu.linux.vhost_user import Chain, VhostUserDevice, VhostUserError, VirtQueue
+from bmg160_emu.linux.vhost_user import VhostUserDevice
+from bmg160_emu.linux.virtqueue import (
+    VRING_DESC_F_NEXT,
+    VRING_DESC_F_WRITE,
+    Chain,
+    VhostUserError,
+    VirtQueue,
+)
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +45,14 @@ MSG_OK = 0
 MSG_ERR = 1
 _HEADER = struct.Struct("<HHI")
 _STATUS = (bytes([MSG_OK]), bytes([MSG_ERR]))
+# The indirect tables of a register read as Linux's driver lays them out, by (length,
+# flags, next) of each entry but the read's buffer length: header (8, readable), register
+# (1, readable) or buffer (writable), status (1, writable, the chain's end)
+_WRITE_SHAPE = itemgetter(1, 2, 3, 5, 6, 7, 9, 10)
+_WRITE_1 = (_HEADER.size, VRING_DESC_F_NEXT, 1, 1, VRING_DESC_F_NEXT, 2, 1, VRING_DESC_F_WRITE)
+_READ_SHAPE = itemgetter(1, 2, 3, 6, 7, 9, 10)
+_READ_N = (_HEADER.size, VRING_DESC_F_NEXT, 1, VRING_DESC_F_NEXT | VRING_DESC_F_WRITE, 2, 1,
+           VRING_DESC_F_WRITE)
 RATE_FIRST = address_of("RATE_X_LSB")  # a read touching these is a read of the rates
 RATE_LAST = address_of("RATE_Z_MSB")
 
@@ -93,11 +109,18 @@ class VirtioI2CDevice(VhostUserDevice):
     def process(self, queue: VirtQueue) -> None:
         started = time.perf_counter()
         served = False
-        while (chain := queue.pop()) is not None:
-            if not self._group and self._register_read(queue, chain):
+        heads = queue.take()
+        count = len(heads)
+        bus = self.bus
+        i = 0
+        while i < count:
+            if (i + 1 < count and not self._group and not bus.transaction_hooks
+                    and self._register_read(queue, heads[i], heads[i + 1])):
                 served = True
+                i += 2
                 continue
-            request = self._parse(chain)
+            request = self._parse(queue.chain(heads[i]))
+            i += 1
             self._group.append(request)
             if not request.flags & FLAG_FAIL_NEXT:
                 self._transfer(queue, self._group)
@@ -113,51 +136,51 @@ class VirtioI2CDevice(VhostUserDevice):
             for hook in self.after_transfer:
                 hook()
 
-    def _register_read(self, queue: VirtQueue, first: Chain) -> bool:
-        """The drivers' most common transfer, served without building its messages: write
-        [register] with FAIL_NEXT, then a read of 1..32 bytes from the same address, both
-        well formed, no fault hook armed. Anything else (or a read not queued yet) goes to
-        the general path with ``first`` (and the chain after it) in the group."""
-        memory = self.memory
-        readable, writable = first.readable, first.writable
-        if len(readable) != 2 or readable[0][1] != _HEADER.size or readable[1][1] != 1 \
-                or len(writable) != 1 or writable[0][1] != 1:
+    def _register_read(self, queue: VirtQueue, first: int, second: int) -> bool:
+        """The drivers' most common transfer, served straight from the two chains' indirect
+        tables (how the Linux driver queues them): write [register] with FAIL_NEXT, then a
+        read of 1..32 bytes from the same present address, both well formed, in one region
+        of guest memory. False (nothing taken) for anything else: the general path serves
+        it, with the same result, errors included. The caller checks no fault hook is armed."""
+        w = queue.table(first, 3)
+        if w is None or _WRITE_SHAPE(w) != _WRITE_1:
             return False
-        raw_address, _, flags = _HEADER.unpack(memory.read(*readable[0]))
-        bus = self.bus
-        chip = bus.devices.get(raw_address >> 1)
-        if flags != FLAG_FAIL_NEXT or chip is None or bus.transaction_hooks:
+        r = queue.table(second, 3)
+        if r is None or _READ_SHAPE(r) != _READ_N:
             return False
-        second = queue.pop()
-        if second is None:  # the read is not on the ring yet: the general path waits for it
-            self._group.append(self._parse(first))
-            return True
-        r_readable, r_writable = second.readable, second.writable
-        length = r_writable[0][1] if len(r_writable) == 2 else 0
-        good = (0 < length <= I2C_SMBUS_BLOCK_MAX and r_writable[1][1] == 1
-                and len(r_readable) == 1 and r_readable[0][1] == _HEADER.size
-                and _HEADER.unpack(memory.read(*r_readable[0])) == (raw_address, 0, FLAG_M_RD))
-        if not good:
-            self._group.append(self._parse(first))
-            self._group.append(request := self._parse(second))
-            if not request.flags & FLAG_FAIL_NEXT:
-                self._transfer(queue, self._group)
-                self._group = []
-            return True
+        length = r[5]
+        if not 0 < length <= I2C_SMBUS_BLOCK_MAX:
+            return False
+        # every buffer of both requests through one lookup (they lie in one region)
+        low = min(w[0], w[4], w[8], r[0], r[4], r[8])
+        located = self.memory.locate(low, max(w[0] + 8, w[4] + 1, w[8] + 1, r[0] + 8,
+                                              r[4] + length, r[8] + 1) - low)
+        if located is None:
+            return False
+        mapping, offset = located
+        delta = offset - low
+        raw_address, _, flags = _HEADER.unpack_from(mapping, w[0] + delta)
+        if flags != FLAG_FAIL_NEXT or _HEADER.unpack_from(mapping, r[0] + delta) != (
+                raw_address, 0, FLAG_M_RD):
+            return False
         address = raw_address >> 1
-        register = memory.read(*readable[1])[0]
+        bus = self.bus
+        chip = bus.devices.get(address)
+        if chip is None:  # a NACK: the general path fails the group and logs it
+            return False
+        register = mapping[w[4] + delta]
         # on the wire the SMBus I2C block read, and logged as one (as from i2c-dev)
         data = bus.read_i2c_block_data(address, register, length)
-        self.stats.transfers += 1
-        self.stats.requests += 2
+        at = r[4] + delta
+        mapping[at:at + length] = data
+        mapping[w[8] + delta] = mapping[r[8] + delta] = MSG_OK
+        queue.push2(first, 1, second, length + 1)
+        stats = self.stats
+        stats.transfers += 1
+        stats.requests += 2
         if register <= RATE_LAST and register + length > RATE_FIRST:
             self.rate_reads[address] = chip.time
-            self._rate_read_used[address] = (queue.ring.used_idx + 2) & 0xFFFF
-        memory.write(writable[0][0], _STATUS[MSG_OK])
-        queue.push(first.head, 1)
-        memory.write(r_writable[0][0], data)
-        memory.write(r_writable[1][0], _STATUS[MSG_OK])
-        queue.push(second.head, length + 1)
+            self._rate_read_used[address] = queue.ring.used_idx
         return True
 
     def _parse(self, chain: Chain) -> _Request:
