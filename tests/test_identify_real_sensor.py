@@ -74,11 +74,26 @@ def test_an_unfiltered_record_is_fitted_from_the_first_tau():
     assert not any("warm-up" in n or "jumps" in n for n in axis.notes)
 
 
-def test_a_filtered_start_is_found_and_skipped(truth):
+def test_a_filtered_start_is_found_and_fitted_as_the_filter(truth):
     axis = identify(truth[: 20 * 60 * 100], RATE).axes[0]  # 20 min
+    # the filter comes out of the PSD (20 min: about 300 Welch bins per log bin above 1 Hz,
+    # the corner to a fraction of a percent) and the white term is fitted through it from
+    # the first tau (issue 23; before, the fit skipped the filtered start)
+    flt = axis.output_filter
+    assert flt is not None and flt.order == 2
+    assert flt.corner_low_hz <= 40.0 <= flt.corner_high_hz
+    assert flt.corner_hz == pytest.approx(40.0, rel=0.02)
+    assert axis.fit_tau_range_s[0] == pytest.approx(0.01)
+    assert "output filter is part of the white term" in axis.tau_range_reason
+    # 20 min: N to ~1 %; without the filter handling the roll-off pulled N 20 % low
+    assert axis.N.value == pytest.approx(TRUTH.N, rel=0.03)
+
+
+def test_without_the_output_stage_the_filtered_start_is_skipped(truth):
+    axis = identify(truth[: 20 * 60 * 100], RATE, output_stage=False).axes[0]
+    assert axis.output_filter is None
     assert axis.fit_tau_range_s[0] > 0.01
     assert "below the white-noise line" in axis.tau_range_reason
-    # 20 min: N to ~1 %; without the filter handling the roll-off pulled N 20 % low
     assert axis.N.value == pytest.approx(TRUTH.N, rel=0.03)
 
 

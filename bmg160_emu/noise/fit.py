@@ -16,6 +16,12 @@ correlation times T_i. The fit, per axis:
    keeps a term only when it pays for its two parameters on so few points. The octave
    points are correlated, so chi^2 is not exactly chi-square: it is a rule, not a test.
 
+The sensor's output stage (output_stage.py) enters the model as it is found: white noise
+through the output filter (the exact discrete Allan variance of filtered white noise,
+output_filter.white_avar_unit, instead of N^2 / tau, so the fit starts at the first tau),
+the quantization's white floor LSB^2 / 12 after the filter as a known term, and each
+sinusoidal line as an IEEE 952 column of known frequency and fitted amplitude.
+
 Weights are 1 / sd(AVAR estimate) = sqrt(edf / 2) / AVAR_model, iterated from the model.
 Intervals come from the weighted Jacobian in (N^2, B_i^2, ln T_i, K^2, ...), scaled by the
 reduced chi-square when it exceeds 1 and widened by factors measured by simulation
@@ -38,13 +44,15 @@ from bmg160_emu.noise.allan import (
     allan_confidence,
     gauss_markov_avar_unit,
 )
+from bmg160_emu.noise.output_filter import white_avar_unit
+from bmg160_emu.noise.output_stage import FilterFit, quantization_avar, sine_avar_unit
 from bmg160_emu.noise.profile import UNITS
 
 # Widening of the linearized intervals (octave ADEV points are correlated): the 95th
 # percentile of |error| / half-width over 30 records each of 1 h and 6 h of the paper
 # profile at 200 Hz (docs/identification.md); used for every term of a multi-term fit.
 CI_WIDENING = {"N": 1.5, "B": 1.8, "lnT": 3.0, "K": 3.0, "Q": 1.5, "R": 3.0, "F": 1.8,
-               "filter": 1.0}
+               "filter": 1.0, "S": 1.8}
 CI_LEVEL = 0.95
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile
 MAX_TERMS = 5  # Gauss-Markov terms considered at most
@@ -100,15 +108,30 @@ class CurveFit:
     chi2_reduced: float
     T_search_range_s: tuple[float, float]
     selection: dict[str, Any] = field(default_factory=dict)
+    rate_hz: float = 0.0  # the record's (0: N^2 / tau for the white term)
+    output_filter: FilterFit | None = None  # the sensor's filter, part of the white term
+    lsb_dps: float | None = None  # the output's quantization step (a known white floor)
+    sines: list[tuple[Estimate, float]] = field(default_factory=list)  # (A, f Hz) per line
 
     def gauss_markov_terms(self) -> tuple[tuple[float, float], ...]:
         """(B, T) of every term the generator draws, the flicker bank included."""
         own = tuple((t.B.value, t.T.value) for t in self.terms if t.B.value > 0)
         return own + self.flicker_poles
 
+    def white_avar(self, tau: np.ndarray) -> np.ndarray:
+        """The white term alone: N^2 / tau, through the output filter when there is one."""
+        flt = self.output_filter.design if self.output_filter is not None else None
+        if flt is None or not self.rate_hz:
+            return self.N.value**2 / np.asarray(tau, dtype=float)
+        return self.N.value**2 * white_avar_unit(tau, self.rate_hz, flt)
+
     def model_avar(self, tau: np.ndarray) -> np.ndarray:
         tau = np.asarray(tau, dtype=float)
-        out = self.N.value**2 / tau + self.K.value**2 * tau / 3.0
+        out = self.white_avar(tau) + self.K.value**2 * tau / 3.0
+        if self.rate_hz:
+            out = out + quantization_avar(self.lsb_dps, self.rate_hz, tau)
+        for amplitude, frequency in self.sines:
+            out = out + amplitude.value**2 * sine_avar_unit(tau, frequency)
         for B, T in self.gauss_markov_terms():
             out = out + B * B * gauss_markov_avar_unit(tau, T)
         if self.Q is not None:
@@ -125,22 +148,31 @@ class _Design:
     with_r: bool
     bank: np.ndarray | None  # flicker column (unit: ADEV level 1 per unit coefficient)
     roll_off: bool = False  # a sensor filter's deficit -c / tau^2 (see fit_curve)
+    white: np.ndarray | None = None  # the white column (None: 1 / tau)
+    fixed: np.ndarray | None = None  # a known part of the Allan variance (quantization)
+    sine_hz: tuple[float, ...] = ()  # frequencies of the sinusoidal columns
 
     def extras(self) -> list[str]:
         """Names of the columns after the Gauss-Markov ones, in order."""
         names = ["F"] if self.bank is not None else []
         names += ["filter"] if self.roll_off else []
+        names += [f"S{i}" for i in range(len(self.sine_hz))]
         return names + (["Q"] if self.with_q else []) + (["R"] if self.with_r else [])
 
     def matrix(self, Ts: np.ndarray) -> np.ndarray:
         tau = self.tau
-        cols = [1.0 / tau, tau / 3.0]
+        cols = [1.0 / tau if self.white is None else self.white, tau / 3.0]
         cols += [gauss_markov_avar_unit(tau, T) for T in Ts]
         extra = {"filter": -1.0 / tau**2, "Q": 3.0 / tau**2, "R": tau**2 / 2.0}
+        extra.update({f"S{i}": sine_avar_unit(tau, f) for i, f in enumerate(self.sine_hz)})
         if self.bank is not None:
             extra["F"] = self.bank
         cols += [extra[name] for name in self.extras()]
         return np.column_stack(cols)
+
+    def target(self, avar: np.ndarray) -> np.ndarray:
+        """The part of the Allan variance the columns fit (the known part taken off)."""
+        return avar if self.fixed is None else avar - self.fixed
 
     @property
     def n_fixed(self) -> int:  # N, K and the extra columns
@@ -148,6 +180,7 @@ class _Design:
 
 
 def _solve(design: _Design, avar: np.ndarray, w: np.ndarray, Ts) -> tuple[np.ndarray, float]:
+    avar = design.target(avar)
     A = design.matrix(np.asarray(Ts, dtype=float)) * w[:, None]
     scale = np.linalg.norm(A, axis=0)  # columns span ~10 decades: solve on unit columns
     scale[scale == 0] = 1.0
@@ -213,16 +246,20 @@ def _select(design, avar, w, bounds, poles: int | None) -> dict[str, Any]:
                 break
     table = []
     best: dict[str, Any] | None = None
-    for k in sorted(sets):
-        if poles is not None and k != poles:
-            continue
+    for k in sorted(sets):  # every count is scored (and listed), --poles picks its own
         Ts, theta_k, cost = _refine(design, avar, w, sets[k], bounds)
         p = design.n_fixed + 2 * k
         score = _aicc(cost, p, n)
-        table.append({"terms": int(k), "chi2": _json_float(cost), "aicc": _json_float(score)})
-        if best is None or score < best["aicc"] or (poles is not None):
+        table.append({"terms": int(k), "chi2": _json_float(cost), "aicc": _json_float(score),
+                      "T_s": [float(T) for T in Ts]})
+        if poles is not None:
+            if k == poles:
+                best = {"Ts": Ts, "theta": theta_k, "cost": cost, "aicc": score, "terms": k}
+        elif best is None or score < best["aicc"]:
             best = {"Ts": Ts, "theta": theta_k, "cost": cost, "aicc": score, "terms": k}
     assert best is not None
+    for row in table:
+        row["chosen"] = row["terms"] == best["terms"]
     best["table"] = table
     return best
 
@@ -247,9 +284,14 @@ def fit_curve(
     flicker: bool = False,
     roll_off: bool = False,
     record: np.ndarray | None = None,
+    output_filter: FilterFit | None = None,
+    lsb_dps: float | None = None,
+    sine_hz: tuple[float, ...] = (),
 ) -> CurveFit:
     """Fit the curve; poles = None chooses the number of Gauss-Markov terms by AICc;
-    roll_off adds the first-order deficit of a sensor filter (a term -c / tau^2).
+    roll_off adds the first-order deficit of a sensor filter (a term -c / tau^2) where the
+    filter itself is not known; output_filter makes the white term filtered white noise,
+    lsb_dps adds its quantization floor, sine_hz a sinusoidal column per frequency.
 
     record (the samples, None for a curve input) is part of the signature every method of
     identification.FIT_METHODS takes, for methods that fit the samples themselves; this
@@ -260,7 +302,7 @@ def fit_curve(
     if tau_range[1] is not None:
         sel &= curve.taus <= tau_range[1] * (1 + 1e-9)
     tau, avar = curve.taus[sel], curve.avar[sel]
-    need = 3 + with_q + with_r + flicker + roll_off + 2 * (poles or 0)
+    need = 3 + with_q + with_r + flicker + roll_off + len(sine_hz) + 2 * (poles or 0)
     if tau.size < need + 1:
         raise FitError(
             f"only {tau.size} Allan points in the fitted tau range; the fit needs at least "
@@ -276,29 +318,47 @@ def fit_curve(
     # N^2 / tau by about N^2 c / tau^2 (c ~ 0.15 / BW for a 2nd-order filter: the missing
     # power above BW seen through the Allan transfer function): a column -1 / tau^2 takes
     # that deficit instead of N or a short Gauss-Markov term
-    design = _Design(tau, with_q, with_r, bank, roll_off=roll_off)
+    design = _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, lsb_dps,
+                          sine_hz)
     w = np.sqrt(curve.edf[sel] / 2.0) / avar
     best = _select(design, avar, w, bounds, poles)
     for _ in range(3):  # weights from the model, not the noisy estimate (less bias)
-        model = np.maximum(design.matrix(best["Ts"]) @ best["theta"], 1e-300)
-        full = np.maximum(_design_all(curve.taus, design, best) , 1e-300)
+        model = design.matrix(best["Ts"]) @ best["theta"]
+        model = np.maximum(model if design.fixed is None else model + design.fixed, 1e-300)
+        full = np.maximum(_design_all(curve.taus, design, best, rate_hz, output_filter, lsb_dps),
+                          1e-300)
         curve = allan_confidence(curve.taus, curve.adev, curve.n_terms,
-                                 _alphas(curve.taus, full), n_samples, rate_hz, curve.ci)
+                                 _alphas(curve.taus, full), n_samples, rate_hz, curve.ci,
+                                 curve.overlapping)
         w = np.sqrt(curve.edf[sel] / 2.0) / model
         best = _select(design, avar, w, bounds, poles)
     dof = max(tau.size - design.n_fixed - 2 * best["terms"], 1)
     chi2_red = best["cost"] / dof
-    return _estimates(design, avar, w, best, bounds, max(chi2_red, 1.0), curve, sel, chi2_red,
-                      bank_Ts)
+    fit = _estimates(design, avar, w, best, bounds, max(chi2_red, 1.0), curve, sel, chi2_red,
+                     bank_Ts)
+    fit.rate_hz, fit.output_filter, fit.lsb_dps = float(rate_hz), output_filter, lsb_dps
+    return fit
 
 
-def _design_all(taus: np.ndarray, design: _Design, best: dict[str, Any]) -> np.ndarray:
+def _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, lsb_dps,
+                 sine_hz) -> _Design:
+    white = (None if output_filter is None
+             else white_avar_unit(tau, rate_hz, output_filter.design))
+    fixed = quantization_avar(lsb_dps, rate_hz, tau) if lsb_dps else None
+    return _Design(tau, with_q, with_r, bank, roll_off, white, fixed, tuple(sine_hz))
+
+
+def _design_all(taus: np.ndarray, design: _Design, best: dict[str, Any],
+                rate_hz: float, output_filter: FilterFit | None, lsb_dps: float | None
+                ) -> np.ndarray:
     """The fitted model at every tau of the curve (for the noise types of the intervals)."""
     bank = None
     if design.bank is not None:
         bank = np.interp(np.log(taus), np.log(design.tau), design.bank)
-    whole = _Design(taus, design.with_q, design.with_r, bank, design.roll_off)
-    return whole.matrix(best["Ts"]) @ best["theta"]
+    whole = _make_design(taus, rate_hz, design.with_q, design.with_r, bank, design.roll_off,
+                         output_filter, lsb_dps, design.sine_hz)
+    model = whole.matrix(best["Ts"]) @ best["theta"]
+    return model if whole.fixed is None else model + whole.fixed
 
 
 def _alphas(taus: np.ndarray, model: np.ndarray) -> np.ndarray:
@@ -335,7 +395,7 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         sd[usable] = np.sqrt(np.clip(np.diag(cov), 0.0, None) * scale) / norms[usable]
     except (np.linalg.LinAlgError, ValueError):
         pass  # no linearized interval: every one is capped below
-    sd = np.array([s * CI_WIDENING[nm] for s, nm in zip(sd, names)])
+    sd = np.array([s * CI_WIDENING[nm.rstrip('0123456789') or nm] for s, nm in zip(sd, names)])
     # the largest value each term could take alone under the curve's upper bound
     upper = (curve.ci_high[sel] ** 2) * 4.0
 
@@ -356,14 +416,16 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         lo = bounds[0] if on_lo else min(max(T * math.exp(-half), bounds[0]), T)
         hi = bounds[1] if on_hi else max(min(T * math.exp(half), bounds[1]), T)
         terms.append(Term(B, Estimate(float(T), float(lo), float(hi), "s"), bool(on_lo or on_hi)))
-    terms.sort(key=lambda t: t.T.value)
+    # a term of size 0 is no term: left out (--poles N may ask for more than the curve holds)
+    zero = sum(1 for t in terms if not t.B.value > 0)
+    terms = sorted((t for t in terms if t.B.value > 0), key=lambda t: t.T.value)
     j = 2 + 2 * k
     extra: dict[str, Estimate] = {}
     for c, nm in enumerate(names[j:], start=j):
         column = A[:, 2 + k + (c - j)]
         if nm == "filter":  # a deficit: no cap from the curve's upper bound
             continue
-        unit = UNITS["B"] if nm == "F" else UNITS[nm]
+        unit = UNITS["B"] if nm == "F" else UNITS["A"] if nm.startswith("S") else UNITS[nm]
         extra[nm] = square_root_estimate(theta[2 + k + (c - j)], sd[c], column, unit)
     flicker = poles_f = None
     if "F" in extra:  # coefficient = flat ADEV^2 = 0.664^2 B_flicker^2
@@ -374,12 +436,15 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         raw = np.sum([gauss_markov_avar_unit(tau, T) for T in bank_Ts], axis=0)
         b2 = f.value**2 / float(np.mean(raw))
         poles_f = tuple((math.sqrt(b2), float(T)) for T in bank_Ts) if b2 > 0 else ()
+    sines = [(extra.pop(f"S{i}"), f) for i, f in enumerate(design.sine_hz)]
     return CurveFit(
         N=N, K=K, terms=terms, Q=extra.get("Q"), R=extra.get("R"), flicker=flicker,
         flicker_poles=poles_f or (), curve=curve,
         tau_range_s=(float(tau[0]), float(tau[-1])), points=int(tau.size),
         chi2_reduced=float(chi2_red), T_search_range_s=(float(bounds[0]), float(bounds[1])),
-        selection={"criterion": "AICc", "candidates": best["table"], "terms": best["terms"]},
+        selection={"criterion": "AICc", "candidates": best["table"], "terms": best["terms"],
+                   "zero_terms_left_out": zero},
+        sines=sines,
     )
 
 

@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar
-from bmg160_emu.noise.identification import AxisIdentification
+from bmg160_emu.noise.identified import AxisIdentification
+from bmg160_emu.noise.output_stage import OutputGrid, output_grid
 from bmg160_emu.noise.spectrum import (
     Spectrum,
     gauss_markov_psd,
@@ -42,35 +42,11 @@ _OVERLAY_WINDOW = 2000  # samples of the time-domain overlay (10 s at 200 Hz)
 _OVERLAY_ZOOM = 100  # samples of its zoomed panel, where single LSB steps can be seen
 _UNIT = {"N": "deg/s/\u221aHz", "K": "deg/s/\u221as", "B": "deg/s"}  # profile.UNITS, as printed
 FIT_LABELS = {"wls": "WLS fit of the Allan variance", "gmwm": "GMWM fit of the wavelet variance"}
-_GRID_SAMPLES = 200_000  # values looked at to find a record's LSB grid (the grid is the same
-# over the whole record; 2e5 values hold every level of a 16-bit output within +-5 sigma)
-_GRID_TOLERANCE = 0.05  # of a step: a RESD file holds rates to 1e-5 rad/s, 0.9 % of an LSB
-# at 16.384 LSB/(deg/s), so its levels are off the LSB grid by less than 0.5 % of a step
-_TARGET_BINS = 100  # histogram bins of a quantized record (whole LSBs per bin)
 _MIN_BINS, _MAX_BINS = 20, 200  # of a record of real numbers (numpy's Freedman-Diaconis)
 _LSB_LINES = 60  # most LSB levels marked in the time overlay's zoom
 _ADEV_DECADES_BELOW = 2.0  # of the Allan axes' range under the curve's lowest point
 _PSD_DECADES_BELOW = 2.0  # an asymptote this far below the data is listed, not drawn
 _PSD_SEEN_DECADES = 0.5  # of frequency over which every asymptote drawn can be seen
-
-
-@dataclass(frozen=True)
-class OutputGrid:
-    """The values a quantized output can take: ``origin + k * step`` (step: one LSB, deg/s)."""
-
-    step: float
-    origin: float
-
-    def level(self, value: float) -> int:
-        return round((value - self.origin) / self.step)
-
-    def snap(self, values: np.ndarray) -> np.ndarray:
-        """``values`` rounded to the nearest level, as the chip's ADC rounds its output."""
-        k = np.rint((np.asarray(values, dtype=float) - self.origin) / self.step)
-        return self.origin + k * self.step
-
-    def levels_per_bin(self, low: float, high: float) -> int:
-        return max(1, math.ceil((self.level(high) - self.level(low) + 1) / _TARGET_BINS))
 
 
 def check_figure_path(path: str | Path) -> Path:
@@ -153,25 +129,6 @@ def time_series_figure(record: np.ndarray, rate_hz: float, names: Sequence[str])
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Static record, time domain")
     return fig
-
-
-def output_grid(values: np.ndarray) -> OutputGrid | None:
-    """The grid a quantized record's values sit on (one LSB apart), or None for a record of
-    real numbers. Found from the data, so it holds for any source: ``record`` and a chip
-    (counts / sensitivity), the firmware's stream (whole mdps), a RESD file (1e-5 rad/s)."""
-    x = np.asarray(values, dtype=float).ravel()[:_GRID_SAMPLES]
-    x = x[np.isfinite(x)]
-    levels = np.unique(x)
-    if levels.size < 2 or x.size < 2 * levels.size:  # real numbers: nearly every value new
-        return None
-    step0 = float(np.median(np.diff(levels)))
-    index = np.rint((levels - levels[0]) / step0)
-    step = float(np.dot(levels - levels[0], index) / np.dot(index, index))  # least squares
-    if not step > 0:
-        return None
-    if np.abs(levels - levels[0] - index * step).max() > _GRID_TOLERANCE * step:
-        return None
-    return OutputGrid(step, float(levels[0]))
 
 
 def histogram_edges(values: np.ndarray, grid: OutputGrid | None) -> np.ndarray:
