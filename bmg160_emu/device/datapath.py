@@ -293,10 +293,12 @@ class SensorNoise:
             return zeros, zeros
         if k0 < self.k0:
             raise RuntimeError(f"noise of sample {k0} was forgotten (held from {self.k0})")
+        if k0 > self.k0:
+            self._forget(min(k0, self.end))
         if k0 + n > self.end:
             self._draw(k0 + n)
-        if k0 > self.k0:
-            self._forget(k0)
+            if k0 > self.k0:  # a gap: samples drawn and never used
+                self._forget(k0)
         return self.raw[:n], self.out[:n]
 
     def _draw(self, end: int) -> None:
@@ -430,11 +432,9 @@ class ProfileNoise:
     def generate(self, n: int) -> np.ndarray:
         _, out = self._noise.take(self._k, n)
         self._k += n
-        out = out.copy()
-        if self.lsb_dps:
-            np.rint(out / self.lsb_dps, out=out)
-            out *= self.lsb_dps
-        return out
+        if self.lsb_dps:  # new arrays: the buffer's rows are never written
+            return np.rint(out / self.lsb_dps) * self.lsb_dps
+        return out.copy()
 
 
 def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,

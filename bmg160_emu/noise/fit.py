@@ -26,7 +26,8 @@ Weights are 1 / sd(AVAR estimate) = sqrt(edf / 2) / AVAR_model, iterated from th
 Intervals come from the weighted Jacobian in (N^2, B_i^2, ln T_i, K^2, ...), scaled by the
 reduced chi-square when it exceeds 1 and widened by factors measured by simulation
 (docs/identification.md); every interval is finite and ordered: B, N, K are capped where the
-term alone would exceed the curve's upper bound, T is limited to the searched range.
+term alone would exceed the curve's upper bound, T is limited to the searched range, and is
+the whole searched range when B's interval reaches 0 (a term that may be absent has no T).
 """
 
 from __future__ import annotations
@@ -415,6 +416,8 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         on_lo, on_hi = T <= bounds[0] * 1.05, T >= bounds[1] / 1.05
         lo = bounds[0] if on_lo else min(max(T * math.exp(-half), bounds[0]), T)
         hi = bounds[1] if on_hi else max(min(T * math.exp(half), bounds[1]), T)
+        if not B.ci_low > 0:  # the term may be absent (B = 0): then any T fits as well, and
+            lo, hi = bounds  # an interval round this T would leave out plausible ones
         terms.append(Term(B, Estimate(float(T), float(lo), float(hi), "s"), bool(on_lo or on_hi)))
     # a term of size 0 is no term: left out (--poles N may ask for more than the curve holds)
     zero = sum(1 for t in terms if not t.B.value > 0)

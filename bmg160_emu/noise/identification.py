@@ -151,33 +151,58 @@ def _fit_curve_axis(
     axis: str, curve: AllanCurve, rate_hz: float, n: int, tau_range, options, method: str,
     record: np.ndarray | None = None, stage: SensorOutput = SensorOutput(),
 ) -> tuple[CurveFit, str, list[str]]:
-    """The fit with the default tau range found from the curve, and its notes."""
+    """The fit with the default tau range found from the curve, and its notes.
+
+    With an output filter found, the white term is filtered white noise and every tau is
+    fitted. A filter that is no Butterworth (a decimation's average, a Bessel) does not
+    follow the first taus, where a long record knows the curve to a few 0.1 %: when that
+    fit is poor and fitting from the white region as without a filter (its remaining
+    roll-off a -c / tau^2 term) is much better, that fit is kept, and the filter is carried
+    for generate (the closest Butterworth: the profile's filter), with a note."""
     notes: list[str] = []
     lo, hi = tau_range
     flt = stage.output_filter
     options = {**options, "lsb_dps": stage.lsb_dps,
                "sine_hz": tuple(line.frequency_hz for line in stage.lines)}
-    if lo is None:
-        found = diagnostics.white_region_start(curve)
-        if flt is None and found.filtered and record is None:
-            # a curve alone: the filter from its shallow start, two octaves into the white
-            flt = fit_filter_curve(curve, rate_hz, found.tau_min_s * 2.0, stage.lsb_dps)
-        if flt is not None:
-            lo = float(curve.taus[0])
-            reason = "every tau fitted: the output filter is part of the white term"
-        else:
-            lo, reason = found.tau_min_s, found.reason
-            if found.filtered:
-                notes.append("the start is below the white-noise line but no output filter "
-                             "was found on the PSD: fitted from one octave above, its remaining "
-                             "roll-off as a -c / tau^2 term")
-                options = {**options, "roll_off": True}
-    else:
+    if lo is not None:
         reason = f"fitted from tau = {lo:g} s (--tau-min)"
-    options["output_filter"] = flt
-    fit = _fit(method, curve, rate_hz, n, (lo, hi), options, record)
-    notes += _fit_notes(fit, n / rate_hz)
-    return fit, reason, notes
+        given = _fit(method, curve, rate_hz, n, (lo, hi), {**options, "output_filter": flt},
+                     record)
+        return given, reason, notes + _fit_notes(given, n / rate_hz)
+    found = diagnostics.white_region_start(curve)
+    if flt is None and found.filtered and record is None:
+        # a curve alone: the filter from its shallow start, two octaves into the white
+        flt = fit_filter_curve(curve, rate_hz, found.tau_min_s * 2.0, stage.lsb_dps)
+    fit: CurveFit | None = None
+    if flt is not None:
+        fit = _fit(method, curve, rate_hz, n, (float(curve.taus[0]), hi),
+                   {**options, "output_filter": flt}, record)
+        reason = "every tau fitted: the output filter is part of the white term"
+    if found.filtered and (fit is None or fit.chi2_reduced > POOR_FIT_CHI2):
+        robust = _fit(method, curve, rate_hz, n, (found.tau_min_s, hi),
+                      {**options, "roll_off": True}, record)
+        if fit is None or fit.chi2_reduced > 2.0 * max(robust.chi2_reduced, 1.0):
+            if fit is None:
+                notes.append("the start is below the white-noise line but no output filter "
+                             "was found: fitted from one octave above, its remaining roll-off "
+                             "as a -c / tau^2 term")
+            elif flt is not None:
+                # the Butterworth that best gives the first taus with this fit's N: what
+                # generate then draws (output_stage.fit_filter_curve)
+                closest = fit_filter_curve(curve, rate_hz, found.tau_min_s * 2.0,
+                                           stage.lsb_dps, white=robust.N.value**2) or flt
+                notes.append(f"the sensor's filter is no Butterworth: the closest one from the "
+                             f"PSD ({flt.text()} Hz) does not follow the first taus (reduced "
+                             f"chi-square {fit.chi2_reduced:.1f}); fitted from one octave "
+                             f"above the filter as without it, and the profile takes the "
+                             f"Butterworth closest to the first taus ({closest.text()} Hz)")
+                flt = closest
+            fit, reason = robust, found.reason
+            fit.output_filter = flt
+    if fit is None:
+        fit = _fit(method, curve, rate_hz, n, (found.tau_min_s, hi), options, record)
+        reason = found.reason
+    return fit, reason, notes + _fit_notes(fit, n / rate_hz)
 
 
 def identify_axis(
@@ -314,8 +339,9 @@ def identify_curve(
     return AxisIdentification(
         axis=axis, fit=fit, mean=mean, std=math.nan, readoffs=ieee_readoffs(fit.curve),
         tau_range_reason=reason, psd_white_N=math.nan, psd_band_hz=(math.nan, math.nan),
-        spectrum=None, notes=notes + [(f"identified from a {curve.kind} Allan deviation curve: "
-                                       "no mean, std or PSD (bias 0 in the profile)")],
+        spectrum=None, notes=notes + [(f"identified from {'an' if overlapping else 'a'} "
+                                       f"{curve.kind} Allan deviation curve: no mean, std or "
+                                       "PSD (bias 0 in the profile)")],
         method=method,
     )
 
@@ -395,6 +421,10 @@ def _selection_notes(fit: CurveFit) -> list[str]:
         text += ("; the interval" + ("s of the terms " if len(parts) > 1 else " of the term ")
                  + ", ".join(parts) + " leave out B = 0, which that model holds: read them "
                  "with that in mind")
+    loose = [t for t in extra if not t.B.ci_low > 0]
+    if loose:
+        text += ("; " + ", ".join(f"T = {t.T.value:.3g} s" for t in loose)
+                 + ": B's interval reaches 0, so T's is the whole range searched")
     return [text]
 
 

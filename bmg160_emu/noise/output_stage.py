@@ -196,9 +196,11 @@ def fit_filter_psd(spectrum: Spectrum, rate_hz: float, lsb_dps: float | None = N
 
 
 def fit_filter_curve(curve: AllanCurve, rate_hz: float, upto_s: float,
-                     lsb_dps: float | None = None) -> FilterFit | None:
+                     lsb_dps: float | None = None, white: float | None = None
+                     ) -> FilterFit | None:
     """The output filter from an Allan curve's shallow start: the points up to ``upto_s``
-    (two octaves into the white region) fitted as filtered white noise."""
+    (two octaves into the white region) fitted as filtered white noise, of level N^2 =
+    ``white`` when given (else fitted with the corner)."""
     from scipy.optimize import minimize_scalar
 
     sel = curve.taus <= upto_s * (1 + 1e-9)
@@ -211,7 +213,7 @@ def fit_filter_curve(curve: AllanCurve, rate_hz: float, upto_s: float,
 
     def cost(order: int, log_corner: float) -> tuple[float, float]:
         col = white_avar_unit(tau, rate_hz, Butterworth(order, math.exp(log_corner), rate_hz))
-        n2 = float(np.sum(w**2 * col * avar) / np.sum(w**2 * col**2))
+        n2 = white if white is not None else float(np.sum(w**2 * col * avar) / np.sum(w**2 * col**2))
         return float(np.sum((w * (avar - n2 * col)) ** 2)), n2
 
     best: tuple[float, int, float] | None = None
@@ -224,11 +226,11 @@ def fit_filter_curve(curve: AllanCurve, rate_hz: float, upto_s: float,
             best = (value, order, math.exp(float(res.x)))
     assert best is not None
     _, order, corner = best
-    if corner > 0.9 * FLAT_CORNER * nyquist:
+    if corner > 0.99 * FLAT_CORNER * nyquist:  # on the search's edge: no filter to speak of
         return None
     return FilterFit(order, corner, corner / 2.0, min(corner * 2.0, nyquist), rate_hz,
-                     f"fitted on the Allan curve's first {tau.size} points (no samples: "
-                     "the corner to about a factor 2)")
+                     f"fitted on the Allan curve's first {tau.size} points (the corner to "
+                     "about a factor 2)")
 
 
 @dataclass(frozen=True)

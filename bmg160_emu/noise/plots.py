@@ -222,13 +222,15 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         label="slope 0: minimum (flicker B x 0.664)",
     )
     ax.plot([1.0], [N], "s", color="tab:blue", ms=7, label=f"N = {N:.4g} {_UNIT['N']} (tau 1 s)")
+    # the marker sits at the value its legend names (issue 23): flicker B itself, at the tau
+    # of the minimum it is read from, 1 / 0.664 above the dotted minimum line
     ax.plot(
         [ro["B_flicker"]["tau_s"]],
-        [b_flick * FLICKER_ADEV_FACTOR],
+        [b_flick],
         "D",
         color="tab:green",
         ms=7,
-        label=f"flicker B = {b_flick:.4g} deg/s (minimum / 0.664)",
+        label=f"flicker B = {b_flick:.4g} deg/s (minimum / 0.664, at tau of the minimum)",
     )
     lowest.append(b_flick * FLICKER_ADEV_FACTOR)
     # the bottom: the lowest of the curve, the model, the terms' peaks and the K point, but
