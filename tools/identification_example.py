@@ -125,12 +125,26 @@ def main() -> None:
             if missed.size:
                 print(f"      median outside the band at tau {', '.join(f'{t:g}' for t in missed)} s"
                       f" (median / recording {', '.join(f'{q:.3f}' for q in a['ratio'][~a['inside']])})")
-        if r == 0 and args.figures is not None:
-            figures(scored, args.figures)
+        if r == 0:
+            print("\n".join(scored["result"].summary().split("\n\naxis y")[0].splitlines()[2:]))
+            print(_stage_text(scored["profile"]))
+            if args.figures is not None:
+                figures(scored, args.figures)
     print(f"\nADEV, octave taus 2 samples .. L/10 over {points} axis-taus: emulated median "
           f"inside the recording's 95 % band {inside / points:.1%}, recording inside the "
           f"emulated range {covered / points:.1%}; std within {std_worst:.2%}, lag-1 within "
           f"{lag_worst:.3f} ({time.time() - start:.0f} s)")
+
+
+def _stage_text(profile: Profile) -> str:
+    stage = profile.output
+    if stage is None:
+        return "profile: no output stage"
+    return (f"profile [output]: order {stage.order}, corner {stage.corner_hz:.4g} Hz, "
+            f"LSB {stage.lsb_dps}, rate {stage.rate_hz:g} Hz; lines: "
+            + ", ".join(f"{axis}: " + ", ".join(f"{A:.3g} deg/s at {f:.4g} Hz" for A, f in
+                                                 noise.sine) for axis, noise in
+                        zip("xyz", profile.axes) if noise.sine))
 
 
 def figures(scored: dict, out: Path) -> None:

@@ -412,8 +412,14 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
         keep = np.ones(wv.m.size, dtype=bool)
         if args.tau_min is not None:
             keep &= wv.taus_s >= args.tau_min
-        elif axis.output_filter is not None:  # GMWM's white term knows no filter: above it
-            keep &= wv.taus_s >= 1.0 / axis.output_filter.corner_hz
+        elif axis.output_filter is not None:
+            # GMWM's white term knows no filter: the scales where the filter takes less than
+            # 1 % off white noise's Allan variance (it falls as 1 / tau, from 60 % at tau = dt)
+            from bmg160_emu.noise.output_filter import white_avar_unit
+
+            deficit = np.abs(white_avar_unit(wv.taus_s, record.rate_hz,
+                                             axis.output_filter.design) * wv.taus_s - 1.0)
+            keep &= deficit < 0.01
         if args.tau_max is not None:
             keep &= wv.taus_s <= args.tau_max
         wv = dataclasses.replace(
@@ -449,7 +455,12 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
             points=int(wv.m.size),
             chi2_reduced=fit.objective / max(fit.dof, 1),
         )
-        result.axes[i] = dataclasses.replace(axis, fit=curve_fit, notes=notes, method="gmwm")
+        reason = axis.tau_range_reason
+        if args.tau_min is None and axis.output_filter is not None:
+            reason = (f"GMWM's scales from tau = {wv.taus_s[0]:.3g} s, where the output filter "
+                      "takes less than 1 % off white noise's Allan variance")
+        result.axes[i] = dataclasses.replace(axis, fit=curve_fit, notes=notes, method="gmwm",
+                                             tau_range_reason=reason)
         fits[axis.axis] = fit
     return fits
 

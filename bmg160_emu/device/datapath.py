@@ -281,8 +281,8 @@ class SensorNoise:
         if self.filtered and bandwidth_hz is not None:
             self.filter = LowPass(float(odr_hz), float(bandwidth_hz), int(order))
             settle, _ = gen.generate_referred(self.filter.design.settle_samples())
-            self.filter.restart(settle[0])  # the slow terms settled, the white ones decay
-            _, self.state = self.filter.run(settle)
+            self.filter.settle_on(settle)  # the slow terms settled, the white ones decayed
+            self.state = self.filter.state
             self._note_filter(odr_hz, bandwidth_hz, order)
 
     def take(self, k0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -311,13 +311,10 @@ class SensorNoise:
         out = raw
         flt = self.filter
         if flt is not None:
-            state = self.state
-            assert state is not None  # set when the filter was configured
-            out = np.empty_like(pre)
-            for i in range(0, chunks * NOISE_CHUNK, NOISE_CHUNK):
-                self.states[self.end + i] = state
-                out[i:i + NOISE_CHUNK], state = flt.run(pre[i:i + NOISE_CHUNK], state)
-            self.state = state
+            assert self.state is not None  # set when the filter was configured
+            out, self.state, states = flt.run_marked(pre, self.state, NOISE_CHUNK)
+            for i, state in enumerate(states):
+                self.states[self.end + i * NOISE_CHUNK] = state
             if post is not None:
                 out += post
         held = self.end - self.k0
@@ -362,7 +359,7 @@ class SensorNoise:
             if self.filter is not None:
                 self.state = self.states[chunk]
                 if used_end > chunk:
-                    _, self.state = self.filter.run(pre, self.state)
+                    _, self.state, _ = self.filter.run_marked(pre, self.state, NOISE_CHUNK)
         keep = max(used_end - self.k0, 0)
         same = self.out is self.raw
         self.raw = self.raw[:keep]
@@ -432,9 +429,9 @@ class ProfileNoise:
     def generate(self, n: int) -> np.ndarray:
         _, out = self._noise.take(self._k, n)
         self._k += n
-        if self.lsb_dps:  # new arrays: the buffer's rows are never written
+        if self.lsb_dps:
             return np.rint(out / self.lsb_dps) * self.lsb_dps
-        return out.copy()
+        return out  # rows handed out once: the buffer never writes them nor uses them again
 
 
 def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,

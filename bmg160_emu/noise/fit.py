@@ -19,8 +19,9 @@ correlation times T_i. The fit, per axis:
 The sensor's output stage (output_stage.py) enters the model as it is found: white noise
 through the output filter (the exact discrete Allan variance of filtered white noise,
 output_filter.white_avar_unit, instead of N^2 / tau, so the fit starts at the first tau),
-the quantization's white floor LSB^2 / 12 after the filter as a known term, and each
-sinusoidal line as an IEEE 952 column of known frequency and fitted amplitude.
+and as known terms the quantization's white floor LSB^2 / 12 after the filter and each
+sinusoidal line (IEEE 952; amplitude and frequency from the PSD, which holds a line in a few
+bins where the Allan variance spreads it under the white noise).
 
 Weights are 1 / sd(AVAR estimate) = sqrt(edf / 2) / AVAR_model, iterated from the model.
 Intervals come from the weighted Jacobian in (N^2, B_i^2, ln T_i, K^2, ...), scaled by the
@@ -45,6 +46,7 @@ from bmg160_emu.noise.allan import (
     allan_confidence,
     gauss_markov_avar_unit,
 )
+from bmg160_emu.noise.estimate import Estimate
 from bmg160_emu.noise.output_filter import white_avar_unit
 from bmg160_emu.noise.output_stage import FilterFit, quantization_avar, sine_avar_unit
 from bmg160_emu.noise.profile import UNITS
@@ -53,7 +55,7 @@ from bmg160_emu.noise.profile import UNITS
 # percentile of |error| / half-width over 30 records each of 1 h and 6 h of the paper
 # profile at 200 Hz (docs/identification.md); used for every term of a multi-term fit.
 CI_WIDENING = {"N": 1.5, "B": 1.8, "lnT": 3.0, "K": 3.0, "Q": 1.5, "R": 3.0, "F": 1.8,
-               "filter": 1.0, "S": 1.8}
+               "filter": 1.0}
 CI_LEVEL = 0.95
 Z95 = 1.959963984540054  # two-sided 95 % normal quantile
 MAX_TERMS = 5  # Gauss-Markov terms considered at most
@@ -64,23 +66,6 @@ _FLICKER_AVAR = FLICKER_ADEV_FACTOR**2  # Allan variance of flicker per unit B^2
 
 class FitError(ValueError):
     """A curve that cannot be fitted (too few points in the tau range)."""
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """One identified parameter with its 95 % confidence interval (finite, ordered)."""
-
-    value: float
-    ci_low: float
-    ci_high: float
-    unit: str
-
-    def as_dict(self, scale: float = 1.0, unit: str | None = None) -> dict[str, Any]:
-        return {
-            "value": _json_float(self.value * scale),
-            "ci95": [_json_float(self.ci_low * scale), _json_float(self.ci_high * scale)],
-            "unit": unit or self.unit,
-        }
 
 
 @dataclass(frozen=True)
@@ -150,14 +135,12 @@ class _Design:
     bank: np.ndarray | None  # flicker column (unit: ADEV level 1 per unit coefficient)
     roll_off: bool = False  # a sensor filter's deficit -c / tau^2 (see fit_curve)
     white: np.ndarray | None = None  # the white column (None: 1 / tau)
-    fixed: np.ndarray | None = None  # a known part of the Allan variance (quantization)
-    sine_hz: tuple[float, ...] = ()  # frequencies of the sinusoidal columns
+    fixed: np.ndarray | None = None  # the known part of the Allan variance (rounding, lines)
 
     def extras(self) -> list[str]:
         """Names of the columns after the Gauss-Markov ones, in order."""
         names = ["F"] if self.bank is not None else []
         names += ["filter"] if self.roll_off else []
-        names += [f"S{i}" for i in range(len(self.sine_hz))]
         return names + (["Q"] if self.with_q else []) + (["R"] if self.with_r else [])
 
     def matrix(self, Ts: np.ndarray) -> np.ndarray:
@@ -165,7 +148,6 @@ class _Design:
         cols = [1.0 / tau if self.white is None else self.white, tau / 3.0]
         cols += [gauss_markov_avar_unit(tau, T) for T in Ts]
         extra = {"filter": -1.0 / tau**2, "Q": 3.0 / tau**2, "R": tau**2 / 2.0}
-        extra.update({f"S{i}": sine_avar_unit(tau, f) for i, f in enumerate(self.sine_hz)})
         if self.bank is not None:
             extra["F"] = self.bank
         cols += [extra[name] for name in self.extras()]
@@ -287,12 +269,12 @@ def fit_curve(
     record: np.ndarray | None = None,
     output_filter: FilterFit | None = None,
     lsb_dps: float | None = None,
-    sine_hz: tuple[float, ...] = (),
+    sines: tuple[tuple[Estimate, float], ...] = (),
 ) -> CurveFit:
     """Fit the curve; poles = None chooses the number of Gauss-Markov terms by AICc;
     roll_off adds the first-order deficit of a sensor filter (a term -c / tau^2) where the
     filter itself is not known; output_filter makes the white term filtered white noise,
-    lsb_dps adds its quantization floor, sine_hz a sinusoidal column per frequency.
+    lsb_dps adds its quantization floor, sines (amplitude, Hz) the known lines.
 
     record (the samples, None for a curve input) is part of the signature every method of
     identification.FIT_METHODS takes, for methods that fit the samples themselves; this
@@ -303,7 +285,7 @@ def fit_curve(
     if tau_range[1] is not None:
         sel &= curve.taus <= tau_range[1] * (1 + 1e-9)
     tau, avar = curve.taus[sel], curve.avar[sel]
-    need = 3 + with_q + with_r + flicker + roll_off + len(sine_hz) + 2 * (poles or 0)
+    need = 3 + with_q + with_r + flicker + roll_off + 2 * (poles or 0)
     if tau.size < need + 1:
         raise FitError(
             f"only {tau.size} Allan points in the fitted tau range; the fit needs at least "
@@ -320,14 +302,14 @@ def fit_curve(
     # power above BW seen through the Allan transfer function): a column -1 / tau^2 takes
     # that deficit instead of N or a short Gauss-Markov term
     design = _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, lsb_dps,
-                          sine_hz)
+                          sines)
     w = np.sqrt(curve.edf[sel] / 2.0) / avar
     best = _select(design, avar, w, bounds, poles)
     for _ in range(3):  # weights from the model, not the noisy estimate (less bias)
         model = design.matrix(best["Ts"]) @ best["theta"]
         model = np.maximum(model if design.fixed is None else model + design.fixed, 1e-300)
-        full = np.maximum(_design_all(curve.taus, design, best, rate_hz, output_filter, lsb_dps),
-                          1e-300)
+        full = np.maximum(_design_all(curve.taus, design, best, rate_hz, output_filter, lsb_dps,
+                                      sines), 1e-300)
         curve = allan_confidence(curve.taus, curve.adev, curve.n_terms,
                                  _alphas(curve.taus, full), n_samples, rate_hz, curve.ci,
                                  curve.overlapping)
@@ -338,26 +320,31 @@ def fit_curve(
     fit = _estimates(design, avar, w, best, bounds, max(chi2_red, 1.0), curve, sel, chi2_red,
                      bank_Ts)
     fit.rate_hz, fit.output_filter, fit.lsb_dps = float(rate_hz), output_filter, lsb_dps
+    fit.sines = list(sines)
     return fit
 
 
 def _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, lsb_dps,
-                 sine_hz) -> _Design:
+                 sines) -> _Design:
     white = (None if output_filter is None
              else white_avar_unit(tau, rate_hz, output_filter.design))
-    fixed = quantization_avar(lsb_dps, rate_hz, tau) if lsb_dps else None
-    return _Design(tau, with_q, with_r, bank, roll_off, white, fixed, tuple(sine_hz))
+    fixed = None
+    if lsb_dps or sines:
+        fixed = quantization_avar(lsb_dps, rate_hz, tau)
+        for amplitude, frequency in sines:
+            fixed = fixed + amplitude.value**2 * sine_avar_unit(tau, frequency)
+    return _Design(tau, with_q, with_r, bank, roll_off, white, fixed)
 
 
 def _design_all(taus: np.ndarray, design: _Design, best: dict[str, Any],
-                rate_hz: float, output_filter: FilterFit | None, lsb_dps: float | None
-                ) -> np.ndarray:
+                rate_hz: float, output_filter: FilterFit | None, lsb_dps: float | None,
+                sines: tuple = ()) -> np.ndarray:
     """The fitted model at every tau of the curve (for the noise types of the intervals)."""
     bank = None
     if design.bank is not None:
         bank = np.interp(np.log(taus), np.log(design.tau), design.bank)
     whole = _make_design(taus, rate_hz, design.with_q, design.with_r, bank, design.roll_off,
-                         output_filter, lsb_dps, design.sine_hz)
+                         output_filter, lsb_dps, sines)
     model = whole.matrix(best["Ts"]) @ best["theta"]
     return model if whole.fixed is None else model + whole.fixed
 
@@ -396,7 +383,7 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         sd[usable] = np.sqrt(np.clip(np.diag(cov), 0.0, None) * scale) / norms[usable]
     except (np.linalg.LinAlgError, ValueError):
         pass  # no linearized interval: every one is capped below
-    sd = np.array([s * CI_WIDENING[nm.rstrip('0123456789') or nm] for s, nm in zip(sd, names)])
+    sd = np.array([s * CI_WIDENING[nm] for s, nm in zip(sd, names)])
     # the largest value each term could take alone under the curve's upper bound
     upper = (curve.ci_high[sel] ** 2) * 4.0
 
@@ -428,7 +415,7 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         column = A[:, 2 + k + (c - j)]
         if nm == "filter":  # a deficit: no cap from the curve's upper bound
             continue
-        unit = UNITS["B"] if nm == "F" else UNITS["A"] if nm.startswith("S") else UNITS[nm]
+        unit = UNITS["B"] if nm == "F" else UNITS[nm]
         extra[nm] = square_root_estimate(theta[2 + k + (c - j)], sd[c], column, unit)
     flicker = poles_f = None
     if "F" in extra:  # coefficient = flat ADEV^2 = 0.664^2 B_flicker^2
@@ -439,7 +426,6 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         raw = np.sum([gauss_markov_avar_unit(tau, T) for T in bank_Ts], axis=0)
         b2 = f.value**2 / float(np.mean(raw))
         poles_f = tuple((math.sqrt(b2), float(T)) for T in bank_Ts) if b2 > 0 else ()
-    sines = [(extra.pop(f"S{i}"), f) for i, f in enumerate(design.sine_hz)]
     return CurveFit(
         N=N, K=K, terms=terms, Q=extra.get("Q"), R=extra.get("R"), flicker=flicker,
         flicker_poles=poles_f or (), curve=curve,
@@ -447,7 +433,6 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         chi2_reduced=float(chi2_red), T_search_range_s=(float(bounds[0]), float(bounds[1])),
         selection={"criterion": "AICc", "candidates": best["table"], "terms": best["terms"],
                    "zero_terms_left_out": zero},
-        sines=sines,
     )
 
 

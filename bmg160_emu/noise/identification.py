@@ -13,7 +13,7 @@ are reported beside it, labelled (readoffs.py). identified.py holds the results.
 
 Fit methods are looked up by name in FIT_METHODS ("wls", the default; other modules may
 register theirs, e.g. a GMWM fit, with fit.fit_curve's signature: the curve, rate, sample
-count, tau_range, with_q, with_r, poles, flicker, roll_off, output_filter, lsb_dps, sine_hz,
+count, tau_range, with_q, with_r, poles, flicker, roll_off, output_filter, lsb_dps, sines,
 and record = the samples or None for a curve input; returning a fit.CurveFit).
 """
 
@@ -163,7 +163,7 @@ def _fit_curve_axis(
     lo, hi = tau_range
     flt = stage.output_filter
     options = {**options, "lsb_dps": stage.lsb_dps,
-               "sine_hz": tuple(line.frequency_hz for line in stage.lines)}
+               "sines": tuple((line.amplitude, line.frequency_hz) for line in stage.lines)}
     if lo is not None:
         reason = f"fitted from tau = {lo:g} s (--tau-min)"
         given = _fit(method, curve, rate_hz, n, (lo, hi), {**options, "output_filter": flt},

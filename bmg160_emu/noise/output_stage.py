@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from bmg160_emu.noise.allan import AllanCurve
+from bmg160_emu.noise.estimate import Estimate
 from bmg160_emu.noise.output_filter import Butterworth, white_avar_unit
 from bmg160_emu.noise.spectrum import Spectrum
 
@@ -235,9 +236,9 @@ def fit_filter_curve(curve: AllanCurve, rate_hz: float, upto_s: float,
 
 @dataclass(frozen=True)
 class Line:
-    """A periodic component: amplitude A (deg/s) and frequency f (Hz)."""
+    """A periodic component: amplitude A (deg/s) with its 95 % interval, frequency f (Hz)."""
 
-    amplitude_dps: float
+    amplitude: Estimate
     frequency_hz: float
     ratio: float  # peak bin over its neighbours' median
 
@@ -270,8 +271,16 @@ def find_lines(spectrum: Spectrum, rate_hz: float, segments: float) -> list[Line
         if not power > 0:
             continue
         taken[lo:hi] = True
-        lines.append(Line(math.sqrt(2.0 * power), float(np.dot(f[lo:hi], excess) / excess.sum()),
-                          float(ratio[i])))
+        # the power's sd: per segment |S + N|^2 = |S|^2 + |N|^2 + 2 Re(S N*), whose cross
+        # term has variance 2 P Pb and the noise's Pb^2 (Pb: the background's power in the
+        # line's bins), over dof / 2 segments; A = sqrt(2 P), so dA = dP / A
+        amplitude = math.sqrt(2.0 * power)
+        noise_power = float(np.sum(background[lo:hi] / median)) * df
+        sd_power = math.sqrt((2.0 * power * noise_power + noise_power**2) * 2.0 / dof)
+        half = 1.96 * sd_power / amplitude
+        lines.append(Line(Estimate(amplitude, max(amplitude - half, 0.0), amplitude + half,
+                                   "deg/s"),
+                          float(np.dot(f[lo:hi], excess) / excess.sum()), float(ratio[i])))
     return lines
 
 
