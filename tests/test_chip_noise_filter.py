@@ -152,3 +152,32 @@ def test_n_b_t_k_come_back_from_a_long_register_recording():
     assert axis.B.value == pytest.approx(truth.B, rel=0.30)
     assert 1 / 2.5 < axis.T.value / truth.T < 2.5
     assert axis.K.value == pytest.approx(truth.K, rel=0.35)
+
+
+@pytest.mark.parametrize("sequential", [False, True])
+def test_the_filtered_noise_does_not_depend_on_how_far_ahead_it_was_drawn(sequential):
+    # the chip's kernel (numpy blocks in fixed chunks) and generate's (scipy's recursion):
+    # sample k is the same bits whether it was drawn in small pieces or far ahead and drawn
+    # again after a change of filter at sample 5000 (SensorNoise.configure goes back)
+    from bmg160_emu.device.datapath import SensorNoise
+    from bmg160_emu.noise import NoiseGenerator
+
+    def noise(pieces, ahead):
+        gen = NoiseGenerator("paper", rate_hz=200.0, seed=3)
+        sn = SensorNoise(gen, sequential=sequential)
+        sn.configure(200.0, 23.0, 0)
+        k, out = 0, []
+        for n in pieces:
+            _, filtered = sn.take(k, n)
+            out.append(filtered.copy())
+            k += n
+        sn.take(k, ahead)  # drawn ahead, not used
+        sn.configure(200.0, 64.0, k)  # BW 0x04 -> 0x06 at sample k: redrawn from there
+        for n in (7, 3000, 9000):
+            out.append(sn.take(k, n)[1].copy())
+            k += n
+        return np.concatenate(out)
+
+    a = noise([5000], 1)
+    b = noise([1, 2, 997, 4000], 20_000)
+    assert np.array_equal(a, b)

@@ -29,6 +29,8 @@ log = logging.getLogger(__name__)
 
 NOISE_CHUNK = 2048  # noise computed in chunks of this many samples (a multiple of the
 # filter's 1024-sample pieces, lowpass.py), each with its filter state kept
+PIECE = 16 * NOISE_CHUNK  # samples generated and filtered at once within a draw: the three
+# 768 kB arrays of a piece stay in the cache between the generator and the filter
 SPAN = 1024  # samples computed ahead, in pieces of 1, 2, 4, ... as they are used
 MAX_SPAN = 65536  # when catching up a long gap
 
@@ -243,8 +245,13 @@ class SensorNoise:
     (the command and ``profile_noise``) uses the same class, so a file of noise and a
     chip's registers hold the same model."""
 
-    def __init__(self, generator: Any, filtered: bool | None = None) -> None:
+    def __init__(self, generator: Any, filtered: bool | None = None,
+                 sequential: bool = False) -> None:
         self.generator = generator
+        # the filter's kernel: the numpy block filter of lowpass.py in chunks (the chip: no
+        # scipy on its import path), or scipy's sequential lfilter over each draw (generate:
+        # a recursion gives the same bits however the record is cut, at a fifth of the cost)
+        self.sequential = sequential
         # paper mode: output-referred (no filter on the noise)
         self.filtered = (generator is not None and generator.mode == "physical"
                          if filtered is None else bool(filtered))
@@ -256,7 +263,6 @@ class SensorNoise:
         self.raw = np.zeros((0, 3))  # what the unfiltered output adds
         self.out = self.raw  # what the filtered output adds (raw in paper mode)
         self.draws: list[tuple[int, Any]] = []  # (first sample, generator checkpoint)
-        self.states: dict[int, np.ndarray] = {}  # chunk start -> filter state before it
         self.state: np.ndarray | None = None  # filter state at self.end
         self.notes: list[str] = []  # what configure said (a profile filter not applied)
 
@@ -276,7 +282,7 @@ class SensorNoise:
             gen.set_rate(float(odr_hz))
         self.config = config
         self.seg = self.end = used_end
-        self.draws, self.states = [], {}
+        self.draws = []
         self.filter = None
         if self.filtered and bandwidth_hz is not None:
             self.filter = LowPass(float(odr_hz), float(bandwidth_hz), int(order))
@@ -302,27 +308,37 @@ class SensorNoise:
         return self.raw[:n], self.out[:n]
 
     def _draw(self, end: int) -> None:
-        """Whole chunks from self.end until ``end`` is covered (one generator call)."""
+        """Whole chunks from self.end until ``end`` is covered (one generator checkpoint),
+        generated and filtered in pieces of PIECE samples, each while it is in the cache
+        (the generator is chunk invariant: the same samples as one call)."""
         gen = self.generator
-        chunks = -(-(end - self.end) // NOISE_CHUNK)
+        total = -(-(end - self.end) // NOISE_CHUNK) * NOISE_CHUNK
         self.draws.append((self.end, gen.checkpoint()))
-        pre, post = gen.generate_referred(chunks * NOISE_CHUNK)
-        raw = pre if post is None else pre + post
-        out = raw
         flt = self.filter
-        if flt is not None:
-            assert self.state is not None  # set when the filter was configured
-            out, self.state, states = flt.run_marked(pre, self.state, NOISE_CHUNK)
-            for i, state in enumerate(states):
-                self.states[self.end + i * NOISE_CHUNK] = state
-            if post is not None:
-                out += post
         held = self.end - self.k0
-        if held:
-            raw = np.concatenate([self.raw[:held], raw])
-            out = np.concatenate([self.out[:held], out])
-        self.raw, self.out = raw, (raw if held == 0 and out is raw else out)
-        self.end += chunks * NOISE_CHUNK
+        raw = np.empty((held + total, 3))
+        raw[:held] = self.raw[:held]
+        out = raw if flt is None else np.empty((held + total, 3))
+        if flt is not None:
+            out[:held] = self.out[:held]
+        for start in range(0, total, PIECE):
+            m = min(PIECE, total - start)
+            at = held + start
+            pre, post = gen.generate_referred(m)
+            raw[at:at + m] = pre if post is None else pre + post
+            if flt is None:
+                continue
+            assert self.state is not None  # set when the filter was configured
+            if self.sequential:
+                from scipy.signal import lfilter
+
+                out[at:at + m], self.state = lfilter(flt.b, flt.a, pre, axis=0, zi=self.state)
+            else:
+                out[at:at + m], self.state = flt.run_pieces(pre, self.state, NOISE_CHUNK)
+            if post is not None:
+                out[at:at + m] += post
+        self.raw, self.out = raw, out
+        self.end += total
 
     def _forget(self, k0: int) -> None:
         """Drop samples before k0, and the checkpoints no rewind to k0 or later needs."""
@@ -336,30 +352,20 @@ class SensorNoise:
         while first + 1 < len(draws) and draws[first + 1][0] <= k0:
             first += 1
         del draws[:first]
-        chunk = self.seg + (k0 - self.seg) // NOISE_CHUNK * NOISE_CHUNK
-        for start in [s for s in self.states if s < chunk]:
-            del self.states[start]
 
     def _rewind(self, used_end: int) -> None:
-        """The generator (and the filter state) back at sample ``used_end``; later samples
-        dropped."""
+        """The generator back at sample ``used_end``; later samples dropped. (The filter's
+        state there is not needed: a new configuration starts its filter settled.)"""
         if used_end > self.end:
             self._draw(used_end)
         if used_end < self.end:
-            gen = self.generator
             draw = max((d for d in self.draws if d[0] <= used_end), default=None,
                        key=lambda d: d[0])
             if draw is None:
                 raise RuntimeError(f"noise of sample {used_end} was forgotten")
-            chunk = self.seg + (used_end - self.seg) // NOISE_CHUNK * NOISE_CHUNK
-            gen.restore(draw[1])
-            if chunk > draw[0]:
-                gen.generate(chunk - draw[0])
-            pre, _ = gen.generate_referred(used_end - chunk)
-            if self.filter is not None:
-                self.state = self.states[chunk]
-                if used_end > chunk:
-                    _, self.state, _ = self.filter.run_marked(pre, self.state, NOISE_CHUNK)
+            self.generator.restore(draw[1])
+            if used_end > draw[0]:
+                self.generator.generate(used_end - draw[0])
         keep = max(used_end - self.k0, 0)
         same = self.out is self.raw
         self.raw = self.raw[:keep]
@@ -401,7 +407,8 @@ class ProfileNoise:
         self.lsb_dps = lsb_dps
         self.bandwidth_hz = bandwidth_hz
         self.order = order
-        self._noise = SensorNoise(generator, filtered=generator.mode == "physical")
+        self._noise = SensorNoise(generator, filtered=generator.mode == "physical",
+                                  sequential=True)
         self._noise.configure(generator.rate_hz, bandwidth_hz, 0, order)
         self._k = 0
 

@@ -215,27 +215,24 @@ class LowPass:
         """Rest at 0 in the state the filter holds after ``x`` (n, 3), started at rest at
         x[0]: a noise filter started settled (datapath.SensorNoise). By linearity that
         state is the one of the deviations from x[0] plus the settled state of x[0]; with
-        the reference at 0, ``run_marked`` needs no reference arithmetic."""
+        the reference at 0, ``run_pieces`` needs no reference arithmetic."""
         level = np.array(x[0], dtype=float)
         _, final = self._blocks.run(x - level, np.zeros((len(self.a) - 1, x.shape[1])))
         self.restart(np.zeros(x.shape[1]))
         self.state = final + np.outer(self._zi_unit, level)
 
-    def run_marked(self, x: np.ndarray, state: np.ndarray, every: int
-                   ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    def run_pieces(self, x: np.ndarray, state: np.ndarray, every: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
         """Filter ``x`` (n, axes) about the reference 0 from ``state`` in pieces of ``every``
-        samples (a multiple of the block chunk, so the pieces are those ``run`` would cut);
-        return (y, final state, the state before each piece)."""
+        samples counted from x[0] (a multiple of the block chunk): the same bits whatever
+        the length of x, as long as it starts on a piece boundary; return (y, final state)."""
         blocks = self._blocks
         if len(x) <= every:
-            y, final = blocks.run(x, state)
-            return y, final, [state]
+            return blocks.run(x, state)
         y = np.empty_like(x)
-        states = []
         for start in range(0, len(x), every):
-            states.append(state)
             y[start:start + every], state = blocks.run(x[start:start + every], state)
-        return y, state, states
+        return y, state
 
     def run(self, x: np.ndarray, state: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Filter ``x`` (n, 3) from ``state`` (default: current); return (y, final state)."""

@@ -110,20 +110,25 @@ class _AxisStream:
 
     def compute(
         self, normals: dict[str, np.ndarray | None], t: np.ndarray | None, out: np.ndarray,
-        post: np.ndarray | None = None,
+        post: np.ndarray | None = None, consume: bool = False,
     ) -> None:
         """Write this axis's samples into out (a possibly strided view); advance the state
         (the Gauss-Markov terms and the walk rewind from their saved state on a rate change).
-        With ``post``, the output-referred term (Q) goes there instead of into out.
+        With ``post``, the output-referred term (Q) goes there instead of into out;
+        ``consume``: the normals are not kept (their array is worked in).
         """
         c = self.coef
         assert c is not None
         n = out.shape[0]
-        acc = np.empty(n)
-        if normals["white"] is not None:
-            np.multiply(normals["white"], c.white_std, out=acc)
+        white = normals["white"]
+        if white is not None and consume:  # normals not kept: scaled where they lie
+            acc = white
+            acc *= c.white_std
+        elif white is not None:
+            acc = np.empty(n)
+            np.multiply(white, c.white_std, out=acc)
         else:
-            acc.fill(0.0)
+            acc = np.zeros(n)
         for pole in self._all:
             acc += pole.take(n)
         wq = normals["quant"]
@@ -333,7 +338,8 @@ class NoiseGenerator:
             block = out[start : start + m]
             for i, stream in enumerate(self._axes):
                 stream.compute(stream.draw(m), t, block[:, i],
-                               None if post is None else post[start : start + m, i])
+                               None if post is None else post[start : start + m, i],
+                               consume=True)
 
     def _refill_buffer(self) -> None:
         normals = [stream.draw(_BUFFER_SAMPLES) for stream in self._axes]
