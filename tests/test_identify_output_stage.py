@@ -206,3 +206,38 @@ def test_a_bad_sine_term_is_named():
     axis = {"N": 0.01, "B": 0.0, "T": 0.0, "K": 0.0, "bias": 0.0, "sine": [{"A": 0.1}]}
     with pytest.raises(ProfileError, match=r"\[x\] sine\[0\]: needs exactly A"):
         load_profile({"x": axis, "y": axis, "z": axis})
+
+
+def test_the_filter_is_said_once_per_axis():
+    # issue 23: the filter sentence was printed twice per axis (reason and note)
+    record = profile_noise(sensor(order=2, corner_hz=32.0, rate_hz=RATE), seed=8).generate(
+        10 * 60 * 100)
+    text = identify(record, RATE).summary()
+    for block in text.split("\n\naxis ")[1:]:
+        assert block.count("Butterworth") == 1, block
+        assert "below the white-noise line" not in block
+
+
+def test_odd_records_raise_clear_errors_and_no_numpy_warnings(recwarn):
+    # issue 24: numpy RuntimeWarnings leaked to stderr from allan.py and datapath.py
+    from bmg160_emu.device.chip import BMG160
+    from bmg160_emu.noise.allan import octave_oadev, overlapping_adev
+    from bmg160_emu.noise.identification import IdentificationError
+
+    for bad in (np.zeros(0), np.r_[np.ones(100), np.nan], np.r_[np.ones(100), np.inf]):
+        with pytest.raises(ValueError, match="needs"):
+            octave_oadev(bad, 100.0)
+    huge = np.random.default_rng(1).standard_normal(4000)
+    assert np.allclose(overlapping_adev(huge * 1e300, 100.0).ci_high / 1e300,
+                       overlapping_adev(huge, 100.0).ci_high, rtol=1e-12)
+    with pytest.raises(IdentificationError, match="beyond"):
+        identify(huge * 1e300, 100.0)
+    chip = BMG160(seed=1)
+    with pytest.raises(ValueError, match="within"):
+        chip.set_true_rate((1e308, 0.0, 0.0))
+    chip.set_true_rate((1e9, -1e9, 0.0))  # the largest taken: saturated counts
+    chip.advance(0.01)
+    assert chip.read(0x02, 4) == b"\xff\x7f\x00\x80"
+    with pytest.raises(ValueError, match="within"):
+        BMG160(seed=1, scale_factor=(1e300, 0.0, 0.0))
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

@@ -316,6 +316,18 @@ class SensorNoise:
         self.draws.append((self.end, gen.checkpoint()))
         flt = self.filter
         held = self.end - self.k0
+        if self.sequential and held == 0:  # generate: one call, one pass of the recursion
+            pre, post = gen.generate_referred(total)
+            self.raw = pre if post is None else pre + post
+            self.out = self.raw
+            if flt is not None:
+                from scipy.signal import lfilter
+
+                self.out, self.state = lfilter(flt.b, flt.a, pre, axis=0, zi=self.state)
+                if post is not None:
+                    self.out += post
+            self.end += total
+            return
         raw = np.empty((held + total, 3))
         raw[:held] = self.raw[:held]
         out = raw if flt is None else np.empty((held + total, 3))

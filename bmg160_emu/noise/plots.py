@@ -196,6 +196,9 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         label=f"{c.ci * 100:.0f} % confidence band",
     )
     tau = np.geomspace(c.taus[0], c.taus[-1], 300)
+    if result.fit.rate_hz:  # a record's model lives at whole samples (the filtered white term)
+        rate = result.fit.rate_hz
+        tau = np.unique(np.maximum(np.rint(tau * rate), 1.0)) / rate
     N, K = result.N.value, result.K.value
     model = np.sqrt(result.fit.model_avar(tau))
     ax.loglog(tau, model, "-", color="k", lw=1.2,
@@ -310,7 +313,15 @@ def draw_psd(
         return
     N, K = result.N.value, result.K.value
     terms = result.fit.gauss_markov_terms()
-    total = white_psd(N, f) + random_walk_psd(K, f)
+    white = white_psd(N, f)
+    white_text = f"white 2N$^2$ = {2 * N * N:.3g}"
+    if result.output_filter is not None:  # the sensor's own filter shapes the white term
+        white = white * result.output_filter.design.power(f)
+        white_text = (f"white through the output filter 2N$^2$|H|$^2$, "
+                      f"{result.output_filter.text()} Hz")
+    total = white + random_walk_psd(K, f)
+    if result.lsb_dps:  # the rounding's white floor after the filter, LSB^2 / 12
+        total = total + result.lsb_dps**2 / (6.0 * rate_hz)
     for B, T in terms:
         total = total + gauss_markov_psd(B, T, f)
     if result.Q:
@@ -319,7 +330,7 @@ def draw_psd(
         total = total + ramp_psd(result.R.value, f)
     bottom = float(p.min()) / 3.0
     top = 3.0 * max(float(p.max()), min(float(total.max()), 30.0 * float(p.max())))
-    lines = [(white_psd(N, f), "tab:blue", "white", f"white 2N$^2$ = {2 * N * N:.3g}")]
+    lines = [(white, "tab:blue", "white", white_text)]
     for B, T in terms:
         lines.append((gauss_markov_psd(B, T, f), "tab:green", "gm",
                       f"Gauss-Markov $4B^2T/(1+(2\\pi fT)^2)$, T = {T:.3g} s"))
