@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bmg160_emu.cli import main
-from bmg160_emu.commands.generate import ChipFilteredNoise
+from bmg160_emu.device.datapath import profile_noise
 from bmg160_emu.noise import NoiseGenerator, load_profile
 from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar
 from bmg160_emu.noise.interop import flicker_poles, read_adev_csv
@@ -142,19 +142,25 @@ def test_generate_bandwidth_passes_the_noise_through_the_chip_filter(tmp_path, c
     assert 0.07 < data[:, 0].std() < 0.10
     result = run_json(capsys, out, "--rate", "100")
     ax = result["axes"]["x"]
-    assert "below the white-noise line" in ax["fit"]["tau_range_reason"]
-    # 20 min: N to ~1 %; the filter's roll-off is fitted, not taken for N
+    # the chip's filter comes back from the PSD (order 2 at 12 Hz) and is fitted as part of
+    # the white term from the first tau
+    assert ax["output_filter"]["order"] == 2
+    assert ax["output_filter"]["corner_hz"] == pytest.approx(12.0, rel=0.02)
+    assert "output filter is part of the white term" in ax["fit"]["tau_range_reason"]
+    # 20 min: N to ~1 %; the filter is fitted, not taken for N
     assert ax["N"]["value"] == pytest.approx(load_profile("paper").x.N, rel=0.03)
 
 
-def test_the_library_filtered_noise_is_chunk_invariant_to_rounding():
-    whole = ChipFilteredNoise("paper", 3, seed=4).generate(5000)
-    gen = ChipFilteredNoise("paper", 3, seed=4)
+def test_the_library_filtered_noise_is_chunk_invariant():
+    # the noise is filtered in fixed chunks counted from its start (device.datapath
+    # SensorNoise), so how generate() is called changes no bit
+    whole = profile_noise("paper", seed=4, bandwidth_code=3).generate(5000)
+    gen = profile_noise("paper", seed=4, bandwidth_code=3)
     parts = np.concatenate([gen.generate(k) for k in (1, 999, 3000, 1000)])
     assert gen.rate_hz == 400.0
-    np.testing.assert_allclose(parts, whole, rtol=0, atol=1e-12)
+    assert np.array_equal(parts, whole)
     with pytest.raises(ValueError, match="unknown BW code 8"):
-        ChipFilteredNoise("paper", 8)
+        profile_noise("paper", bandwidth_code=8)
 
 
 def test_a_curve_in_deg_per_hour_whitespace_separated(tmp_path, capsys):

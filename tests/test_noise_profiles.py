@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from bmg160_emu.noise import AxisNoise, NoiseGenerator, Profile, ProfileError, load_profile
@@ -48,7 +50,9 @@ def test_paper_profile_holds_the_papers_identified_values_on_every_axis():
 
 
 def test_datasheet_profile_has_the_datasheet_noise_density():
-    assert all(axis.N == 0.014 for axis in load_profile("datasheet").axes)
+    # the data sheet's 0.014 deg/s/sqrt(Hz) is one-sided (its 0.1 deg/s rms at 47 Hz is
+    # 0.014 sqrt(47)); IEEE 952's N is two-sided: N = 0.014 / sqrt(2)
+    assert all(axis.N == 0.014 / math.sqrt(2) for axis in load_profile("datasheet").axes)
 
 
 def test_user_profile_file_loads_with_optional_q_and_r(tmp_path):

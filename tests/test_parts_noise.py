@@ -22,8 +22,9 @@ def test_each_part_defaults_to_its_data_sheet_profile(name):
     chip = make_chip(name, seed=1)
     profile = chip.state.path.noise.generator.profile
     assert profile.name == part_table(name).noise_profile == name.split("_")[0] + "_datasheet"
-    # 0.014 deg/s/sqrt(Hz): BMI088 DS table 5; for the BMI055/BMX055 the BMG160 die's figure
-    assert all(axis.N == 0.014 and axis.bias == 0.0 for axis in profile.axes)
+    # 0.014 deg/s/sqrt(Hz), one-sided: BMI088 DS gyroscope table; for the BMI055/BMX055 the
+    # BMG160 die's figure; IEEE 952's (two-sided) N is 0.014 / sqrt(2)
+    assert all(axis.N == 0.014 / np.sqrt(2) and axis.bias == 0.0 for axis in profile.axes)
 
 
 def test_the_bmg160_keeps_its_default_and_a_given_profile_wins():

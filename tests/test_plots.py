@@ -268,3 +268,19 @@ def test_several_gauss_markov_terms_take_one_legend_line(result):
     assert shown[0].endswith(f"and {len(drawn) - 1} more terms")
     assert hidden[0].split(" and ")[1].startswith("1 more")  # the two 1e-6 poles
     assert len(drawn) + 2 == len(terms)
+
+
+def test_each_read_off_marker_sits_at_the_value_its_legend_names(result):
+    # issue 23: the flicker-B marker was drawn at the minimum (0.664 B) and labelled B
+    import re
+
+    fig = plots.adev_figure(result.axes)
+    checked = 0
+    for ax in _plot_axes(fig):
+        for line in ax.get_lines():
+            match = re.match(r"(flicker B|N|K) = ([0-9.e+-]+) ", line.get_label())
+            if match and np.size(line.get_ydata()) == 1:
+                named = float(match.group(2))
+                assert float(line.get_ydata()[0]) == pytest.approx(named, rel=1e-3), line.get_label()
+                checked += 1
+    assert checked >= 2 * len(result.axes)  # N and flicker B on every axis

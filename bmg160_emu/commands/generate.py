@@ -19,62 +19,21 @@ examples:
 
 The output holds deg/s per axis, constant bias included: .npy is an (n, 3) float64 array;
 .csv has a header t_s,x_dps,y_dps,z_dps (sample k at t = (k + 1) / rate) after '#' lines
-naming the profile, mode, rate and seed. The record is written in chunks, never held whole
-in memory. Durations: 10s, 5min, 2h, 1d, 250ms or plain seconds. .resd is Renode's sensor
-data format (angular rate, channel 0; docs/resd.md).
+naming the profile, mode, rate, seed and output stage. The record is written in chunks,
+never held whole in memory. Durations: 10s, 5min, 2h, 1d, 250ms or plain seconds. .resd is
+Renode's sensor data format (angular rate, channel 0; docs/resd.md).
 
---bandwidth CODE (BW register 0x10, 0-7) sets the rate to that code's ODR and passes the
-noise through the chip's low-pass for that code (device/lowpass.py: 2nd-order Butterworth
-at the code's bandwidth, starting at steady state): the noise as a real sensor's filter
-shapes it. identify finds that filter and fits above it (docs/identification.md). The
-library equivalent is ChipFilteredNoise below.
+The noise is the sensing element's, through the sensor's output stage as the profile's
+[output] table names it (identify --profile-out writes the filter and the quantization step
+it found on a record): a profile without one gives the noise as before. --bandwidth CODE
+(BW register 0x10, 0-7) sets the rate to that code's ODR and filters with the chip's
+low-pass for that code instead (device/lowpass.py: 2nd-order Butterworth at the code's
+bandwidth), as a chip at that setting does; --raw leaves the output stage out. Paper mode is
+the paper's output-referred recursion: nothing filters it. The library equivalent is
+bmg160_emu.device.datapath.profile_noise, the code the chip's data path uses.
 """
 
 CHUNK_SAMPLES = 1 << 18  # samples per generate() call while streaming (6 MB per chunk)
-
-
-class ChipFilteredNoise:
-    """A NoiseGenerator's output through the chip's low-pass of one BW code (0-7).
-
-    ``generate(n)`` returns the next n samples (n, 3) in deg/s, chunk invariant in value to
-    rounding (the filter state is carried between calls). The rate is the code's ODR.
-    """
-
-    def __init__(self, profile="paper", bandwidth_code: int = 7, seed=None,
-                 mode: str = "physical") -> None:
-        from bmg160_emu.device.lowpass import LowPass
-        from bmg160_emu.device.spec_choices import BANDWIDTHS
-        from bmg160_emu.noise import NoiseGenerator
-
-        if isinstance(bandwidth_code, bool) or bandwidth_code not in BANDWIDTHS:
-            codes = ", ".join(f"{c} ({o} Hz ODR, {b:g} Hz)" for c, (o, b) in BANDWIDTHS.items())
-            raise ValueError(f"unknown BW code {bandwidth_code!r}: use one of {codes}")
-        odr, bandwidth = BANDWIDTHS[bandwidth_code]
-        self.bandwidth_code = bandwidth_code
-        self.bandwidth_hz = float(bandwidth)
-        self.generator = NoiseGenerator(profile, rate_hz=float(odr), seed=seed, mode=mode)
-        self._filter = LowPass(float(odr), float(bandwidth))
-
-    @property
-    def rate_hz(self) -> float:
-        return self.generator.rate_hz
-
-    @property
-    def profile(self):
-        return self.generator.profile
-
-    @property
-    def mode(self) -> str:
-        return self.generator.mode
-
-    def generate(self, n: int):
-        block = self.generator.generate(n)
-        if block.shape[0] == 0:
-            return block
-        if not self._filter.started:
-            self._filter.restart(block[0])  # at steady state: a powered sensor
-        out, self._filter.state = self._filter.run(block)
-        return out
 
 
 def register(subparsers: Subparsers) -> None:
@@ -116,7 +75,14 @@ def register(subparsers: Subparsers) -> None:
         type=int,
         default=None,
         metavar="CODE",
-        help="BW code 0-7: the code's ODR, and the noise through the chip's low-pass for it",
+        help="BW code 0-7: the code's ODR, and the noise through the chip's low-pass for it "
+        "(instead of the profile's own filter)",
+    )
+    parser.add_argument(
+        "--raw",
+        action="store_true",
+        help="the sensing element's noise alone: the profile's output filter and "
+        "quantization ([output]) left out",
     )
     parser.add_argument(
         "-o", "--output", type=Path, required=True, help="OUT.npy, OUT.csv or OUT.resd (Renode)"
@@ -126,13 +92,9 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.device.datapath import ProfileNoise, profile_noise
     from bmg160_emu.io.atomic import OutputError, atomic_path, check_free_space, check_writable
     from bmg160_emu.io.rate_stream import RateStreamWriter
-    from bmg160_emu.noise import NoiseGenerator
-
-    args.rate_given = args.rate is not None
-    if args.rate is None:
-        args.rate = 200.0
 
     suffix = args.output.suffix.lower()
     if suffix not in (".npy", ".csv", ".resd"):
@@ -146,19 +108,18 @@ def run(args: argparse.Namespace) -> int:
         duration = parse_duration(args.duration)
     except ValueError as exc:
         raise CommandError(f"--duration: {exc}") from None
-    gen: ChipFilteredNoise | NoiseGenerator
+    if args.bandwidth is not None and args.mode == "paper":
+        raise CommandError("--bandwidth filters the physical mode's noise; paper mode is the "
+                           "paper's output-referred recursion (nothing filters it): give --rate")
+    if args.bandwidth is not None and args.raw:
+        raise CommandError("--raw leaves every filter out: it does not go with --bandwidth")
+    gen: ProfileNoise
     try:
-        if args.bandwidth is not None:
-            gen = ChipFilteredNoise(args.profile, args.bandwidth, seed=args.seed, mode=args.mode)
-            if args.rate_given and args.rate != gen.rate_hz:
-                raise CommandError(
-                    f"--rate {args.rate:g} Hz disagrees with --bandwidth {args.bandwidth} "
-                    f"(ODR {gen.rate_hz:g} Hz): give one of them"
-                )
-        else:
-            gen = NoiseGenerator(args.profile, rate_hz=args.rate, seed=args.seed, mode=args.mode)
+        gen = profile_noise(args.profile, args.rate, seed=args.seed, mode=args.mode,
+                            bandwidth_code=args.bandwidth, use_output=not args.raw)
     except ValueError as exc:
-        raise CommandError(str(exc)) from None
+        text = str(exc)  # a rate the BW code has not is named as the option it came from
+        raise CommandError(f"--{text}" if text.startswith("rate ") else text) from None
     total = round(duration * gen.rate_hz)
     if total < 1:
         raise CommandError(f"duration {args.duration!r} is shorter than one sample period")
@@ -166,6 +127,7 @@ def run(args: argparse.Namespace) -> int:
         f"bmg160-emu generate: profile={gen.profile.name} mode={gen.mode} "
         f"rate_hz={gen.rate_hz:g} seed={args.seed} samples={total}"
         + (f" bandwidth_code={args.bandwidth}" if args.bandwidth is not None else "")
+        + (f" output={gen.describe()}" if gen.describe() != "none" else "")
     )
     if chosen_seed:
         print(f"bmg160-emu generate: seed {args.seed} (random; --seed {args.seed} repeats it)",

@@ -22,12 +22,15 @@ Inputs: CSV (one column per axis, optional time column t/t_s/time, '#' comments,
 of `bmg160-emu record` and `generate`), .npy (n or n x k array), .npz, .resd (Renode, channel
 0), the firmware's UART stream (.txt from `firmware capture` or a board's serial port, whose
 ODR --rate gives); with --curve, an Allan deviation CSV (tau, then adev [low high] per
-axis; allan_variance_ros's 7 columns) and the record's --samples or --duration. The rate comes from --rate or from the time column.
+axis; allan_variance_ros's 7 columns, non-overlapping, in deg/s) and the record's --samples
+or --duration. The rate comes from --rate or from the time column.
 
 The fit (docs/identification.md): weighted least squares of the closed-form Allan variance
-of white noise + Gauss-Markov terms (B_i, T_i) + random walk; the number of terms is chosen
-by AICc (or --poles). The shortest tau fitted is where the sensor's own filter ends (the
-white -1/2 slope region), found from the curve (or --tau-min). Warm-up and bias steps are
+of white noise through the sensor's output filter + Gauss-Markov terms (B_i, T_i) + random
+walk + sinusoidal lines; the number of terms is chosen by AICc (or --poles). The sensor's
+output stage is found on the record (its filter on the PSD, the LSB its values sit on, PSD
+lines) and written into --profile-out, so that generate reproduces the record (--no-output-
+stage: as before, the fit starts where the white slope does). Warm-up and bias steps are
 reported. The IEEE 952 read-offs are printed beside the fit, labelled. PSDs are one-sided
 (white noise of density N reads 2 N^2). --figures writes timeseries, histogram, adev and psd
 figures; with --compare, an emulator record of the same length is overlaid.
@@ -164,7 +167,18 @@ def register(subparsers: Subparsers) -> None:
     )
     parser.add_argument(
         "--curve-units", choices=("deg/s", "rad/s", "deg/h"), default="deg/s",
-        help="with --curve: units of the curve (allan_variance_ros writes rad/s)",
+        help="with --curve: units of the curve (allan_variance_ros writes deg/s: it converts "
+        "the gyroscope's rad/s before averaging)",
+    )
+    parser.add_argument(
+        "--curve-kind", choices=("auto", "overlapping", "non-overlapping"), default="auto",
+        help="with --curve: the estimator behind the curve (auto: as the file says; "
+        "allan_variance_ros's is non-overlapping; else overlapping)",
+    )
+    parser.add_argument(
+        "--no-output-stage", action="store_true",
+        help="do not fit the sensor's output filter, quantization and lines (the fit then "
+        "starts where the white -1/2 slope does)",
     )
     parser.set_defaults(func=run)
 
@@ -197,7 +211,8 @@ def _options(args: argparse.Namespace) -> dict:
     method = "wls" if args.method in ("allan", "gmwm") else args.method
     return {"poles": poles, "flicker": args.flicker, "method": method, "skip_s": skip,
             "with_q": args.with_q, "with_r": args.with_r,
-            "tau_range": (args.tau_min, args.tau_max)}
+            "tau_range": (args.tau_min, args.tau_max),
+            "output_stage": not args.no_output_stage}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -249,9 +264,39 @@ def run(args: argparse.Namespace) -> int:
     else:
         text = result.summary(args.units)
         print(_gmwm_summary(text, gmwm_fits) if gmwm_fits else text)
+        stage = _output_stage_line(result)
+        if stage:
+            print(stage)
         for path in written:
             print(f"wrote {path}")
+    for axis in result.axes:  # a curve in the wrong units: said where it cannot be missed
+        for note in axis.notes:
+            if note.startswith("implausible"):
+                print(f"bmg160-emu identify: warning: axis {axis.axis}: {note}", file=sys.stderr)
     return 0
+
+
+def _output_stage_line(result) -> str:
+    """The output stage the profile carries, with the BW code of the chip family that has
+    the same filter at the record's rate (register spec 5.3), if one does."""
+    from bmg160_emu.device.spec_choices import BANDWIDTHS, LOWPASS_ORDER
+
+    stage = result.output_stage()
+    if stage is None:
+        return ""
+    parts = []
+    if stage.corner_hz is not None:
+        text = f"order {stage.order} Butterworth at {stage.corner_hz:.4g} Hz"
+        for code, (odr, bandwidth) in BANDWIDTHS.items():
+            if (odr == result.rate_hz and stage.order == LOWPASS_ORDER
+                    and abs(stage.corner_hz / bandwidth - 1) < 0.05):
+                text += (f" (the chip family's BW code {code}: {bandwidth:g} Hz at {odr} Hz "
+                         "ODR)")
+        parts.append(text)
+    if stage.lsb_dps:
+        parts.append(f"LSB {stage.lsb_dps:.6g} deg/s")
+    return ("sensor output stage (--profile-out writes it, generate applies it): "
+            + ", ".join(parts))
 
 
 def _identify_record(args: argparse.Namespace, options: dict):
@@ -301,11 +346,12 @@ def _identify_curve(args: argparse.Namespace, options: dict):
             f"{args.file}: the curve reaches tau = {taus[-1]:g} s, more than half the record "
             f"({n} samples at {args.rate:g} Hz): check --samples/--duration and --rate"
         )
-    options = {k: v for k, v in options.items() if k != "skip_s"}
-    results = [
-        identify_curve(taus, a["adev"], args.rate, n, axis=a["name"], ci=a["ci"], **options)
-        for a in axes
-    ]
+    options = {k: v for k, v in options.items() if k not in ("skip_s", "output_stage")}
+    results = []
+    for a in axes:
+        kind = args.curve_kind if args.curve_kind != "auto" else (a["kind"] or "overlapping")
+        results.append(identify_curve(taus, a["adev"], args.rate, n, axis=a["name"], ci=a["ci"],
+                                      overlapping=kind == "overlapping", **options))
     return Identification(float(args.rate), n, results, str(args.file))
 
 
@@ -366,6 +412,14 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
         keep = np.ones(wv.m.size, dtype=bool)
         if args.tau_min is not None:
             keep &= wv.taus_s >= args.tau_min
+        elif axis.output_filter is not None:
+            # GMWM's white term knows no filter: the scales where the filter takes less than
+            # 1 % off white noise's Allan variance (it falls as 1 / tau, from 60 % at tau = dt)
+            from bmg160_emu.noise.output_filter import white_avar_unit
+
+            deficit = np.abs(white_avar_unit(wv.taus_s, record.rate_hz,
+                                             axis.output_filter.design) * wv.taus_s - 1.0)
+            keep &= deficit < 0.01
         if args.tau_max is not None:
             keep &= wv.taus_s <= args.tau_max
         wv = dataclasses.replace(
@@ -401,7 +455,12 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
             points=int(wv.m.size),
             chi2_reduced=fit.objective / max(fit.dof, 1),
         )
-        result.axes[i] = dataclasses.replace(axis, fit=curve_fit, notes=notes, method="gmwm")
+        reason = axis.tau_range_reason
+        if args.tau_min is None and axis.output_filter is not None:
+            reason = (f"GMWM's scales from tau = {wv.taus_s[0]:.3g} s, where the output filter "
+                      "takes less than 1 % off white noise's Allan variance")
+        result.axes[i] = dataclasses.replace(axis, fit=curve_fit, notes=notes, method="gmwm",
+                                             tau_range_reason=reason)
         fits[axis.axis] = fit
     return fits
 
@@ -455,7 +514,7 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
         "psd": plots.psd_figure(result.axes, record.rate_hz),
     }
     if args.compare:
-        from bmg160_emu.noise import NoiseGenerator
+        from bmg160_emu.device.datapath import profile_noise
         from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
         from bmg160_emu.noise.identification import identify_axis
 
@@ -465,7 +524,8 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
                 f"--compare: the record's rate {record.rate_hz:g} Hz is not a BMG160 output "
                 "data rate (100, 200, 400, 1000, 2000 Hz)"
             )
-        gen = NoiseGenerator(result.to_profile(), rate_hz=chip_rate, seed=args.seed)
+        # what generate writes from the profile: its output stage included
+        gen = profile_noise(result.to_profile(), chip_rate, seed=args.seed)
         emulated = gen.generate(record.rate_dps.shape[0])
         for i, axis in enumerate(result.axes):
             emu = identify_axis(emulated[:, i], record.rate_hz, axis.axis)

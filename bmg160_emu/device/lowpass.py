@@ -5,9 +5,10 @@ reference passes bit-exactly (unity DC gain without rounding error) and the filt
 at steady state: a constant rate reads exactly from the first sample (spec 5.3, 6.1).
 
 Design and filtering use numpy only, so that building a chip does not import scipy (about
-0.6 s of start-up). The design is the one ``scipy.signal.butter`` computes (analog
-Butterworth poles, cut-off prewarped, bilinear transform at fs = 2), so the coefficients
-agree with it (bit for bit for the table's eight BW codes; a test compares them). The filter is the direct-form-II-transposed
+0.6 s of start-up). The design (``noise.output_filter``, shared with identification and a
+profile's own filter) is the one ``scipy.signal.butter`` computes (analog Butterworth poles,
+cut-off prewarped, bilinear transform at fs = 2), so the coefficients agree with it (bit for
+bit for the table's eight BW codes; a test compares them). The filter is the direct-form-II-transposed
 state space of ``scipy.signal.lfilter`` run in sub-blocks of ``SUB_BLOCK`` samples with
 matrix products instead of a per-sample loop; its output and states agree with lfilter's to
 rounding (about 1e-15 of the signal; a test asserts 1e-12), not bit for bit. Streams changed
@@ -25,35 +26,12 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.device import spec_choices
+from bmg160_emu.noise.output_filter import MAX_WN, Butterworth, butterworth
+
+__all__ = ["MAX_WN", "LowPass", "butterworth", "coefficients"]
 
 SUB_BLOCK = 32  # samples per matrix product: big enough to amortise numpy calls, H stays small
 SUB_BLOCKS = 32  # sub-blocks solved together (one chunk of SUB_BLOCK * SUB_BLOCKS samples)
-# Beyond the Nyquist frequency there is no low-pass to design; scipy.signal.butter refuses
-# Wn >= 1. The table's widest band (523 Hz at 2000 Hz ODR, spec 5.3) is Wn = 0.52.
-MAX_WN = 0.99
-
-
-def butterworth(order: int, wn: float) -> tuple[np.ndarray, np.ndarray]:
-    """(b, a) of a digital Butterworth low-pass, ``wn`` the cut-off over Nyquist (0 < wn < 1).
-
-    The steps of scipy.signal.butter(order, wn): analog prototype poles on the unit circle,
-    cut-off prewarped to 2 fs tan(pi wn / fs) with fs = 2, bilinear transform, which puts all
-    zeros at z = -1, and the gain that makes the analog prototype's gain 1 carry over."""
-    if not 0.0 < wn < 1.0:
-        raise ValueError(f"Butterworth cut-off must be between 0 and 1 times Nyquist, not {wn}")
-    m = np.arange(-order + 1, order, 2)
-    poles = -np.exp(1j * np.pi * m / (2 * order))
-    fs = 2.0
-    warped = 2.0 * fs * np.tan(np.pi * wn / fs)
-    poles = warped * poles
-    gain = warped**order  # lp2lp of the prototype (gain 1, no zeros)
-    fs2 = 2.0 * fs
-    z_poles = (fs2 + poles) / (fs2 - poles)
-    gain = gain * np.real(1.0 / np.prod(fs2 - poles))
-    b = gain * np.poly(-np.ones(order))
-    a = np.poly(z_poles)
-    # conjugate pole pairs give a real polynomial; drop the rounding-level imaginary parts
-    return np.real(b).astype(float), np.real(a).astype(float)
 
 
 def _state_space(b: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -158,10 +136,11 @@ class _Blocks:
 
 
 @cache
-def coefficients(odr_hz: float, bandwidth_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(b, a, steady-state state per unit input) of the Butterworth low-pass."""
-    nyquist = odr_hz / 2.0
-    b, a = butterworth(spec_choices.LOWPASS_ORDER, min(bandwidth_hz / nyquist, MAX_WN))
+def coefficients(odr_hz: float, bandwidth_hz: float, order: int = spec_choices.LOWPASS_ORDER
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(b, a, steady-state state per unit input) of the Butterworth low-pass (the chip's
+    order unless another is named: a profile's own filter, noise.output_filter)."""
+    b, a = Butterworth(int(order), float(bandwidth_hz), float(odr_hz)).coefficients()
     big_a, big_b, _, _ = _state_space(b, a)
     # the state a constant unit input holds: z = A z + B (what lfilter_zi solves)
     zi = np.linalg.solve(np.eye(len(big_b)) - big_a, big_b)
@@ -169,17 +148,20 @@ def coefficients(odr_hz: float, bandwidth_hz: float) -> tuple[np.ndarray, np.nda
 
 
 @cache
-def _blocks(odr_hz: float, bandwidth_hz: float) -> _Blocks:
-    b, a, _ = coefficients(odr_hz, bandwidth_hz)
+def _blocks(odr_hz: float, bandwidth_hz: float, order: int) -> _Blocks:
+    b, a, _ = coefficients(odr_hz, bandwidth_hz, order)
     return _Blocks(b, a)
 
 
 class LowPass:
     """Three-axis low-pass with state ``(order, 3)`` carried between blocks."""
 
-    def __init__(self, odr_hz: float, bandwidth_hz: float) -> None:
-        self.b, self.a, self._zi_unit = coefficients(float(odr_hz), float(bandwidth_hz))
-        self._blocks = _blocks(float(odr_hz), float(bandwidth_hz))
+    def __init__(self, odr_hz: float, bandwidth_hz: float,
+                 order: int = spec_choices.LOWPASS_ORDER) -> None:
+        self.design = Butterworth(int(order), float(bandwidth_hz), float(odr_hz))
+        self.b, self.a, self._zi_unit = coefficients(float(odr_hz), float(bandwidth_hz),
+                                                     int(order))
+        self._blocks = _blocks(float(odr_hz), float(bandwidth_hz), int(order))
         self._zi = self._zi_unit.tolist()
         self.restart(np.zeros(3))  # level the filter rests at (reference)
         self.started = False
@@ -228,6 +210,29 @@ class LowPass:
         self.state = np.array([[a + b * v for a, v in zip(row, dev)]
                                for row, b in zip(moved, blocks.b_list)])
         return y
+
+    def settle_on(self, x: np.ndarray) -> None:
+        """Rest at 0 in the state the filter holds after ``x`` (n, 3), started at rest at
+        x[0]: a noise filter started settled (datapath.SensorNoise). By linearity that
+        state is the one of the deviations from x[0] plus the settled state of x[0]; with
+        the reference at 0, ``run_pieces`` needs no reference arithmetic."""
+        level = np.array(x[0], dtype=float)
+        _, final = self._blocks.run(x - level, np.zeros((len(self.a) - 1, x.shape[1])))
+        self.restart(np.zeros(x.shape[1]))
+        self.state = final + np.outer(self._zi_unit, level)
+
+    def run_pieces(self, x: np.ndarray, state: np.ndarray, every: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """Filter ``x`` (n, axes) about the reference 0 from ``state`` in pieces of ``every``
+        samples counted from x[0] (a multiple of the block chunk): the same bits whatever
+        the length of x, as long as it starts on a piece boundary; return (y, final state)."""
+        blocks = self._blocks
+        if len(x) <= every:
+            return blocks.run(x, state)
+        y = np.empty_like(x)
+        for start in range(0, len(x), every):
+            y[start:start + every], state = blocks.run(x[start:start + every], state)
+        return y, state
 
     def run(self, x: np.ndarray, state: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Filter ``x`` (n, 3) from ``state`` (default: current); return (y, final state)."""

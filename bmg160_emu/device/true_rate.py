@@ -8,7 +8,6 @@ sources that need them.
 from __future__ import annotations
 
 import bisect
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -17,6 +16,17 @@ import numpy as np
 from bmg160_emu.clock import NS_PER_S
 
 Times = Callable[[int, int], np.ndarray]  # (k0, n) -> sample times in ns
+# Largest true rate taken, deg/s: 5e5 times the widest full scale (2000 deg/s, spec 4.8), far
+# beyond anything a sensing element survives, and small enough that every product of the
+# data path (filter, sensitivity up to 262.4 LSB/(deg/s)) stays finite: no overflow, only
+# saturated counts (issue 24: 1e308 deg/s raised numpy overflow warnings).
+MAX_RATE_DPS = 1e9
+_RANGE_TEXT = f"finite and within +-{MAX_RATE_DPS:g} deg/s"
+
+
+def _in_range(values: np.ndarray) -> bool:
+    """Every value finite and within MAX_RATE_DPS (NaN fails the comparison)."""
+    return bool(np.all(np.abs(values) <= MAX_RATE_DPS))
 
 
 class ConstantRate:
@@ -61,8 +71,9 @@ class FunctionRate:
                 raise ValueError(f"the true-rate function must return 3 numbers in deg/s, "
                                  f"got {row.size} at t = {float(t):g} s")
             out[i] = row.reshape(3)
-        if not np.all(np.isfinite(out)):
-            raise ValueError("the true-rate function returned a non-finite value")
+        if not _in_range(out):
+            raise ValueError("the true-rate function returned a non-finite value or one beyond "
+                             f"+-{MAX_RATE_DPS:g} deg/s")
         self.failed = False
         return out
 
@@ -131,8 +142,8 @@ def streamed_rate(rate_dps: Any) -> ConstantRate:
     if arr.shape != (3,):
         raise ValueError(f"a streamed true rate must be 3 numbers in deg/s, not {rate_dps!r}")
     x, y, z = arr.tolist()
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise ValueError("true rate must be finite")
+    if not (abs(x) <= MAX_RATE_DPS and abs(y) <= MAX_RATE_DPS and abs(z) <= MAX_RATE_DPS):
+        raise ValueError(f"true rate must be {_RANGE_TEXT}")
     return ConstantRate(arr)
 
 
@@ -147,12 +158,12 @@ def true_rate_source(rate: Any, sample_rate_hz: float | None, *, first_k: int,
         raise ValueError("true rate must be 3 numbers in deg/s, a callable of t or (n, 3) "
                          f"samples, not {rate!r}") from None
     if arr.shape == (3,):
-        if not np.all(np.isfinite(arr)):
-            raise ValueError("true rate must be finite")
+        if not _in_range(arr):
+            raise ValueError(f"true rate must be {_RANGE_TEXT}")
         return ConstantRate(arr.copy())
     if arr.ndim == 2 and arr.shape[1] == 3 and arr.shape[0] >= 1:
-        if not np.all(np.isfinite(arr)):
-            raise ValueError("true rate samples must be finite")
+        if not _in_range(arr):
+            raise ValueError(f"true rate samples must be {_RANGE_TEXT}")
         if sample_rate_hz is not None and not sample_rate_hz > 0:
             raise ValueError("sample_rate_hz must be positive")
         return SampledRate(arr.copy(), first_k, first_ns, sample_rate_hz)

@@ -24,10 +24,13 @@ FLICKER_ADEV_FACTOR = math.sqrt(2.0 * math.log(2.0) / math.pi)  # 0.6643
 
 @dataclass(frozen=True)
 class AllanCurve:
-    """Overlapping Allan deviation of a rate record, deg/s, with confidence bounds.
+    """Allan deviation of a rate record, deg/s, with confidence bounds: overlapping (this
+    package's own curves) or not (``overlapping`` False: a curve read from a tool that
+    averages disjoint clusters, allan_variance_ros).
 
     ci_low / ci_high bound the deviation at `ci` probability, from Greenhall's equivalent
-    degrees of freedom (edf) with the noise type read from the local slope of the curve.
+    degrees of freedom (edf) of that estimator with the noise type read from the local slope
+    of the curve.
     """
 
     taus: np.ndarray  # s
@@ -37,13 +40,19 @@ class AllanCurve:
     ci_low: np.ndarray
     ci_high: np.ndarray
     ci: float
+    overlapping: bool = True
 
     @property
     def avar(self) -> np.ndarray:
         return self.adev**2
 
+    @property
+    def kind(self) -> str:
+        return "overlapping" if self.overlapping else "non-overlapping"
+
 
 _CHUNK = 1 << 16  # samples per step of the octave OADEV (three 512 kB slices stay in cache)
+_LARGEST = 1e100  # |rate| above which the sums of squared differences could overflow
 
 
 def octave_oadev(rate_dps: np.ndarray, rate_hz: float) -> tuple[np.ndarray, ...]:
@@ -58,6 +67,18 @@ def octave_oadev(rate_dps: np.ndarray, rate_hz: float) -> tuple[np.ndarray, ...]
     """
     y = np.asarray(rate_dps)
     n = y.shape[0]
+    if n == 0:
+        raise ValueError("an Allan deviation needs samples: the record is empty")
+    with np.errstate(all="ignore"):  # inf - inf in the mean is a NaN: refused below
+        peak = float(np.max(np.abs(y)))
+    if not math.isfinite(peak):
+        raise ValueError("an Allan deviation needs finite samples: the record has NaN or inf")
+    if peak > _LARGEST:
+        # squares of differences would overflow: the same sums on the record scaled by a
+        # power of two (exact), the deviations scaled back
+        scale = 2.0 ** math.ceil(math.log2(peak))
+        taus_s, devs_s, counts_s = octave_oadev(y / scale, rate_hz)
+        return taus_s, devs_s * scale, counts_s
     dt = 1.0 / float(rate_hz)
     mean = float(np.mean(y))
     phase = np.empty(n + 1)
@@ -108,9 +129,14 @@ def overlapping_adev(
     keep = np.isfinite(adev) & (adev > 0)
     taus_out, adev, n_terms = taus_out[keep], adev[keep], np.asarray(n_terms)[keep]
     alphas = noise_alpha_from_slope(taus_out, adev)
-    return allan_confidence(
-        taus_out, adev, np.asarray(n_terms), alphas, rate_dps.shape[0], rate_hz, ci
+    scale = 2.0 ** math.ceil(math.log2(adev.max())) if adev.size and adev.max() > _LARGEST else 1.0
+    curve = allan_confidence(
+        taus_out, adev / scale, np.asarray(n_terms), alphas, rate_dps.shape[0], rate_hz, ci
     )
+    if scale == 1.0:
+        return curve
+    return AllanCurve(curve.taus, curve.adev * scale, curve.n_terms, curve.edf,
+                      curve.ci_low * scale, curve.ci_high * scale, curve.ci)
 
 
 def allan_confidence(
@@ -121,25 +147,30 @@ def allan_confidence(
     n_samples: int,
     rate_hz: float,
     ci: float = 0.683,
+    overlapping: bool = True,
 ) -> AllanCurve:
-    """The curve with Greenhall edf and chi-square bounds for the given noise types."""
+    """The curve with Greenhall edf and chi-square bounds for the given noise types, of
+    the overlapping estimator or (``overlapping`` False) the non-overlapping one."""
     edf = np.array(
-        [_edf(int(a), round(t * rate_hz), n_samples) for a, t in zip(alphas, taus)],
+        [_edf(int(a), round(t * rate_hz), n_samples, overlapping) for a, t in zip(alphas, taus)],
         dtype=float,
     )
     edf = np.maximum(edf, 1.0)
     low, high = np.empty_like(adev), np.empty_like(adev)
     for i, (dev, e) in enumerate(zip(adev, edf)):
         low[i], high[i] = allantools.confidence_interval(dev, e, ci=ci)
-    return AllanCurve(taus, adev, n_terms, edf, low, high, ci)
+    return AllanCurve(taus, adev, n_terms, edf, low, high, ci, overlapping)
 
 
-def _edf(alpha: int, m: int, n_samples: int) -> float:
-    """Greenhall's edf of an overlapping ADEV point; the simple formula where it has no case."""
+def _edf(alpha: int, m: int, n_samples: int, overlapping: bool = True) -> float:
+    """Greenhall's edf of an ADEV point; the simple formula where it has no case."""
     try:
-        return float(allantools.edf_greenhall(alpha=alpha, d=2, m=m, N=n_samples, overlapping=True))
+        return float(allantools.edf_greenhall(alpha=alpha, d=2, m=max(m, 1), N=n_samples,
+                                              overlapping=overlapping))
     except (NotImplementedError, ValueError, ZeroDivisionError):
-        return float(allantools.edf_simple(n_samples, m, alpha))
+        simple = float(allantools.edf_simple(n_samples, max(m, 1), alpha))
+        # edf_simple is the overlapping estimator's; disjoint clusters hold at most N/m - 1
+        return simple if overlapping else min(simple, max(n_samples / max(m, 1) - 1.0, 1.0))
 
 
 def noise_alpha_from_slope(taus: np.ndarray, adev: np.ndarray) -> np.ndarray:
@@ -150,7 +181,9 @@ def noise_alpha_from_slope(taus: np.ndarray, adev: np.ndarray) -> np.ndarray:
     """
     if taus.size < 2:
         return np.zeros(taus.size, dtype=int)
-    mu = np.gradient(np.log(adev**2), np.log(taus))
+    with np.errstate(all="ignore"):  # a zero or non-finite point: white (alpha 0) there
+        mu = np.gradient(2.0 * np.log(np.asarray(adev, dtype=float)), np.log(taus))
+    mu = np.where(np.isfinite(mu), mu, -1.0)
     alpha = np.clip(np.rint(-mu - 1.0), -2, 2).astype(int)
     return alpha
 

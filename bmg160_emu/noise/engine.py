@@ -15,7 +15,12 @@ operations per sample do not depend on how the stream is cut.
 
 Streams per axis: white, gm (the first Gauss-Markov term), rw, quant, then gm1, gm2, ...
 for further terms (spawned after the first four, so a one-term profile draws exactly the
-normals it drew before multi-term profiles existed).
+normals it drew before multi-term profiles existed), then one stream for the phases of the
+sinusoidal terms (drawn once, uniform in [0, 2 pi)).
+
+Where each term is referred: everything but Q is the sensing element's noise, which the
+chip's low-pass filters (``generate_referred`` hands it apart); Q, the IEEE 952 angle
+quantization of an output, is output-referred (docs/noise-engine.md, "Where each term enters").
 
 Small requests are served from a short buffer of computed samples (a few microseconds per
 call); the buffer keeps its normals so that set_rate() can recompute the unserved part at the
@@ -58,9 +63,16 @@ class _AxisStream:
         if len(terms) > 1:
             children += seed_seq.spawn(len(terms) - 1)
         names = list(_STREAMS) + [f"gm{i}" for i in range(1, len(terms))]
+        if axis.sine:  # spawned last: the other streams are those of a profile without it
+            children += seed_seq.spawn(1)
+            names.append("sine")
         self.rng = {
             name: np.random.Generator(np.random.PCG64(s)) for name, s in zip(names, children)
         }
+        # each sinusoid: A sin(2 pi f t + phase), phases fixed by the seed
+        phases = (self.rng["sine"].uniform(0.0, 2.0 * np.pi, len(axis.sine)).tolist()
+                  if axis.sine else [])
+        self.sines = [(A, 2.0 * np.pi * f, float(p)) for (A, f), p in zip(axis.sine, phases)]
         self.gm_names = (["gm"] + names[len(_STREAMS):]) if terms else []
         self.uses = {
             "white": axis.N > 0 if mode == "physical" else True,
@@ -97,19 +109,26 @@ class _AxisStream:
         return (tuple(p.state() for p in self._all), self.quant_prev)
 
     def compute(
-        self, normals: dict[str, np.ndarray | None], t: np.ndarray | None, out: np.ndarray
+        self, normals: dict[str, np.ndarray | None], t: np.ndarray | None, out: np.ndarray,
+        post: np.ndarray | None = None, consume: bool = False,
     ) -> None:
         """Write this axis's samples into out (a possibly strided view); advance the state
         (the Gauss-Markov terms and the walk rewind from their saved state on a rate change).
+        With ``post``, the output-referred term (Q) goes there instead of into out;
+        ``consume``: the normals are not kept (their array is worked in).
         """
         c = self.coef
         assert c is not None
         n = out.shape[0]
-        acc = np.empty(n)
-        if normals["white"] is not None:
-            np.multiply(normals["white"], c.white_std, out=acc)
+        white = normals["white"]
+        if white is not None and consume:  # normals not kept: scaled where they lie
+            acc = white
+            acc *= c.white_std
+        elif white is not None:
+            acc = np.empty(n)
+            np.multiply(white, c.white_std, out=acc)
         else:
-            acc.fill(0.0)
+            acc = np.zeros(n)
         for pole in self._all:
             acc += pole.take(n)
         wq = normals["quant"]
@@ -118,10 +137,18 @@ class _AxisStream:
             diff[0] = wq[0] - self.quant_prev
             np.subtract(wq[1:], wq[:-1], out=diff[1:])
             diff *= c.quant_scale
-            acc += diff
+            if post is None:
+                acc += diff
+            else:
+                post[:] = diff
             self.quant_prev = float(wq[-1])
-        if t is not None and c.ramp_slope > 0:
-            acc += c.ramp_slope * t
+        elif post is not None:
+            post[:] = 0.0
+        if t is not None:
+            if c.ramp_slope > 0:
+                acc += c.ramp_slope * t
+            for amplitude, omega, phase in self.sines:
+                acc += amplitude * np.sin(omega * t + phase)
         np.add(acc, c.bias, out=out)
 
 
@@ -156,7 +183,9 @@ class NoiseGenerator:
             _AxisStream(axis, child, self.mode)
             for axis, child in zip(self.profile.axes, seed_seq.spawn(3))
         ]
-        self._uses_ramp = any(a.R > 0 for a in self.profile.axes)
+        self._uses_time = any(a.R > 0 or a.sine for a in self.profile.axes)
+        # Q is output-referred: generate_referred hands it apart (the chip filters the rest)
+        self._split = any(a.Q > 0 for a in self.profile.axes)
         self._rate_hz = 0.0
         self._apply_rate(rate)
         # time of sample k is t_ref + (k - k_ref) dt (first sample at t = dt)
@@ -165,6 +194,7 @@ class NoiseGenerator:
         self._k = 0  # index of the next sample handed out
         self._buf_start = 0
         self._buf_out = np.empty((0, 3))
+        self._buf_post: np.ndarray | None = np.empty((0, 3)) if self._split else None
         self._buf_normals: list[dict[str, np.ndarray | None]] = []
         self._buf_state_before: list[tuple[Any, ...]] = []
 
@@ -182,6 +212,13 @@ class NoiseGenerator:
 
     def generate(self, n: int) -> np.ndarray:
         """The next n samples, shape (n, 3), deg/s, constant bias included."""
+        pre, post = self.generate_referred(n)
+        return pre if post is None else pre + post
+
+    def generate_referred(self, n: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """The next n samples as (sensing element's noise, output-referred noise or None):
+        the first is what a chip filters (every term but Q, bias included), the second the
+        Q term, None when no axis has one. Their sum is ``generate``'s output."""
         try:
             n = operator.index(n)
         except TypeError:
@@ -190,23 +227,31 @@ class NoiseGenerator:
             raise ValueError(f"number of samples must not be negative, got {n}")
         pos = self._k - self._buf_start
         available = self._buf_out.shape[0] - pos
+        bpost = self._buf_post
         if n <= available:
             self._k += n
-            return self._buf_out[pos : pos + n].copy()
+            return (self._buf_out[pos : pos + n].copy(),
+                    None if bpost is None else bpost[pos : pos + n].copy())
         out = np.empty((n, 3))
+        post = None if bpost is None else np.empty((n, 3))
         out[:available] = self._buf_out[pos:]
+        if post is not None and bpost is not None:
+            post[:available] = bpost[pos:]
         self._k += available
         rest = n - available
         if rest >= _BUFFER_SAMPLES:
-            self._compute_direct(out[available:])
+            self._compute_direct(out[available:], None if post is None else post[available:])
             self._k += rest
             self._buf_start = self._k
             self._buf_out = np.empty((0, 3))
+            self._buf_post = None if post is None else np.empty((0, 3))
         else:
             self._refill_buffer()
             out[available:] = self._buf_out[:rest]
+            if post is not None and self._buf_post is not None:
+                post[available:] = self._buf_post[:rest]
             self._k += rest
-        return out
+        return out, post
 
     def set_rate(self, rate_hz: float) -> None:
         """Continue the same realisation at another output data rate.
@@ -256,12 +301,12 @@ class NoiseGenerator:
         )
         # the buffer arrays are replaced, never written in place: references are enough
         return (axes, self._rate_hz, self._t_ref, self._k_ref, self._k, self._buf_start,
-                self._buf_out, self._buf_normals, self._buf_state_before)
+                self._buf_out, self._buf_post, self._buf_normals, self._buf_state_before)
 
     def restore(self, checkpoint: tuple[Any, ...]) -> None:
         """Go back to the state saved by ``checkpoint`` (of this generator)."""
         (axes, self._rate_hz, self._t_ref, self._k_ref, self._k, self._buf_start,
-         self._buf_out, self._buf_normals, self._buf_state_before) = checkpoint
+         self._buf_out, self._buf_post, self._buf_normals, self._buf_state_before) = checkpoint
         for stream, (rng_states, (poles, q), coef) in zip(self._axes, axes):
             for name, state in rng_states.items():
                 stream.rng[name].bit_generator.state = state
@@ -279,19 +324,22 @@ class NoiseGenerator:
         self._rate_hz = rate
 
     def _times(self, k0: int, n: int) -> np.ndarray | None:
-        if not self._uses_ramp:
+        if not self._uses_time:
             return None
         return self._t_ref + (np.arange(k0, k0 + n) - self._k_ref) * (1.0 / self._rate_hz)
 
-    def _compute_direct(self, out: np.ndarray) -> None:
-        """Compute out.shape[0] samples starting at self._k, block by block, into out."""
+    def _compute_direct(self, out: np.ndarray, post: np.ndarray | None = None) -> None:
+        """Compute out.shape[0] samples starting at self._k, block by block, into out (and
+        the output-referred term into post)."""
         total = out.shape[0]
         for start in range(0, total, _BLOCK_SAMPLES):
             m = min(_BLOCK_SAMPLES, total - start)
             t = self._times(self._k + start, m)
             block = out[start : start + m]
             for i, stream in enumerate(self._axes):
-                stream.compute(stream.draw(m), t, block[:, i])
+                stream.compute(stream.draw(m), t, block[:, i],
+                               None if post is None else post[start : start + m, i],
+                               consume=True)
 
     def _refill_buffer(self) -> None:
         normals = [stream.draw(_BUFFER_SAMPLES) for stream in self._axes]
@@ -302,8 +350,10 @@ class NoiseGenerator:
     ) -> None:
         self._buf_start = k0
         self._buf_out = np.empty((m, 3))
+        post = np.empty((m, 3)) if self._split else None
+        self._buf_post = post
         self._buf_normals = normals
         self._buf_state_before = [s.state() for s in self._axes]
         t = self._times(k0, m)
         for i, stream in enumerate(self._axes):
-            stream.compute(normals[i], t, self._buf_out[:, i])
+            stream.compute(normals[i], t, self._buf_out[:, i], None if post is None else post[:, i])

@@ -16,11 +16,19 @@ correlation times T_i. The fit, per axis:
    keeps a term only when it pays for its two parameters on so few points. The octave
    points are correlated, so chi^2 is not exactly chi-square: it is a rule, not a test.
 
+The sensor's output stage (output_stage.py) enters the model as it is found: white noise
+through the output filter (the exact discrete Allan variance of filtered white noise,
+output_filter.white_avar_unit, instead of N^2 / tau, so the fit starts at the first tau),
+and as known terms the quantization's white floor LSB^2 / 12 after the filter and each
+sinusoidal line (IEEE 952; amplitude and frequency from the PSD, which holds a line in a few
+bins where the Allan variance spreads it under the white noise).
+
 Weights are 1 / sd(AVAR estimate) = sqrt(edf / 2) / AVAR_model, iterated from the model.
 Intervals come from the weighted Jacobian in (N^2, B_i^2, ln T_i, K^2, ...), scaled by the
 reduced chi-square when it exceeds 1 and widened by factors measured by simulation
 (docs/identification.md); every interval is finite and ordered: B, N, K are capped where the
-term alone would exceed the curve's upper bound, T is limited to the searched range.
+term alone would exceed the curve's upper bound, T is limited to the searched range, and is
+the whole searched range when B's interval reaches 0 (a term that may be absent has no T).
 """
 
 from __future__ import annotations
@@ -38,6 +46,9 @@ from bmg160_emu.noise.allan import (
     allan_confidence,
     gauss_markov_avar_unit,
 )
+from bmg160_emu.noise.estimate import Estimate
+from bmg160_emu.noise.output_filter import white_avar_unit
+from bmg160_emu.noise.output_stage import FilterFit, quantization_avar, sine_avar_unit
 from bmg160_emu.noise.profile import UNITS
 
 # Widening of the linearized intervals (octave ADEV points are correlated): the 95th
@@ -55,23 +66,6 @@ _FLICKER_AVAR = FLICKER_ADEV_FACTOR**2  # Allan variance of flicker per unit B^2
 
 class FitError(ValueError):
     """A curve that cannot be fitted (too few points in the tau range)."""
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """One identified parameter with its 95 % confidence interval (finite, ordered)."""
-
-    value: float
-    ci_low: float
-    ci_high: float
-    unit: str
-
-    def as_dict(self, scale: float = 1.0, unit: str | None = None) -> dict[str, Any]:
-        return {
-            "value": _json_float(self.value * scale),
-            "ci95": [_json_float(self.ci_low * scale), _json_float(self.ci_high * scale)],
-            "unit": unit or self.unit,
-        }
 
 
 @dataclass(frozen=True)
@@ -100,15 +94,30 @@ class CurveFit:
     chi2_reduced: float
     T_search_range_s: tuple[float, float]
     selection: dict[str, Any] = field(default_factory=dict)
+    rate_hz: float = 0.0  # the record's (0: N^2 / tau for the white term)
+    output_filter: FilterFit | None = None  # the sensor's filter, part of the white term
+    lsb_dps: float | None = None  # the output's quantization step (a known white floor)
+    sines: list[tuple[Estimate, float]] = field(default_factory=list)  # (A, f Hz) per line
 
     def gauss_markov_terms(self) -> tuple[tuple[float, float], ...]:
         """(B, T) of every term the generator draws, the flicker bank included."""
         own = tuple((t.B.value, t.T.value) for t in self.terms if t.B.value > 0)
         return own + self.flicker_poles
 
+    def white_avar(self, tau: np.ndarray) -> np.ndarray:
+        """The white term alone: N^2 / tau, through the output filter when there is one."""
+        flt = self.output_filter.design if self.output_filter is not None else None
+        if flt is None or not self.rate_hz:
+            return self.N.value**2 / np.asarray(tau, dtype=float)
+        return self.N.value**2 * white_avar_unit(tau, self.rate_hz, flt)
+
     def model_avar(self, tau: np.ndarray) -> np.ndarray:
         tau = np.asarray(tau, dtype=float)
-        out = self.N.value**2 / tau + self.K.value**2 * tau / 3.0
+        out = self.white_avar(tau) + self.K.value**2 * tau / 3.0
+        if self.rate_hz:
+            out = out + quantization_avar(self.lsb_dps, self.rate_hz, tau)
+        for amplitude, frequency in self.sines:
+            out = out + amplitude.value**2 * sine_avar_unit(tau, frequency)
         for B, T in self.gauss_markov_terms():
             out = out + B * B * gauss_markov_avar_unit(tau, T)
         if self.Q is not None:
@@ -125,6 +134,8 @@ class _Design:
     with_r: bool
     bank: np.ndarray | None  # flicker column (unit: ADEV level 1 per unit coefficient)
     roll_off: bool = False  # a sensor filter's deficit -c / tau^2 (see fit_curve)
+    white: np.ndarray | None = None  # the white column (None: 1 / tau)
+    fixed: np.ndarray | None = None  # the known part of the Allan variance (rounding, lines)
 
     def extras(self) -> list[str]:
         """Names of the columns after the Gauss-Markov ones, in order."""
@@ -134,7 +145,7 @@ class _Design:
 
     def matrix(self, Ts: np.ndarray) -> np.ndarray:
         tau = self.tau
-        cols = [1.0 / tau, tau / 3.0]
+        cols = [1.0 / tau if self.white is None else self.white, tau / 3.0]
         cols += [gauss_markov_avar_unit(tau, T) for T in Ts]
         extra = {"filter": -1.0 / tau**2, "Q": 3.0 / tau**2, "R": tau**2 / 2.0}
         if self.bank is not None:
@@ -142,12 +153,17 @@ class _Design:
         cols += [extra[name] for name in self.extras()]
         return np.column_stack(cols)
 
+    def target(self, avar: np.ndarray) -> np.ndarray:
+        """The part of the Allan variance the columns fit (the known part taken off)."""
+        return avar if self.fixed is None else avar - self.fixed
+
     @property
     def n_fixed(self) -> int:  # N, K and the extra columns
         return 2 + len(self.extras())
 
 
 def _solve(design: _Design, avar: np.ndarray, w: np.ndarray, Ts) -> tuple[np.ndarray, float]:
+    avar = design.target(avar)
     A = design.matrix(np.asarray(Ts, dtype=float)) * w[:, None]
     scale = np.linalg.norm(A, axis=0)  # columns span ~10 decades: solve on unit columns
     scale[scale == 0] = 1.0
@@ -213,16 +229,20 @@ def _select(design, avar, w, bounds, poles: int | None) -> dict[str, Any]:
                 break
     table = []
     best: dict[str, Any] | None = None
-    for k in sorted(sets):
-        if poles is not None and k != poles:
-            continue
+    for k in sorted(sets):  # every count is scored (and listed), --poles picks its own
         Ts, theta_k, cost = _refine(design, avar, w, sets[k], bounds)
         p = design.n_fixed + 2 * k
         score = _aicc(cost, p, n)
-        table.append({"terms": int(k), "chi2": _json_float(cost), "aicc": _json_float(score)})
-        if best is None or score < best["aicc"] or (poles is not None):
+        table.append({"terms": int(k), "chi2": _json_float(cost), "aicc": _json_float(score),
+                      "T_s": [float(T) for T in Ts]})
+        if poles is not None:
+            if k == poles:
+                best = {"Ts": Ts, "theta": theta_k, "cost": cost, "aicc": score, "terms": k}
+        elif best is None or score < best["aicc"]:
             best = {"Ts": Ts, "theta": theta_k, "cost": cost, "aicc": score, "terms": k}
     assert best is not None
+    for row in table:
+        row["chosen"] = row["terms"] == best["terms"]
     best["table"] = table
     return best
 
@@ -247,9 +267,14 @@ def fit_curve(
     flicker: bool = False,
     roll_off: bool = False,
     record: np.ndarray | None = None,
+    output_filter: FilterFit | None = None,
+    lsb_dps: float | None = None,
+    sines: tuple[tuple[Estimate, float], ...] = (),
 ) -> CurveFit:
     """Fit the curve; poles = None chooses the number of Gauss-Markov terms by AICc;
-    roll_off adds the first-order deficit of a sensor filter (a term -c / tau^2).
+    roll_off adds the first-order deficit of a sensor filter (a term -c / tau^2) where the
+    filter itself is not known; output_filter makes the white term filtered white noise,
+    lsb_dps adds its quantization floor, sines (amplitude, Hz) the known lines.
 
     record (the samples, None for a curve input) is part of the signature every method of
     identification.FIT_METHODS takes, for methods that fit the samples themselves; this
@@ -276,29 +301,52 @@ def fit_curve(
     # N^2 / tau by about N^2 c / tau^2 (c ~ 0.15 / BW for a 2nd-order filter: the missing
     # power above BW seen through the Allan transfer function): a column -1 / tau^2 takes
     # that deficit instead of N or a short Gauss-Markov term
-    design = _Design(tau, with_q, with_r, bank, roll_off=roll_off)
+    design = _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, lsb_dps,
+                          sines)
     w = np.sqrt(curve.edf[sel] / 2.0) / avar
     best = _select(design, avar, w, bounds, poles)
     for _ in range(3):  # weights from the model, not the noisy estimate (less bias)
-        model = np.maximum(design.matrix(best["Ts"]) @ best["theta"], 1e-300)
-        full = np.maximum(_design_all(curve.taus, design, best) , 1e-300)
+        model = design.matrix(best["Ts"]) @ best["theta"]
+        model = np.maximum(model if design.fixed is None else model + design.fixed, 1e-300)
+        full = np.maximum(_design_all(curve.taus, design, best, rate_hz, output_filter, lsb_dps,
+                                      sines), 1e-300)
         curve = allan_confidence(curve.taus, curve.adev, curve.n_terms,
-                                 _alphas(curve.taus, full), n_samples, rate_hz, curve.ci)
+                                 _alphas(curve.taus, full), n_samples, rate_hz, curve.ci,
+                                 curve.overlapping)
         w = np.sqrt(curve.edf[sel] / 2.0) / model
         best = _select(design, avar, w, bounds, poles)
     dof = max(tau.size - design.n_fixed - 2 * best["terms"], 1)
     chi2_red = best["cost"] / dof
-    return _estimates(design, avar, w, best, bounds, max(chi2_red, 1.0), curve, sel, chi2_red,
-                      bank_Ts)
+    fit = _estimates(design, avar, w, best, bounds, max(chi2_red, 1.0), curve, sel, chi2_red,
+                     bank_Ts)
+    fit.rate_hz, fit.output_filter, fit.lsb_dps = float(rate_hz), output_filter, lsb_dps
+    fit.sines = list(sines)
+    return fit
 
 
-def _design_all(taus: np.ndarray, design: _Design, best: dict[str, Any]) -> np.ndarray:
+def _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, lsb_dps,
+                 sines) -> _Design:
+    white = (None if output_filter is None
+             else white_avar_unit(tau, rate_hz, output_filter.design))
+    fixed = None
+    if lsb_dps or sines:
+        fixed = quantization_avar(lsb_dps, rate_hz, tau)
+        for amplitude, frequency in sines:
+            fixed = fixed + amplitude.value**2 * sine_avar_unit(tau, frequency)
+    return _Design(tau, with_q, with_r, bank, roll_off, white, fixed)
+
+
+def _design_all(taus: np.ndarray, design: _Design, best: dict[str, Any],
+                rate_hz: float, output_filter: FilterFit | None, lsb_dps: float | None,
+                sines: tuple = ()) -> np.ndarray:
     """The fitted model at every tau of the curve (for the noise types of the intervals)."""
     bank = None
     if design.bank is not None:
         bank = np.interp(np.log(taus), np.log(design.tau), design.bank)
-    whole = _Design(taus, design.with_q, design.with_r, bank, design.roll_off)
-    return whole.matrix(best["Ts"]) @ best["theta"]
+    whole = _make_design(taus, rate_hz, design.with_q, design.with_r, bank, design.roll_off,
+                         output_filter, lsb_dps, sines)
+    model = whole.matrix(best["Ts"]) @ best["theta"]
+    return model if whole.fixed is None else model + whole.fixed
 
 
 def _alphas(taus: np.ndarray, model: np.ndarray) -> np.ndarray:
@@ -355,8 +403,12 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         on_lo, on_hi = T <= bounds[0] * 1.05, T >= bounds[1] / 1.05
         lo = bounds[0] if on_lo else min(max(T * math.exp(-half), bounds[0]), T)
         hi = bounds[1] if on_hi else max(min(T * math.exp(half), bounds[1]), T)
+        if not B.ci_low > 0:  # the term may be absent (B = 0): then any T fits as well, and
+            lo, hi = bounds  # an interval round this T would leave out plausible ones
         terms.append(Term(B, Estimate(float(T), float(lo), float(hi), "s"), bool(on_lo or on_hi)))
-    terms.sort(key=lambda t: t.T.value)
+    # a term of size 0 is no term: left out (--poles N may ask for more than the curve holds)
+    zero = sum(1 for t in terms if not t.B.value > 0)
+    terms = sorted((t for t in terms if t.B.value > 0), key=lambda t: t.T.value)
     j = 2 + 2 * k
     extra: dict[str, Estimate] = {}
     for c, nm in enumerate(names[j:], start=j):
@@ -379,7 +431,8 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         flicker_poles=poles_f or (), curve=curve,
         tau_range_s=(float(tau[0]), float(tau[-1])), points=int(tau.size),
         chi2_reduced=float(chi2_red), T_search_range_s=(float(bounds[0]), float(bounds[1])),
-        selection={"criterion": "AICc", "candidates": best["table"], "terms": best["terms"]},
+        selection={"criterion": "AICc", "candidates": best["table"], "terms": best["terms"],
+                   "zero_terms_left_out": zero},
     )
 
 

@@ -22,7 +22,8 @@ only: the same normals, the same process (a test compares them).
 
 A term with T < dt / 40 has a < 4e-18: to double precision it is white noise g w, and is
 computed as such. The random walk of the noise model is the same recursion with a = 1
-(walk_coefficients): a 1-D np.cumsum costs about as much as drawing its normals.
+(walk_coefficients): a 1-D np.cumsum costs about as much as drawing its normals; its factors
+of exactly 1 are skipped (the same values: multiplying by 1.0 is exact).
 """
 
 from __future__ import annotations
@@ -92,16 +93,24 @@ def _superblock(c: PoleCoefficients, w: np.ndarray, s0: float) -> np.ndarray:
     Y = np.multiply(w.reshape(nb, L).T, c.up)  # (L, nb): column c is block c
     for j in range(1, L):  # cumulative sum down the columns, one vector add per row
         np.add(Y[j - 1], Y[j], out=Y[j])
+    walk = c.a == 1.0  # the random walk: every block and decay factor is exactly 1
     starts = np.empty(nb)
     starts[0] = s0
-    if nb > 1:
+    if nb > 1 and walk:
+        np.cumsum(Y[-1, :-1], out=starts[1:])
+        starts[1:] += s0
+    elif nb > 1:
         q = Y[-1, :-1] * c.up_blocks
         np.cumsum(q, out=q)
         q += s0
         np.multiply(q, c.down_blocks, out=starts[1:])
     Y += starts
-    Y *= c.down
-    return Y.T.reshape(-1)  # sample order (a copy: Y.T is not contiguous)
+    out = np.empty(L * nb)  # sample order: the decay applied while copying Y.T into it
+    if walk:
+        out.reshape(nb, L)[...] = Y.T
+    else:
+        np.multiply(Y.T, c.down.T, out=out.reshape(nb, L))
+    return out
 
 
 class Pole:

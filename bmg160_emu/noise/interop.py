@@ -17,10 +17,13 @@ Mappings (deg/s internally; d = pi / 180 rad per degree):
   Allan deviation is flat at 0.664 BiasInstability from 1 s to 1000 s (fit.py's 1/f bank).
 - ADEV curve CSV: first column tau in s, then per axis the Allan deviation, optionally
   followed by its interval (low, high); allan_variance_ros's layout (tau, 3 accelerometer,
-  3 gyroscope columns) is recognised by its 7 columns and the gyroscope columns used.
+  3 gyroscope columns) is recognised by its 7 columns and the gyroscope columns used: its
+  source (AllanVarianceComputor.cpp) averages disjoint clusters (non-overlapping), converts
+  the gyroscope's rad/s to deg/s before averaging, and writes 9,999 taus 0.1 s apart.
   Tools that write tau and each axis as separate one-column files (imu_utils) are read
   after pasting the columns together (``paste -d, tau.txt x.txt y.txt z.txt``); curves in
-  rad/s or deg/h are read with units="rad/s" / "deg/h".
+  rad/s or deg/h are read with units="rad/s" / "deg/h". Each axis read says its kind when
+  the file does ("overlapping", "non-overlapping"; None: not said).
 """
 
 from __future__ import annotations
@@ -60,8 +63,8 @@ def write_adev_csv(path: str | Path, identification: Any, units: str = "deg/s") 
         names += [f"{a.axis}_adev", f"{a.axis}_low", f"{a.axis}_high"]
     ci = axes[0].allan.ci
     header = (
-        f"# overlapping Allan deviation in {units}, interval at {ci * 100:.1f} % (Greenhall "
-        f"edf), {identification.samples} samples at {identification.rate_hz:g} Hz\n"
+        f"# {axes[0].allan.kind} Allan deviation in {units}, interval at {ci * 100:.1f} % "
+        f"(Greenhall edf), {identification.samples} samples at {identification.rate_hz:g} Hz\n"
         + ",".join(names)
     )
     np.savetxt(path, np.column_stack(cols), delimiter=",", header=header, comments="",
@@ -78,9 +81,12 @@ def read_adev_csv(path: str | Path, units: str = "deg/s") -> tuple[np.ndarray, l
         raise InteropError(f"cannot read Allan deviation curve {path}: {exc.strerror}") from None
     header: list[str] | None = None
     rows = []
+    kind: str | None = None
     for number, line in enumerate(lines, 1):
         text = line.strip()
         if not text or text.startswith(("#", "%")):
+            said = re.search(r"\b(non-overlapping|overlapping) Allan", text)
+            kind = said.group(1) if said and kind is None else kind
             continue
         cells = [c.strip() for c in re.split(r"[,;\s]+", text) if c.strip()]
         try:
@@ -105,6 +111,7 @@ def read_adev_csv(path: str | Path, units: str = "deg/s") -> tuple[np.ndarray, l
     if width == 7:  # allan_variance_ros: tau, accelerometer x y z, gyroscope x y z
         groups = [(4 + i, None) for i in range(3)]
         labels = ["x", "y", "z"]
+        kind = kind or "non-overlapping"  # its clusters are disjoint (module docstring)
     elif (width - 1) % 3 == 0 and width > 2 and _looks_like_intervals(table):
         groups = [(1 + 3 * i, (2 + 3 * i, 3 + 3 * i)) for i in range((width - 1) // 3)]
         labels = [_label(names, 3 * i, i) for i in range(len(groups))]
@@ -119,7 +126,7 @@ def read_adev_csv(path: str | Path, units: str = "deg/s") -> tuple[np.ndarray, l
         if np.any(adev <= 0):
             raise InteropError(f"{path}: column {col + 1} has an Allan deviation <= 0")
         interval = (table[:, ci[0]] / s, table[:, ci[1]] / s) if ci else None
-        out.append({"name": label, "adev": adev, "ci": interval})
+        out.append({"name": label, "adev": adev, "ci": interval, "kind": kind})
     return taus, out
 
 

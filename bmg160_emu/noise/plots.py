@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar
-from bmg160_emu.noise.identification import AxisIdentification
+from bmg160_emu.noise.identified import AxisIdentification
+from bmg160_emu.noise.output_stage import OutputGrid, output_grid
 from bmg160_emu.noise.spectrum import (
     Spectrum,
     gauss_markov_psd,
@@ -42,35 +42,11 @@ _OVERLAY_WINDOW = 2000  # samples of the time-domain overlay (10 s at 200 Hz)
 _OVERLAY_ZOOM = 100  # samples of its zoomed panel, where single LSB steps can be seen
 _UNIT = {"N": "deg/s/\u221aHz", "K": "deg/s/\u221as", "B": "deg/s"}  # profile.UNITS, as printed
 FIT_LABELS = {"wls": "WLS fit of the Allan variance", "gmwm": "GMWM fit of the wavelet variance"}
-_GRID_SAMPLES = 200_000  # values looked at to find a record's LSB grid (the grid is the same
-# over the whole record; 2e5 values hold every level of a 16-bit output within +-5 sigma)
-_GRID_TOLERANCE = 0.05  # of a step: a RESD file holds rates to 1e-5 rad/s, 0.9 % of an LSB
-# at 16.384 LSB/(deg/s), so its levels are off the LSB grid by less than 0.5 % of a step
-_TARGET_BINS = 100  # histogram bins of a quantized record (whole LSBs per bin)
 _MIN_BINS, _MAX_BINS = 20, 200  # of a record of real numbers (numpy's Freedman-Diaconis)
 _LSB_LINES = 60  # most LSB levels marked in the time overlay's zoom
 _ADEV_DECADES_BELOW = 2.0  # of the Allan axes' range under the curve's lowest point
 _PSD_DECADES_BELOW = 2.0  # an asymptote this far below the data is listed, not drawn
 _PSD_SEEN_DECADES = 0.5  # of frequency over which every asymptote drawn can be seen
-
-
-@dataclass(frozen=True)
-class OutputGrid:
-    """The values a quantized output can take: ``origin + k * step`` (step: one LSB, deg/s)."""
-
-    step: float
-    origin: float
-
-    def level(self, value: float) -> int:
-        return round((value - self.origin) / self.step)
-
-    def snap(self, values: np.ndarray) -> np.ndarray:
-        """``values`` rounded to the nearest level, as the chip's ADC rounds its output."""
-        k = np.rint((np.asarray(values, dtype=float) - self.origin) / self.step)
-        return self.origin + k * self.step
-
-    def levels_per_bin(self, low: float, high: float) -> int:
-        return max(1, math.ceil((self.level(high) - self.level(low) + 1) / _TARGET_BINS))
 
 
 def check_figure_path(path: str | Path) -> Path:
@@ -155,25 +131,6 @@ def time_series_figure(record: np.ndarray, rate_hz: float, names: Sequence[str])
     return fig
 
 
-def output_grid(values: np.ndarray) -> OutputGrid | None:
-    """The grid a quantized record's values sit on (one LSB apart), or None for a record of
-    real numbers. Found from the data, so it holds for any source: ``record`` and a chip
-    (counts / sensitivity), the firmware's stream (whole mdps), a RESD file (1e-5 rad/s)."""
-    x = np.asarray(values, dtype=float).ravel()[:_GRID_SAMPLES]
-    x = x[np.isfinite(x)]
-    levels = np.unique(x)
-    if levels.size < 2 or x.size < 2 * levels.size:  # real numbers: nearly every value new
-        return None
-    step0 = float(np.median(np.diff(levels)))
-    index = np.rint((levels - levels[0]) / step0)
-    step = float(np.dot(levels - levels[0], index) / np.dot(index, index))  # least squares
-    if not step > 0:
-        return None
-    if np.abs(levels - levels[0] - index * step).max() > _GRID_TOLERANCE * step:
-        return None
-    return OutputGrid(step, float(levels[0]))
-
-
 def histogram_edges(values: np.ndarray, grid: OutputGrid | None) -> np.ndarray:
     """Bin edges: half an LSB either side of whole numbers of grid levels when the record is
     quantized (every bin holds the same number of levels: no comb), else numpy's rule."""
@@ -239,6 +196,9 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         label=f"{c.ci * 100:.0f} % confidence band",
     )
     tau = np.geomspace(c.taus[0], c.taus[-1], 300)
+    if result.fit.rate_hz:  # a record's model lives at whole samples (the filtered white term)
+        rate = result.fit.rate_hz
+        tau = np.unique(np.maximum(np.rint(tau * rate), 1.0)) / rate
     N, K = result.N.value, result.K.value
     model = np.sqrt(result.fit.model_avar(tau))
     ax.loglog(tau, model, "-", color="k", lw=1.2,
@@ -265,13 +225,15 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         label="slope 0: minimum (flicker B x 0.664)",
     )
     ax.plot([1.0], [N], "s", color="tab:blue", ms=7, label=f"N = {N:.4g} {_UNIT['N']} (tau 1 s)")
+    # the marker sits at the value its legend names (issue 23): flicker B itself, at the tau
+    # of the minimum it is read from, 1 / 0.664 above the dotted minimum line
     ax.plot(
         [ro["B_flicker"]["tau_s"]],
-        [b_flick * FLICKER_ADEV_FACTOR],
+        [b_flick],
         "D",
         color="tab:green",
         ms=7,
-        label=f"flicker B = {b_flick:.4g} deg/s (minimum / 0.664)",
+        label=f"flicker B = {b_flick:.4g} deg/s (minimum / 0.664, at tau of the minimum)",
     )
     lowest.append(b_flick * FLICKER_ADEV_FACTOR)
     # the bottom: the lowest of the curve, the model, the terms' peaks and the K point, but
@@ -351,7 +313,15 @@ def draw_psd(
         return
     N, K = result.N.value, result.K.value
     terms = result.fit.gauss_markov_terms()
-    total = white_psd(N, f) + random_walk_psd(K, f)
+    white = white_psd(N, f)
+    white_text = f"white 2N$^2$ = {2 * N * N:.3g}"
+    if result.output_filter is not None:  # the sensor's own filter shapes the white term
+        white = white * result.output_filter.design.power(f)
+        white_text = (f"white through the output filter 2N$^2$|H|$^2$, "
+                      f"{result.output_filter.text()} Hz")
+    total = white + random_walk_psd(K, f)
+    if result.lsb_dps:  # the rounding's white floor after the filter, LSB^2 / 12
+        total = total + result.lsb_dps**2 / (6.0 * rate_hz)
     for B, T in terms:
         total = total + gauss_markov_psd(B, T, f)
     if result.Q:
@@ -360,7 +330,7 @@ def draw_psd(
         total = total + ramp_psd(result.R.value, f)
     bottom = float(p.min()) / 3.0
     top = 3.0 * max(float(p.max()), min(float(total.max()), 30.0 * float(p.max())))
-    lines = [(white_psd(N, f), "tab:blue", "white", f"white 2N$^2$ = {2 * N * N:.3g}")]
+    lines = [(white, "tab:blue", "white", white_text)]
     for B, T in terms:
         lines.append((gauss_markov_psd(B, T, f), "tab:green", "gm",
                       f"Gauss-Markov $4B^2T/(1+(2\\pi fT)^2)$, T = {T:.3g} s"))

@@ -11,7 +11,15 @@ K deg/s/sqrt(s), bias deg/s, Q deg (angle quantization), R deg/s/s (rate ramp).
 An axis may hold several Gauss-Markov terms (a real bias bends over more than one decade of
 tau): ``gm = [{ B = 0.002, T = 5.0 }, { B = 0.001, T = 60.0 }]`` beside (or instead of) B and
 T. B, T is one term; every entry of gm is one more, each with its own random stream. A
-profile with B and T only (the paper's) is a one-term profile, as before.
+profile with B and T only (the paper's) is a one-term profile, as before. Periodic
+components are IEEE 952 sinusoidal terms, ``sine = [{ A = 0.002, f = 1.3 }]`` (amplitude
+deg/s, frequency Hz).
+
+A profile may also describe the sensor's own output stage (``[output]``, OutputStage): the
+low-pass its output went through (``order`` and ``corner_hz``, or ``bw_code``, a BW code of
+the chip family, spec 5.3) and the step it was quantized to (``lsb_dps``). identify writes
+it when it finds them; generate applies them; a chip ignores them (it has its own BW filter
+and its own counts, docs/noise-engine.md).
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ else:  # pragma: no cover - Python 3.10
 
 AXES = ("x", "y", "z")
 REQUIRED_FIELDS = ("N", "B", "T", "K", "bias")
-OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K", "gm")
+OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K", "gm", "sine")
 UNITS = {
     "N": "deg/s/sqrt(Hz)",
     "B": "deg/s",
@@ -43,14 +51,24 @@ UNITS = {
     "R": "deg/s^2",
     "sigma_gyro": "deg/s",
     "sigma_K": "1/sqrt(s)",
+    "A": "deg/s",
+    "f": "Hz",
+    "corner_hz": "Hz",
+    "lsb_dps": "deg/s",
+    "rate_hz": "Hz",
 }
 GM_KEYS = ("B", "T")  # keys of one entry of an axis's gm list
+SINE_KEYS = ("A", "f")  # keys of one entry of an axis's sine list: amplitude, frequency
+OUTPUT_KEYS = ("order", "corner_hz", "bw_code", "lsb_dps", "rate_hz")
+BW_CODES = range(8)  # register spec 4.9 / 5.3: the BW field's eight codes (8..15 alias 0..7)
+MAX_FILTER_ORDER = 8
 # Largest value of each parameter (smallest T): far beyond any MEMS gyro (the BMG160's N is
 # 0.014 deg/s/sqrt(Hz), its range 2000 deg/s), and small enough that every generated sample
 # is finite at every ODR (N / sqrt(dt) at 2000 Hz stays below 1e4 deg/s; a random walk of
 # K sqrt(t) over ten years stays below 1e7 deg/s). A value beyond is refused by name.
 LIMITS = {"N": 100.0, "B": 1e3, "K": 1.0, "bias": 1e4, "Q": 1e3, "R": 1e3,
-          "sigma_gyro": 1e3, "sigma_K": 1e6}
+          "sigma_gyro": 1e3, "sigma_K": 1e6, "A": 1e3, "f": 1e6, "corner_hz": 1e6,
+          "lsb_dps": 1e3, "rate_hz": 1e6}
 T_RANGE_S = (1e-6, 1e13)  # a correlation time: below any sample period to identify's search edge
 
 
@@ -75,10 +93,13 @@ class AxisNoise:
     sigma_K: float | None = None
     # further Gauss-Markov terms (B_i deg/s, T_i s) beside B, T
     gm: tuple[tuple[float, float], ...] = ()
+    # IEEE 952 sinusoidal terms (amplitude A deg/s, frequency f Hz)
+    sine: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         # lists from Python callers become tuples: the profile stays hashable and immutable
         object.__setattr__(self, "gm", tuple((float(B), float(T)) for B, T in self.gm))
+        object.__setattr__(self, "sine", tuple((float(A), float(f)) for A, f in self.sine))
 
     @property
     def poles(self) -> tuple[tuple[float, float], ...]:
@@ -93,6 +114,34 @@ class AxisNoise:
 
 
 @dataclass(frozen=True)
+class OutputStage:
+    """The sensor's own output stage after its sensing element: the low-pass filter of its
+    output (Butterworth ``order`` at ``corner_hz``, or the chip family's ``bw_code``), the
+    step it quantizes the output to (``lsb_dps``) and the output data rate they were found
+    at (``rate_hz``: generate's default rate); None: not there."""
+
+    order: int | None = None
+    corner_hz: float | None = None
+    bw_code: int | None = None
+    lsb_dps: float | None = None
+    rate_hz: float | None = None
+
+    @property
+    def has_filter(self) -> bool:
+        return self.corner_hz is not None or self.bw_code is not None
+
+    def filter_text(self) -> str:
+        if self.bw_code is not None:
+            return f"BW code {self.bw_code}"
+        if self.corner_hz is not None:
+            return f"order {self.order} Butterworth at {self.corner_hz:.4g} Hz"
+        return "no filter"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in OUTPUT_KEYS if getattr(self, k) is not None}
+
+
+@dataclass(frozen=True)
 class Profile:
     """A named set of per-axis noise parameters."""
 
@@ -104,6 +153,8 @@ class Profile:
     # the unit's deterministic errors (bmg160_emu.device.sensor_errors.SensorErrors fields),
     # checked when a chip takes them; None: none
     errors: Mapping[str, Any] | None = None
+    # the sensor's own output filter and quantization (generate applies them, a chip not)
+    output: OutputStage | None = None
 
     @property
     def axes(self) -> tuple[AxisNoise, AxisNoise, AxisNoise]:
@@ -113,10 +164,15 @@ class Profile:
         """The profile as the mapping a TOML file holds (None fields left out)."""
         out: dict[str, Any] = {"name": self.name, "description": self.description}
         for axis_name, axis in zip(AXES, self.axes):
-            table = {k: v for k, v in asdict(axis).items() if v is not None and k != "gm"}
+            table = {k: v for k, v in asdict(axis).items()
+                     if v is not None and k not in ("gm", "sine")}
             if axis.gm:
                 table["gm"] = [{"B": B, "T": T} for B, T in axis.gm]
+            if axis.sine:
+                table["sine"] = [{"A": A, "f": f} for A, f in axis.sine]
             out[axis_name] = table
+        if self.output is not None:
+            out["output"] = self.output.to_dict()
         return out
 
 
@@ -199,7 +255,7 @@ def _parse(text: str, origin: str, default_name: str) -> Profile:
 
 def profile_from_mapping(data: Mapping[str, Any], origin: str = "profile") -> Profile:
     """Validate a mapping with tables x, y, z (the TOML layout) and build a Profile."""
-    unknown = set(data) - {"name", "description", "errors", *AXES}
+    unknown = set(data) - {"name", "description", "errors", "output", *AXES}
     if unknown:
         raise ProfileError(f"{origin}: unknown top-level key(s) {sorted(unknown)}")
     axes = []
@@ -215,8 +271,47 @@ def profile_from_mapping(data: Mapping[str, Any], origin: str = "profile") -> Pr
     errors = data.get("errors")
     if errors is not None and not isinstance(errors, Mapping):
         raise ProfileError(f"{origin}: errors must be a table ([errors])")
+    output = data.get("output")
     return Profile(name, x=axes[0], y=axes[1], z=axes[2], description=description,
-                   errors=None if errors is None else dict(errors))
+                   errors=None if errors is None else dict(errors),
+                   output=None if output is None else output_stage(output, f"{origin} [output]"))
+
+
+def output_stage(raw: Any, where: str = "[output]") -> OutputStage:
+    """An [output] table checked: a filter as order with corner_hz, or bw_code; lsb_dps."""
+    if isinstance(raw, OutputStage):
+        return raw
+    if not isinstance(raw, Mapping):
+        raise ProfileError(f"{where}: output must be a table ([output])")
+    unknown = set(raw) - set(OUTPUT_KEYS)
+    if unknown:
+        raise ProfileError(f"{where}: unknown field(s) {sorted(unknown)}; allowed: "
+                           f"{', '.join(OUTPUT_KEYS)}")
+    values: dict[str, Any] = {}
+    for key in ("order", "bw_code"):
+        if key in raw:
+            value = raw[key]
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ProfileError(f"{where}: {key} must be a whole number, got {value!r}")
+            values[key] = value
+    if "bw_code" in values:
+        if values["bw_code"] not in BW_CODES:
+            raise ProfileError(f"{where}: bw_code must be 0..7 (register spec 5.3), got "
+                               f"{values['bw_code']}")
+        if "order" in raw or "corner_hz" in raw:
+            raise ProfileError(f"{where}: give bw_code (the chip's filter) or order and "
+                               "corner_hz, not both")
+    if ("order" in raw) != ("corner_hz" in raw):
+        raise ProfileError(f"{where}: a filter needs both order and corner_hz (Hz)")
+    if "order" in values and not 1 <= values["order"] <= MAX_FILTER_ORDER:
+        raise ProfileError(f"{where}: order must be 1..{MAX_FILTER_ORDER}, got {values['order']}")
+    for key in ("corner_hz", "lsb_dps", "rate_hz"):
+        if key in raw:
+            value = _number(raw[key], key, where)
+            if not value > 0:
+                raise ProfileError(f"{where}: {key} must be positive ({UNITS[key]}), got {value}")
+            values[key] = value
+    return OutputStage(**values)
 
 
 def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
@@ -235,6 +330,9 @@ def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
     for key, raw in table.items():
         if key == "gm":
             values["gm"] = _gm_terms(raw, where)
+            continue
+        if key == "sine":
+            values["sine"] = _sine_terms(raw, where)
             continue
         values[key] = _number(raw, key, where)
     if values["T"] == 0 and values["B"] > 0:
@@ -283,6 +381,26 @@ def _gm_terms(raw: Any, where: str) -> tuple[tuple[float, float], ...]:
     return tuple(terms)
 
 
+def _sine_terms(raw: Any, where: str) -> tuple[tuple[float, float], ...]:
+    if not isinstance(raw, (list, tuple)):
+        raise ProfileError(f"{where}: sine must be a list of {{ A = ..., f = ... }} tables")
+    terms = []
+    for i, entry in enumerate(raw):
+        at = f"{where} sine[{i}]"
+        if isinstance(entry, Mapping):
+            if set(entry) != set(SINE_KEYS):
+                raise ProfileError(f"{at}: needs exactly A (deg/s) and f (Hz), got {sorted(entry)}")
+            A, f = _number(entry["A"], "A", at), _number(entry["f"], "f", at)
+        elif isinstance(entry, (list, tuple)) and len(entry) == 2:  # (A, f) pairs in Python
+            A, f = _number(entry[0], "A", at), _number(entry[1], "f", at)
+        else:
+            raise ProfileError(f"{at}: a term is {{ A = ..., f = ... }}, got {entry!r}")
+        if f == 0:
+            raise ProfileError(f"{at}: f must be positive (frequency in Hz)")
+        terms.append((A, f))
+    return tuple(terms)
+
+
 def format_profile(profile: Profile, header: str = "") -> str:
     """The profile as TOML text that load_profile reads back (units in comments)."""
     lines = [f"# {line}" if line else "#" for line in header.splitlines()]
@@ -296,11 +414,21 @@ def format_profile(profile: Profile, header: str = "") -> str:
             if f.name == "gm":
                 lines += _gm_lines(value)
                 continue
+            if f.name == "sine":
+                lines += _sine_lines(value)
+                continue
             if value is None or (f.name in ("Q", "R") and value == 0.0):
                 continue
             if f.name in GM_KEYS and axis.gm and axis.B == 0.0:
                 continue  # every term is in the gm list
             lines.append(f"{f.name} = {toml_float(value, f.name):<24}# {UNITS[f.name]}")
+    if profile.output is not None:
+        lines += ["", "[output]                  # the sensor's output filter and "
+                  + "quantization (generate applies them)"]
+        for key, value in profile.output.to_dict().items():
+            text = str(value) if isinstance(value, int) else toml_float(value, key)
+            lines.append(f"{key} = {text:<22}# {UNITS[key]}" if key in UNITS
+                         else f"{key} = {text}")
     if profile.errors:
         lines += ["", "[errors]                  # the unit's error budget (docs/error-budget.md)"]
         for key, value in profile.errors.items():
@@ -327,6 +455,15 @@ def _gm_lines(terms: tuple[tuple[float, float], ...]) -> list[str]:
     lines = ["gm = [                  # Gauss-Markov terms: B deg/s, T s"]
     for B, T in terms:
         lines.append(f"  {{ B = {toml_float(B, 'B')}, T = {toml_float(T, 'T')} }},")
+    return lines + ["]"]
+
+
+def _sine_lines(terms: tuple[tuple[float, float], ...]) -> list[str]:
+    if not terms:
+        return []
+    lines = ["sine = [                # sinusoidal terms (IEEE 952): A deg/s, f Hz"]
+    for A, f in terms:
+        lines.append(f"  {{ A = {toml_float(A, 'A')}, f = {toml_float(f, 'f')} }},")
     return lines + ["]"]
 
 
