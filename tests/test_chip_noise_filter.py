@@ -39,7 +39,7 @@ def expected(chip, code: int, n: int) -> tuple[float, float, float]:
     sample (T >> 1 / ODR). The sd of a sample std of n correlated samples is about
     sqrt((1 + 2 sum rho_k^2) / 2n) of it (Bartlett), here over 3 n pooled samples."""
     odr, bandwidth = spec_choices.BANDWIDTHS[code]
-    axis = chip._noise_gen.profile.x
+    axis = chip.state.path.noise.generator.profile.x
     white = Butterworth(spec_choices.LOWPASS_ORDER, bandwidth, float(odr)).white_stats()
     scale = axis.N**2 * odr
     var_white = scale * white.variance_ratio
@@ -80,7 +80,7 @@ def test_the_unfiltered_path_carries_the_noise_raw():
     chip.write(_RATE_HBW, bytes([0x80]))  # data_high_bw: the unfiltered data (spec 4.12)
     data = read_at_rest(chip, SAMPLES)
     data = data - data.mean(axis=0)
-    axis = chip._noise_gen.profile.x
+    axis = chip.state.path.noise.generator.profile.x
     white = axis.N**2 * 200.0 + (1.0 / chip.sensitivity) ** 2 / 12.0
     # white: the pooled sample std of 120 000 independent samples scatters by 0.2 %
     assert float(data.std()) == pytest.approx(math.sqrt(white), rel=0.02)
@@ -116,7 +116,7 @@ def test_a_profile_filter_that_differs_from_the_bw_setting_is_said(caplog):
     said = [r.getMessage() for r in caplog.records if "identified through" in r.getMessage()]
     assert any("12 Hz at 100 Hz ODR" in m for m in said), said
     assert not any("32 Hz at 100 Hz ODR" in m for m in said), said  # the same filter: quiet
-    assert chip._path.noise.notes == said[-len(chip._path.noise.notes):]
+    assert chip.state.path.noise.notes == said[-len(chip.state.path.noise.notes):]
 
 
 def test_a_constant_rate_with_noise_off_reads_exactly_at_every_code():
@@ -143,7 +143,7 @@ def test_n_b_t_k_come_back_from_a_long_register_recording():
         chip.advance(0.5)
         raw += chip.read(0x3F, 600)
     data = np.frombuffer(bytes(raw), dtype="<i2").reshape(n, 3)[:, 0] / chip.sensitivity
-    truth = chip._noise_gen.profile.x
+    truth = chip.state.path.noise.generator.profile.x
     axis = identify(data, 200.0).axes[0]
     assert axis.output_filter is not None and axis.output_filter.order == 2
     assert axis.output_filter.corner_hz == pytest.approx(23.0, rel=0.02)
