@@ -77,6 +77,30 @@ def test_profile_with_quantization_noise_is_refused(tmp_path):
         render_params_header(profile=str(path))
 
 
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        ("sine = [{ A = 0.002, f = 1.3 }]", "sine terms"),
+        ("", r"\[output\] table"),
+    ],
+)
+def test_profile_terms_the_firmware_cannot_make_are_refused(tmp_path, extra, match):
+    # the firmware makes white, Gauss-Markov and random-walk noise, unfiltered: a sine term
+    # or a sensor filter it would drop must be an error, not a header without them
+    axes = "\n".join(
+        f"[{a}]\nN = 0.01\nB = 0.001\nT = 10.0\nK = 0.0001\nbias = 0.0\n{extra}" for a in "xyz"
+    )
+    output = "" if extra else "[output]\norder = 2\ncorner_hz = 40.0\nrate_hz = 200.0\n"
+    path = tmp_path / "p.toml"
+    path.write_text(output + axes)
+    with pytest.raises(ValueError, match=match):
+        render_params_header(profile=str(path))
+    path.write_text("\n".join(
+        f"[{a}]\nN = 0.01\nB = 0.001\nT = 10.0\nK = 0.0001\nbias = 0.0" for a in "xyz"
+    ))
+    assert "bmg_noise_white" in render_params_header(profile=str(path))
+
+
 def test_build_fits_the_atmega328p_with_room_for_the_stack():
     build = require_firmware_build(profile="paper", seed=11)
     assert build.elf.is_file() and build.hex.is_file()

@@ -92,6 +92,18 @@ def render_params_header(
                 f"profile {prof.name!r} axis {name} has Q or R: the firmware generates "
                 "white, Gauss-Markov and random-walk terms only"
             )
+        if axis.sine:
+            raise ValueError(
+                f"profile {prof.name!r} axis {name} has sine terms: the firmware generates "
+                "white, Gauss-Markov and random-walk terms only"
+            )
+    if prof.output is not None:
+        # the firmware has no filter model (docs/firmware.md): its noise leaves unfiltered,
+        # so a profile that carries its sensor's output filter would be silently misread
+        raise ValueError(
+            f"profile {prof.name!r} has an [output] table (its sensor's filter and LSB): the "
+            "firmware has no filter model; remove [output] or identify with --no-output-stage"
+        )
     tables: dict[str, list[list[float]]] = {k: [] for k in ("white", "alpha", "gm", "rw")}
     for odr in BW_ODR_HZ:
         coeffs = [axis_coefficients(axis, odr, mode) for axis in prof.axes]
