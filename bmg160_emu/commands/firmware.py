@@ -106,8 +106,12 @@ def _build(args: argparse.Namespace):
 
 def run_build(args: argparse.Namespace) -> int:
     from bmg160_emu.firmware.build import ATMEGA328P_FLASH, ATMEGA328P_SRAM
+    from bmg160_emu.firmware.params_header import unapplied_output_note
 
     build = _build(args)
+    note = unapplied_output_note(args.profile)
+    if note:
+        print(note)
     print(f"header: {build.header}")
     print(f"elf:    {build.elf}")
     print(f"hex:    {build.hex}")
