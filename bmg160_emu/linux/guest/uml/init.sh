@@ -1,0 +1,60 @@
+#!/bin/sh
+# SPDX-License-Identifier: GPL-2.0
+# PID 1 of the uml engine's guest (bmg160_emu.linux.guest.uml): the engine contract of
+# bmg160_emu.linux.guest.engine with the host's root as the guest's root (hostfs). Settings
+# come from the kernel command line: guest_* words, and upper-case KEY=VAL words for the
+# script.
+export PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin
+mount -t proc proc /proc
+mount -t sysfs sys /sys
+mountpoint -q /dev || mount -t devtmpfs dev /dev
+mount -t tmpfs run /run
+mkdir -p /run/home /run/tmp
+mountpoint -q /dev/shm || mount -t tmpfs shm /dev/shm 2>/dev/null
+script=; out=; modroot=; vio=; mods=; envs=
+for arg in $(cat /proc/cmdline); do
+    case "$arg" in
+        guest_script=*) script=${arg#guest_script=} ;;
+        guest_out=*) out=${arg#guest_out=} ;;
+        guest_modroot=*) modroot=${arg#guest_modroot=} ;;
+        guest_vio=*) vio=${arg#guest_vio=} ;;
+        guest_modules=*) mods=${arg#guest_modules=} ;;
+        [A-Z]*=*) envs="$envs $arg" ;;
+    esac
+done
+# the kernel's own modules (lib/modules/<release> of the build) in place of the host's
+[ -n "$modroot" ] && mount -t hostfs -o "$modroot/lib/modules" modules /lib/modules
+if [ -n "$out" ]; then
+    mount -t hostfs -o "$out" results "$out" || echo "init: cannot mount the results folder $out"
+fi
+bus=; gpiobase=
+if [ -n "$vio" ]; then
+    insmod "$vio/i2c-virtio.ko" || echo "init: insmod i2c-virtio failed"
+    i=0
+    while [ -z "$bus" ] && [ $i -lt 200 ]; do
+        for d in /sys/bus/i2c/devices/i2c-*; do
+            grep -q virtio "$d/name" 2>/dev/null && bus=${d##*/i2c-}
+        done
+        [ -z "$bus" ] && sleep 0.01; i=$((i + 1))
+    done
+    for c in /sys/class/gpio/gpiochip*; do
+        case "$(cat "$c/label" 2>/dev/null)" in virtio*) gpiobase=$(cat "$c/base") ;; esac
+    done
+fi
+for m in $(echo "$mods" | tr ',' ' '); do
+    case "$m" in
+        /*) insmod "$m" || echo "init: insmod $m failed" ;;
+        *) modprobe "$m" || echo "init: modprobe $m failed" ;;
+    esac
+done
+echo "init: running $script"
+cd /
+env -i PATH=$PATH HOME=/run/home TMPDIR=/run/tmp BMG160_RESULTS="$out" GUEST_OUT="$out" \
+    GUEST_ENGINE=uml GUEST_MODULES="$modroot/lib/modules/$(uname -r)" GUEST_I2C_BUS="$bus" \
+    GUEST_GPIO_BASE="$gpiobase" $envs /bin/sh "$script"
+status=$?
+echo "init: script exited with status $status"
+[ -n "$out" ] && echo $status > "$out/exit-status"
+sync
+if [ -x /bin/busybox ]; then /bin/busybox poweroff -f; fi
+echo o > /proc/sysrq-trigger
