@@ -1,7 +1,7 @@
 """The i2c-stub adapter on a real Linux kernel: i2c-tools and the kernel's own bmg160 driver.
 
-One QEMU guest boots once per test session (tools/qemu/guest.py) and runs
-tools/qemu/kernel_checks.sh, which loads i2c-stub and i2c-dev, starts `bmg160-emu stub`,
+One QEMU guest boots once per test session (bmg160_emu.linux.guest) and runs
+tests/kernel_guest/kernel_checks.sh, which loads i2c-stub and i2c-dev, starts `bmg160-emu stub`,
 reads the chip with i2c-tools, binds the kernel's bmg160 driver and drives it through sysfs,
 writing what it saw to files. The tests below assert on those files; the guest console is
 attached to every test's report.
@@ -9,7 +9,6 @@ attached to every test's report.
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import json
 import math
@@ -22,6 +21,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from _kernel_boot import GUEST_FILES, boot_script, qemu_engine
 
 import bmg160_emu
 
@@ -34,51 +34,39 @@ STUB_ARGS = "--seed 7 --true-rate 20 -10 5 --temperature 30"
 SAMPLES = 12  # per axis and configuration (kernel_checks.sh)
 
 
-def _load_guest_module():
-    spec = importlib.util.spec_from_file_location("bmg160_guest", REPO / "tools/qemu/guest.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up while defining
-    spec.loader.exec_module(module)
-    return module
-
-
 def _hrtimer_modules():
     """The folder of the IIO software-trigger modules (built once), or None."""
-    spec = importlib.util.spec_from_file_location("bmg160_modules", REPO / "tools/qemu/modules.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
+    from bmg160_emu.linux.guest.engine import EngineError
+    from bmg160_emu.linux.guest.kmod import build_bundled
+
     try:
-        return module.build_modules()
-    except (RuntimeError, OSError, subprocess.CalledProcessError):
+        return build_bundled()
+    except (EngineError, OSError, subprocess.CalledProcessError):
         return None  # no make/gcc/packages: the hrtimer check is skipped, not the rest
 
 
 @pytest.fixture(scope="module")
 def guest(tmp_path_factory):
     """Boot the guest once, run every check, return (output folder, console text)."""
-    harness = _load_guest_module()
-    reason = harness.missing_requirements()
     for tool, package in (("i2cget", "i2c-tools"), ("setpriv", "util-linux")):
-        if reason is None and shutil.which(tool) is None:
-            reason = f"{tool} is missing (Debian package {package}; the guest runs the host's)"
-    if reason:
-        pytest.skip(f"kernel tests need a bootable guest: {reason}")
+        if shutil.which(tool) is None:
+            pytest.skip(f"{tool} is missing (Debian package {package}; the guest runs the host's)")
+    engine = qemu_engine()
     work = tmp_path_factory.mktemp("kernel")
     out = work / "out"
     script = work / "run.sh"
     kmod = _hrtimer_modules()
     script.write_text(
-        (f"export KMOD={shlex.quote(str(kmod))} TOOLS={shlex.quote(str(REPO / 'tools/qemu'))}\n"
+        (f"export KMOD={shlex.quote(str(kmod))} TOOLS={shlex.quote(str(GUEST_FILES))}\n"
          if kmod else "")
         + f"export PY={shlex.quote(sys.executable)}\n"
         f"export PYTHONPATH={shlex.quote(str(REPO))}\n"
         f"export STUB_ARGS={shlex.quote(STUB_ARGS)}\n"
-        f". {shlex.quote(str(REPO / 'tools/qemu/kernel_checks.sh'))}\n"
+        f". {shlex.quote(str(GUEST_FILES / 'kernel_checks.sh'))}\n"
     )
     # 400 s: about 70 s on a quiet machine; on a loaded one the guest's Python imports under
     # QEMU's software emulation took minutes (this session's own runs). QEMU is killed at it.
-    result = harness.run_guest(script, out, console_log=work / "console.txt", timeout_s=400)
+    result = boot_script(engine, script, out, timeout_s=400, console_log=work / "console.txt")
     return out, result
 
 

@@ -1,6 +1,6 @@
 """The kernel's bmg160 driver binds to the BMI055 and BMI088 gyroscope parts through i2c-stub.
 
-One QEMU guest (tools/qemu/guest.py) loads i2c-stub with two chip addresses and runs one
+One QEMU guest (bmg160_emu.linux.guest) loads i2c-stub with two chip addresses and runs one
 Python process that builds a ``bmi055_gyro`` at 0x68 and a ``bmi088_gyro`` at 0x69 with
 ``make_chip`` and keeps both in i2c-stub's memory (``I2CStubAdapter``, one thread each).
 The guest then reads both with i2c-tools, binds the driver by the names its I2C ID table
@@ -10,7 +10,6 @@ sysfs. The tests assert on what it wrote; the guest console is attached to every
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import shlex
@@ -20,6 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from _kernel_boot import boot_script, qemu_engine
 
 import bmg160_emu
 
@@ -133,22 +133,11 @@ echo done > "$OUT/done.txt"
 """
 
 
-def _load_guest_module():
-    spec = importlib.util.spec_from_file_location("bmg160_guest", REPO / "tools/qemu/guest.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope="module")
 def guest(tmp_path_factory):
-    harness = _load_guest_module()
-    reason = harness.missing_requirements()
-    if reason is None and shutil.which("i2cdump") is None:
-        reason = "i2cdump is missing (Debian package i2c-tools; the guest runs the host's)"
-    if reason:
-        pytest.skip(f"kernel tests need a bootable guest: {reason}")
+    if shutil.which("i2cdump") is None:
+        pytest.skip("i2cdump is missing (Debian package i2c-tools; the guest runs the host's)")
+    engine = qemu_engine()
     work = tmp_path_factory.mktemp("kernel_parts")
     adapters = work / "adapters.py"
     adapters.write_text(ADAPTERS)
@@ -158,7 +147,7 @@ def guest(tmp_path_factory):
         f"export PYTHONPATH={shlex.quote(str(REPO))}\n" + GUEST_SCRIPT)
     out = work / "out"
     # 400 s as tests/test_kernel_i2c_stub.py: the guest's Python imports are slow under TCG
-    result = harness.run_guest(script, out, console_log=work / "console.txt", timeout_s=400)
+    result = boot_script(engine, script, out, timeout_s=400, console_log=work / "console.txt")
     return out, result
 
 

@@ -1,7 +1,7 @@
 """The kernel talks to the model itself: virtio-i2c and virtio-gpio through vhost-user.
 
 One QEMU guest boots once per test session with `bmg160-emu vhost-user-i2c` serving two
-chips (0x68 and 0x69) on the host, and runs tools/qemu/virtio_checks.sh: i2c-tools, an
+chips (0x68 and 0x69) on the host, and runs tests/kernel_guest/virtio_checks.sh: i2c-tools, an
 i2c-dev program draining the FIFO and clearing a latched status, a C read loop (speed),
 the kernel's bmg160 driver bound with its interrupt on a virtio-gpio line, 60 s of
 triggered-buffer capture from both chips at once (100 Hz and 200 Hz) with the driver's own
@@ -10,7 +10,6 @@ data-ready triggers, and an any-motion event. The tests assert on what it wrote.
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import json
 import math
@@ -26,13 +25,13 @@ import time
 from pathlib import Path
 
 import pytest
+from _kernel_boot import GUEST_FILES, boot_script, qemu_engine
 
 import bmg160_emu
 
 pytestmark = pytest.mark.kernel
 
 REPO = Path(bmg160_emu.__file__).resolve().parents[1]
-TOOLS = REPO / "tools" / "qemu"
 TRUE_RATE_DPS = (20.0, -10.0, 5.0)
 SEED = 7
 CAPTURE_S = float(os.environ.get("BMG160_VIRTIO_CAPTURE_S", "60"))
@@ -41,35 +40,21 @@ CAPTURE_S = float(os.environ.get("BMG160_VIRTIO_CAPTURE_S", "60"))
 CPUS = int(os.environ.get("BMG160_VIRTIO_CPUS", "1"))
 
 
-def _load(name: str, path: Path):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     """Start the back end, boot the guest once, stop the back end: (out folder, result)."""
-    harness = _load("bmg160_guest", TOOLS / "guest.py")
-    reason = harness.missing_requirements()
-    for tool in ("i2cget", "gcc", "make", "patch"):
-        if reason is None and shutil.which(tool) is None:
-            reason = f"{tool} is missing"
-    if reason:
-        pytest.skip(f"kernel tests need a bootable guest: {reason}")
-    modules = _load("bmg160_guest_modules", TOOLS / "modules.py")
-    try:
-        kmod = modules.build_modules()
-    except (RuntimeError, subprocess.CalledProcessError) as exc:
-        pytest.skip(f"cannot build the guest modules: {exc}")
+    if shutil.which("i2cget") is None:
+        pytest.skip("i2cget is missing (Debian package i2c-tools; the guest runs the host's)")
+    engine = qemu_engine()  # prepared: its modules are built
+    from bmg160_emu.linux.guest.kmod import bundled_dir
+
+    kmod = bundled_dir()
     work = tmp_path_factory.mktemp("virtio")
     out = work / "out"
     out.mkdir()
     sockets = work / "sockets"  # the back end creates it 0700
     read_loop = work / "i2c_read_loop"
-    subprocess.run(["gcc", "-O2", "-o", str(read_loop), str(TOOLS / "i2c_read_loop.c")],
+    subprocess.run(["gcc", "-O2", "-o", str(read_loop), str(GUEST_FILES / "i2c_read_loop.c")],
                    check=True)
     backend = subprocess.Popen(
         [sys.executable, "-m", "bmg160_emu", "vhost-user-i2c",
@@ -90,14 +75,14 @@ def session(tmp_path_factory):
     script.write_text(
         f"export PY={shlex.quote(sys.executable)}\n"
         f"export PYTHONPATH={shlex.quote(str(REPO))}\n"
-        f"export KMOD={shlex.quote(str(kmod))} TOOLS={shlex.quote(str(TOOLS))}\n"
+        f"export KMOD={shlex.quote(str(kmod))} TOOLS={shlex.quote(str(GUEST_FILES))}\n"
         f"export READ_LOOP={shlex.quote(str(read_loop))} CAPTURE_S={CAPTURE_S:g}\n"
-        f". {shlex.quote(str(TOOLS / 'virtio_checks.sh'))}\n"
+        f". {shlex.quote(str(GUEST_FILES / 'virtio_checks.sh'))}\n"
     )
     started = time.monotonic()
-    result = harness.run_guest(
-        script, out, console_log=work / "console.txt", timeout_s=CAPTURE_S + 150, cpus=CPUS,
-        qemu_args=harness.vhost_user_args(sockets / "i2c.sock", sockets / "gpio.sock"))
+    result = boot_script(engine, script, out, timeout_s=CAPTURE_S + 150,
+                         console_log=work / "console.txt", cpus=CPUS,
+                         i2c_socket=sockets / "i2c.sock", gpio_socket=sockets / "gpio.sock")
     wall = time.monotonic() - started
     backend.send_signal(signal.SIGTERM)
     try:

@@ -21,6 +21,10 @@ contract every engine keeps, so that the harness and the tests need not know whi
   folder is synced, and the guest powers off, which ends the process ``start`` returned
   (its stdout carries the console).
 
+Optional, where an engine can: ``build_module(path, progress) -> list[Path]`` (a user's
+``.ko`` or Kbuild source folder made ready for this engine's kernel) and ``board_module() ->
+Path | None`` (bmg160-board built for it: binds a driver with its IRQ on a virtio-gpio line).
+
 Engines register by name in :data:`ENGINE_MODULES`: each module exposes ``engine()``
 returning an instance. A module that is absent (or fails to import) is not an engine here.
 """

@@ -1,11 +1,11 @@
 #!/bin/sh
-# Runs INSIDE the QEMU guest (tools/qemu/guest.py), chrooted in the host's root file system,
+# Runs INSIDE the QEMU guest (bmg160_emu.linux.guest), chrooted in the host's root file system,
 # with `bmg160-emu vhost-user-i2c` serving two chips (0x68, 0x69) on the host. One boot
 # performs every check of tests/test_kernel_virtio_i2c.py and writes the results to
 # $GUEST_OUT as small files the host-side tests assert on.
 #
 # Environment: PY (host Python with bmg160_emu and smbus2), GUEST_OUT, GUEST_ROOT (the
-# unpacked kernel package), KMOD (tools/qemu/modules.py output), TOOLS (this folder),
+# unpacked kernel package), KMOD (bmg160_emu.linux.guest.kmod's bundled modules), TOOLS (this folder),
 # READ_LOOP (the compiled i2c_read_loop), CAPTURE_S (seconds of buffered capture).
 set -u
 OUT=${GUEST_OUT:?}
@@ -24,9 +24,11 @@ iio_of() {  # the iio:deviceN of the bmg160 at address $1 (4 hex digits)
 }
 
 step "1. modules: i2c-virtio, gpio-virtio force_irq=1, i2c-dev, IIO"
-modprobe -d "$GUEST_ROOT" i2c-dev
-insmod "$KMOD/i2c-virtio.ko" || echo "insmod i2c-virtio failed"
-insmod "$KMOD/gpio-virtio.ko" force_irq=1 || echo "insmod gpio-virtio failed"
+if [ -z "${GUEST_I2C_BUS:-}" ]; then  # (the engine loads them when it serves virtio)
+    modprobe -d "$GUEST_ROOT" i2c-dev
+    insmod "$KMOD/i2c-virtio.ko" || echo "insmod i2c-virtio failed"
+    insmod "$KMOD/gpio-virtio.ko" force_irq=1 || echo "insmod gpio-virtio failed"
+fi
 i=0; BUS=
 while [ -z "$BUS" ] && [ $i -lt 50 ]; do
     for d in /sys/bus/i2c/devices/i2c-*; do

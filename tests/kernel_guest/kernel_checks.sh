@@ -1,11 +1,11 @@
 #!/bin/sh
-# Runs INSIDE the QEMU guest (tools/qemu/guest.py), chrooted in the host's root file system.
+# Runs INSIDE the QEMU guest (bmg160_emu.linux.guest), chrooted in the host's root file system.
 # One boot performs every kernel check of tests/test_kernel_i2c_stub.py and writes the
 # results to $GUEST_OUT as small text files the host-side tests assert on.
 #
 # Environment: PY (the host's Python, with bmg160_emu importable), GUEST_OUT, GUEST_ROOT
 # (the unpacked kernel package), STUB_ARGS (chip options for `bmg160-emu stub`); KMOD and
-# TOOLS (optional: modules of tools/qemu/modules.py, this folder) add the hrtimer capture.
+# TOOLS (optional: bmg160_emu.linux.guest.kmod's bundled modules, this folder) add the hrtimer capture.
 set -u
 OUT=${GUEST_OUT:?}
 : "${PY:?}" "${GUEST_ROOT:?}"
@@ -101,7 +101,7 @@ for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_250_$a
 sleep 2  # a stretch of refreshes at 200 Hz for the period and jitter figures
 
 if [ -n "${KMOD:-}" ] && [ -e "$KMOD/iio-trig-hrtimer.ko" ]; then
-    step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz (tools/qemu/modules.py)"
+    step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz (bmg160_emu.linux.guest.kmod)"
     modprobe -d "$GUEST_ROOT" configfs
     mount -t configfs none /sys/kernel/config 2>/dev/null
     for m in industrialio-configfs industrialio-sw-trigger iio-trig-hrtimer; do  # dependency order
