@@ -34,17 +34,15 @@ sys.path.insert(0, str(REPO))
 
 from bmg160_emu.linux.guest.engine import Boot, EngineError, choose
 
-READ_LOOP_SOURCE = next(p for p in (REPO / "tests" / "kernel_guest" / "i2c_read_loop.c",
-                                    REPO / "tools" / "qemu" / "i2c_read_loop.c") if p.exists())
-CAPTURE_SOURCE = next(p for p in (REPO / "tests" / "kernel_guest" / "guest_iio_capture.py",
-                                  REPO / "tools" / "qemu" / "guest_iio_capture.py")
-                      if p.exists())
+READ_LOOP_SOURCE = REPO / "tests" / "kernel_guest" / "i2c_read_loop.c"
+CAPTURE_SOURCE = REPO / "tests" / "kernel_guest" / "guest_iio_capture.py"
 
 SCRIPT = r"""
 set -u
 B=$GUEST_I2C_BUS
 echo "MARK init bus=$B gpio=$GUEST_GPIO_BASE"
 echo "MARK chipid $(i2cget -y "$B" 0x68 0x00)"
+modprobe bmg160_i2c || echo "modprobe bmg160_i2c failed"
 insmod "$BOARD" bus="$B" gpio_base="$GUEST_GPIO_BASE" addr=0x68 line=0 || echo "board failed"
 for i in $(seq 200); do
     D=$(ls -d /sys/bus/iio/devices/iio:device* 2>/dev/null | head -1)

@@ -98,6 +98,10 @@ class UmlEngine:
                               "(run: bmg160-emu kernel prepare --engine uml)")
         return kernel
 
+    def build_module(self, path: Path, progress: Progress) -> list[Path]:
+        """A user's .ko as it is, or its Kbuild folder built for this kernel (ARCH=um)."""
+        return uml_build.user_module(self.kernel(), path, progress)
+
     def board_module(self) -> Path:
         """bmg160-board.ko built for this kernel (the chips' IRQs from virtio-gpio lines)."""
         return self.kernel().board

@@ -31,8 +31,6 @@ CONFIG_FRAGMENT = DATA / "uml.config"
 # The modules built out of tree, from the QEMU route's folder: the i2c-virtio patch (waits
 # uninterruptibly) and the board module (the chips' IRQs from virtio-gpio lines).
 KMOD = Path(__file__).with_name("kmod")
-if not KMOD.exists():  # until the tooling's move out of tools/qemu lands
-    KMOD = Path(__file__).parents[3] / "tools" / "qemu" / "kmod"
 I2C_VIRTIO_PATCH = KMOD / "i2c-virtio-wait.patch"
 BOARD_SOURCE = KMOD / "bmg160-board.c"
 # The FP register area patch 0001 makes room for, in bytes; hosts with a larger XSAVE
@@ -249,6 +247,40 @@ def _build_vio(kernel: UmlKernel, progress: Progress) -> None:
         _run(["patch", "-p1", "--forward", "-i", I2C_VIRTIO_PATCH.name], outside, log)
     _run(["make", "ARCH=um", "-C", str(kernel.tree), f"M={outside}", "modules"], outside, log)
     (outside / "ready").write_text("")
+
+
+def user_module(kernel: UmlKernel, path: Path, progress: Progress) -> list[Path]:
+    """The ``.ko`` files of a user's module for this kernel: ``path`` itself, or what its
+    source folder (with a Kbuild or Makefile) builds with ARCH=um against the tree, once per
+    content of the folder's files and kernel build."""
+    if path.is_file():
+        if path.suffix != ".ko":
+            raise EngineError(f"{path}: a module is a .ko file or a folder with a Kbuild file")
+        return [path.resolve()]
+    if not (path / "Kbuild").is_file() and not (path / "Makefile").is_file():
+        raise EngineError(f"{path}: no Kbuild (or Makefile) file: not a module source folder")
+    sources = sorted(p for p in path.rglob("*") if p.is_file() and p.suffix not in
+                     {".ko", ".o", ".cmd", ".mod", ".order", ".symvers"})
+    key = content_hash(sources, kernel.root.name, *(str(p.relative_to(path)) for p in sources))
+    out = kernel.root / "user-modules" / f"{path.resolve().name}-{key}"
+    built = sorted(out.glob("*.ko"))
+    if built:
+        return built
+    progress(f"uml: building {path} against {kernel.tree}")
+    build = out.with_name(out.name + ".build")
+    if build.exists():
+        shutil.rmtree(build)
+    shutil.copytree(path, build, ignore=shutil.ignore_patterns("*.o", "*.ko", ".*.cmd"))
+    log = build / "build.log"
+    _run(["make", "ARCH=um", "-C", str(kernel.tree), f"M={build}", "modules"], build, log)
+    made = sorted(build.rglob("*.ko"))
+    if not made:
+        raise EngineError(f"building {path} made no .ko file (is obj-m set in Kbuild?)")
+    out.mkdir(parents=True, exist_ok=True)
+    for ko in made:
+        shutil.copy2(ko, out / ko.name)
+    shutil.rmtree(build)
+    return sorted(out.glob("*.ko"))
 
 
 if __name__ == "__main__":  # .ci/setup.d/uml.sh
