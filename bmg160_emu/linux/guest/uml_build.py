@@ -143,7 +143,7 @@ def missing_packages() -> list[str]:
 
 
 def _run(command: list[str], cwd: Path, log: Path, progress: Progress | None = None) -> None:
-    """Run a build step, its output to ``log``; a progress line every 500 compiled files."""
+    """Run a build step, its output to ``log``; a progress line every 200 compiled files."""
     env = dict(os.environ, LC_ALL="C")
     with log.open("a") as sink:
         sink.write(f"$ {' '.join(command)}\n")
@@ -157,7 +157,7 @@ def _run(command: list[str], cwd: Path, log: Path, progress: Progress | None = N
             sink.write(line)
             if progress is not None and line.lstrip().startswith("CC"):
                 compiled += 1
-                if compiled % 500 == 0:
+                if compiled % 200 == 0:
                     progress(f"uml: {compiled} files compiled")
         if proc.wait() != 0:
             raise EngineError(f"uml build failed in {cwd}: {' '.join(command)} (log: {log})")
