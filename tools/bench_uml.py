@@ -42,7 +42,7 @@ set -u
 B=$GUEST_I2C_BUS
 echo "MARK init bus=$B gpio=$GUEST_GPIO_BASE"
 echo "MARK chipid $(i2cget -y "$B" 0x68 0x00)"
-modprobe bmg160_i2c || echo "modprobe bmg160_i2c failed"
+modprobe -d "$GUEST_ROOT" bmg160_i2c || echo "modprobe bmg160_i2c failed"
 insmod "$BOARD" bus="$B" gpio_base="$GUEST_GPIO_BASE" addr=0x68 line=0 || echo "board failed"
 for i in $(seq 200); do
     D=$(ls -d /sys/bus/iio/devices/iio:device* 2>/dev/null | head -1)
@@ -110,7 +110,8 @@ def run_engine(name: str, reads: int, capture_s: float, work: Path) -> dict[str,
     row["total_s"] = time.monotonic() - start
     backend.terminate()
     backend.wait()
-    if "capture_s" not in row:
+    Path(f"/tmp/bench-uml-{name}.console").write_text("\n".join(console) + "\n")
+    if "capture_bytes" not in row:
         sys.stderr.write("\n".join(console[-40:]) + "\n")
     return row
 

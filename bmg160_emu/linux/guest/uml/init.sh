@@ -22,8 +22,10 @@ for arg in $(cat /proc/cmdline); do
         [A-Z]*=*) envs="$envs $arg" ;;
     esac
 done
-# the kernel's own modules (lib/modules/<release> of the build) in place of the host's
-[ -n "$modroot" ] && mount -t hostfs -o "$modroot/lib/modules" modules /lib/modules
+# the kernel's own modules: lib/modules/<release> under $modroot (modprobe -d), mounted
+# over the host's /lib/modules too where the host has that folder (plain modprobe)
+[ -n "$modroot" ] && [ -d /lib/modules ] \
+    && mount -t hostfs -o "$modroot/lib/modules" modules /lib/modules
 if [ -n "$out" ]; then
     mount -t hostfs -o "$out" results "$out" || echo "init: cannot mount the results folder $out"
 fi
@@ -44,13 +46,13 @@ fi
 for m in $(echo "$mods" | tr ',' ' '); do
     case "$m" in
         /*) insmod "$m" || echo "init: insmod $m failed" ;;
-        *) modprobe "$m" || echo "init: modprobe $m failed" ;;
+        *) modprobe -d "$modroot" "$m" || echo "init: modprobe $m failed" ;;
     esac
 done
 echo "init: running $script"
 cd /
 env -i PATH=$PATH HOME=/run/home TMPDIR=/run/tmp BMG160_RESULTS="$out" GUEST_OUT="$out" \
-    GUEST_ENGINE=uml GUEST_MODULES="$modroot/lib/modules/$(uname -r)" GUEST_I2C_BUS="$bus" \
+    GUEST_ENGINE=uml GUEST_ROOT="$modroot" GUEST_MODULES="$modroot/lib/modules/$(uname -r)" GUEST_I2C_BUS="$bus" \
     GUEST_GPIO_BASE="$gpiobase" $envs /bin/sh "$script"
 status=$?
 echo "init: script exited with status $status"
