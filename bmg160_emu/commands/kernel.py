@@ -69,7 +69,7 @@ def register(subparsers: Subparsers) -> None:
     run.add_argument("--console", type=Path, default=None, metavar="FILE",
                      help="write the guest's console (kernel messages) to FILE")
     add_chip_options(run, realtime=False)
-    run.add_argument("command", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
+    run.add_argument("program", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
     run.set_defaults(func=run_command)
 
     def usage(_args: argparse.Namespace) -> int:
@@ -112,13 +112,16 @@ def run_command(args: argparse.Namespace) -> int:
     from bmg160_emu.linux.guest.engine import EngineError, choose
     from bmg160_emu.linux.guest.harness import Backend, Guest, GuestDied, temporary_work
 
-    command = args.command[1:] if args.command[:1] == ["--"] else args.command
+    command = args.program[1:] if args.program[:1] == ["--"] else args.program
     if not command:
         raise CommandError("no COMMAND given (bmg160-emu kernel run [options] -- COMMAND)")
+    for path in args.module:
+        if not path.exists():
+            raise CommandError(f"--module {path}: no such file or folder")
     try:
         engine = choose(args.engine)
         kos = [ko for path in args.module for ko in _module(engine, path)]
-        modules = load_order(kos) if kos else ([] if args.no_driver else ["bmg160_i2c"])
+        modules = load_order(kos)
     except EngineError as exc:
         raise CommandError(str(exc)) from None
     name = args.driver or (driver_name(kos) if kos else "bmg160")
@@ -143,7 +146,8 @@ def run_command(args: argparse.Namespace) -> int:
         guest.start()
         if not args.no_driver and name is not None:
             lines = None if args.no_irq or board is None else [backend.line_of(a) for a in addresses]
-            bound = guest.run(bind_command(name, addresses, lines, board), timeout_s=60)
+            bound = guest.run(bind_command(name, addresses, lines, board, kernel_driver=not kos),
+                              timeout_s=60)
             if bound.returncode:
                 sys.stderr.write(bound.stdout + bound.stderr)
                 raise CommandError(f"the driver {name!r} did not bind to the chips")
@@ -169,8 +173,6 @@ def run_command(args: argparse.Namespace) -> int:
 def _module(engine: object, path: Path) -> list[Path]:
     from bmg160_emu.linux.guest.engine import EngineError
 
-    if not path.exists():
-        raise EngineError(f"--module {path}: no such file or folder")
     build = getattr(engine, "build_module", None)
     if build is None:
         raise EngineError(f"--module: the {getattr(engine, 'name', '?')} engine cannot load "
