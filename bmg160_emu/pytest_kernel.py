@@ -235,7 +235,7 @@ def bmg160_kernel(request: pytest.FixtureRequest,
     name = options.get("driver", "bmg160")
     if options.get("module") is not None:
         kos = session.load(Path(options["module"]))
-        name = options.get("driver") or driver_name(kos)
+        name = options.get("driver") or driver_name(kos, prefer=["bmg160"])
     test = KernelTest(session, addresses)
     if options.get("faults"):
         from bmg160_emu.faults import ChipOnBus, FaultSchedule

@@ -67,8 +67,8 @@ def test_the_command_runs_beside_the_bound_driver_with_a_read_only_host(tmp_path
     assert result.returncode == 3, result.stderr
     lines = result.stdout.split()
     assert lines[0] == "bmg160"
-    # 20 deg/s at the driver's 500 deg/s range is 655 counts; noise ~13 counts rms
-    assert abs(int(lines[1]) - 655) < 70, lines
+    # 20 deg/s at the driver's 500 deg/s range is 1311 counts; noise ~13 counts rms
+    assert abs(int(lines[1]) - round(20 * 32768 / 500)) < 70, lines
     assert int(lines[2]) >= 1  # its data-ready IRQ on the virtio-gpio line
     assert lines[3] == "read-only"
     assert (results / "note").read_text() == "kept\n"

@@ -124,7 +124,7 @@ def run_command(args: argparse.Namespace) -> int:
         modules = load_order(kos)
     except EngineError as exc:
         raise CommandError(str(exc)) from None
-    name = args.driver or (driver_name(kos) if kos else "bmg160")
+    name = args.driver or (driver_name(kos, prefer=["bmg160"]) if kos else "bmg160")
     if not args.no_driver and name is None:
         raise CommandError("--module declares no I2C device name (i2c: alias): give --driver")
     args.realtime = True  # a guest kernel lives in real time

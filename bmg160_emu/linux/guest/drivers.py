@@ -56,13 +56,19 @@ def load_order(kos: Sequence[Path]) -> list[str | Path]:
     return kernel + ordered
 
 
-def driver_name(kos: Sequence[Path]) -> str | None:
-    """The first I2C device name the modules' id tables give (``modinfo -F alias``:
-    ``i2c:NAME``), or None when none declares one."""
-    for ko in kos:
-        names = [a.split(":", 1)[1] for a in _modinfo(ko, "alias") if a.startswith("i2c:")]
-        if names:
-            return names[0]
+def driver_name(kos: Sequence[Path], prefer: Sequence[str] = ()) -> str | None:
+    """The I2C device name to bind the modules' driver by: one of ``prefer`` (the emulated
+    parts' names) when the id tables list it, else the first entry of the first table that
+    has one (``modinfo -F alias`` lists a table's ``i2c:NAME`` aliases last entry first);
+    None when no module declares one."""
+    tables = [[a.split(":", 1)[1] for a in _modinfo(ko, "alias") if a.startswith("i2c:")]
+              for ko in kos]
+    for name in prefer:
+        if any(name in table for table in tables):
+            return name
+    for table in tables:
+        if table:
+            return table[-1]
     return None
 
 
