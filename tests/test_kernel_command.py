@@ -112,3 +112,18 @@ def test_the_kernels_bmg160_driver_built_out_of_tree_as_a_users_module(tmp_path)
     assert words[0] == "bmg160"
     assert abs(int(words[1]) - round(30 * 32768 / 500)) < 70, words  # 1966 counts
     assert "O" in words[-1]  # the out-of-tree module is what runs, not the kernel's own
+
+
+@pytest.mark.kernel
+def test_the_i2c_stub_route_serves_the_kernels_driver_from_inside_the_guest(tmp_path):
+    _ready()
+    result = kernel("run", "--route", "stub", "--seed", "7", "--true-rate", "20", "-10", "5",
+                    "--", "cat $IIO/name $IIO/in_anglvel_x_raw; "
+                    "i2cget -f -y $GUEST_I2C_BUS 0x68 0x0f; cat /sys/bus/i2c/devices/"
+                    "i2c-$GUEST_I2C_BUS/name", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0] == "bmg160"
+    assert abs(int(lines[1]) - round(20 * 32768 / 500)) < 70, lines  # 1311 counts
+    assert lines[2] == "0x02"  # RANGE as the driver wrote it, in i2c-stub's memory
+    assert "SMBus stub driver" in lines[3]
