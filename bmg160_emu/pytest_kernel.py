@@ -156,10 +156,12 @@ class KernelTest:
     def set_attr(self, name: str, value: object, address: int | None = None) -> None:
         self.run(f"echo {value} > {self.iio(address)}/{name}")
 
-    def capture(self, seconds: float, address: int | None = None) -> list[tuple[int, ...]]:
-        """Enable every scan element and the buffer with the driver's own trigger, read it
-        for ``seconds``, disable it: (x, y, z, timestamp_ns) records (16 bytes each: three
-        s16, padding, s64, as the bmg160 driver lays them out)."""
+    def capture(self, seconds: float, address: int | None = None, watermark: int = 1,
+                length: int = 4096) -> list[tuple[int, ...]]:
+        """Enable every scan element and the buffer with the driver's own trigger
+        (monotonic time stamps; the reader wakes every ``watermark`` records), read it for
+        ``seconds``, disable it: (x, y, z, timestamp_ns) records (16 bytes each: three s16,
+        padding, s64, as the bmg160 driver lays them out)."""
         from bmg160_emu.linux.guest import iio_capture
 
         device = self.iio(address)
@@ -167,10 +169,12 @@ class KernelTest:
         node = "/dev/" + device.rsplit("/", 1)[1]
         self.run(
             f"d={device}\n"
+            'echo monotonic > "$d/current_timestamp_clock"\n'
             'for e in "$d"/scan_elements/*_en; do echo 1 > "$e"; done\n'
             't=$(cat /sys/bus/iio/devices/trigger*/name | grep -- "-dev${d##*iio:device}$" '
             '| head -n 1)\n'
             '[ -n "$t" ] && echo "$t" > "$d/trigger/current_trigger"\n'
+            f'echo {length} > "$d/buffer/length"\necho {watermark} > "$d/buffer/watermark"\n'
             'echo 1 > "$d/buffer/enable"\n'
             f'"$BMG160_PY" {iio_capture.__file__} {seconds} {node} {out}\n'
             'status=$?\necho 0 > "$d/buffer/enable"\nexit $status',
