@@ -7,6 +7,7 @@ import argparse
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
 from bmg160_emu.commands._common import Subparsers, add_command_parser
@@ -59,6 +60,10 @@ def register(subparsers: Subparsers) -> None:
                           "in --module's id table)")
     run.add_argument("--no-driver", action="store_true",
                      help="bind no driver: the chips answer on the bus only")
+    run.add_argument("--route", choices=("virtio", "stub"), default="virtio",
+                     help="virtio (default): the chips on the guest's i2c-virtio adapter, "
+                          "INT1 on virtio-gpio; stub: in the guest kernel's i2c-stub memory, "
+                          "kept by bmg160-emu's adapter inside the guest (no IRQ)")
     run.add_argument("--no-irq", action="store_true",
                      help="bind through new_device, without the INT1 line as IRQ")
     run.add_argument("--results", type=Path, default=None, metavar="DIR",
@@ -69,7 +74,7 @@ def register(subparsers: Subparsers) -> None:
     run.add_argument("--console", type=Path, default=None, metavar="FILE",
                      help="write the guest's console (kernel messages) to FILE")
     add_chip_options(run, realtime=False)
-    run.add_argument("command", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
+    run.add_argument("program", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
     run.set_defaults(func=run_command)
 
     def usage(_args: argparse.Namespace) -> int:
@@ -112,21 +117,25 @@ def run_command(args: argparse.Namespace) -> int:
     from bmg160_emu.linux.guest.engine import EngineError, choose
     from bmg160_emu.linux.guest.harness import Backend, Guest, GuestDied, temporary_work
 
-    command = args.command[1:] if args.command[:1] == ["--"] else args.command
+    command = args.program[1:] if args.program[:1] == ["--"] else args.program
     if not command:
         raise CommandError("no COMMAND given (bmg160-emu kernel run [options] -- COMMAND)")
+    for path in args.module:
+        if not path.exists():
+            raise CommandError(f"--module {path}: no such file or folder")
     try:
         engine = choose(args.engine)
         kos = [ko for path in args.module for ko in _module(engine, path)]
-        modules = load_order(kos) if kos else ([] if args.no_driver else ["bmg160_i2c"])
+        modules = load_order(kos)
     except EngineError as exc:
         raise CommandError(str(exc)) from None
-    name = args.driver or (driver_name(kos) if kos else "bmg160")
+    name = args.driver or (driver_name(kos, prefer=["bmg160"]) if kos else "bmg160")
     if not args.no_driver and name is None:
         raise CommandError("--module declares no I2C device name (i2c: alias): give --driver")
     args.realtime = True  # a guest kernel lives in real time
+    stub = args.route == "stub"
     clock = None
-    if not args.no_irq:
+    if not args.no_irq and not stub:
         from bmg160_emu.linux.guest_pace import GuestPacedClock
 
         clock = GuestPacedClock()
@@ -135,24 +144,31 @@ def run_command(args: argparse.Namespace) -> int:
     results = args.results
     if results is not None:
         results.mkdir(parents=True, exist_ok=True)
-    backend = Backend(chips, work / "s", gpio=True, clock=clock)
+    backend = None if stub else Backend(chips, work / "s", gpio=True, clock=clock)
     guest = Guest(engine, work, backend, modules=modules, results=results)
-    board = getattr(engine, "board_module", lambda: None)()
+    board = None if stub else getattr(engine, "board_module", lambda: None)()
     addresses = sorted(chips)
+    prefix = ""
     try:
         guest.start()
+        if stub:
+            prefix = _start_stub(guest, args, addresses, work)
         if not args.no_driver and name is not None:
-            lines = None if args.no_irq or board is None else [backend.line_of(a) for a in addresses]
-            bound = guest.run(bind_command(name, addresses, lines, board), timeout_s=60)
+            lines = (None if args.no_irq or board is None or backend is None
+                     else [backend.line_of(a) for a in addresses])
+            bound = guest.run(prefix + bind_command(name, addresses, lines, board,
+                                                    kernel_driver=not kos), timeout_s=60)
             if bound.returncode:
                 sys.stderr.write(bound.stdout + bound.stderr)
                 raise CommandError(f"the driver {name!r} did not bind to the chips")
         text = command[0] if len(command) == 1 else " ".join(_quote(w) for w in command)
         iio = (f"IIO=$(ls -d /sys/bus/i2c/devices/$GUEST_I2C_BUS-{addresses[0]:04x}"
                "/iio:device* 2>/dev/null | head -n 1); export IIO\n")
-        result = guest.run(iio + text, timeout_s=args.timeout)
+        result = guest.run(prefix + iio + text, timeout_s=args.timeout)
         sys.stdout.write(result.stdout)
         sys.stderr.write(result.stderr)
+        if stub:
+            guest.run(f"kill -TERM $(cat {guest.agent_dir}/stub.pid) 2>/dev/null", check=False)
         return result.returncode
     except GuestDied as exc:
         raise CommandError(str(exc).splitlines()[0]) from None
@@ -160,17 +176,50 @@ def run_command(args: argparse.Namespace) -> int:
         console = guest.close()
         if args.console is not None:
             args.console.write_text(console)
-        backend.close()
+        if backend is not None:
+            backend.close()
         if results is not None:
             shutil.rmtree(results / ".agent", ignore_errors=True)
         shutil.rmtree(work, ignore_errors=True)
 
 
+def _start_stub(guest: Any, args: argparse.Namespace, addresses: list[int], work: Path) -> str:
+    """Load i2c-stub with the chips' addresses and start the adapter in the guest; the
+    shell prefix that names its bus for later commands."""
+    import pickle
+
+    from bmg160_emu.cli import CommandError
+
+    options = work / "chips.pickle"
+    options.write_bytes(pickle.dumps(argparse.Namespace(
+        **{k: v for k, v in vars(args).items() if k != "func"})))
+    load = guest.run(
+        'm="modprobe ${GUEST_ROOT:+-d $GUEST_ROOT}"\n'
+        f"$m i2c-stub chip_addr={','.join(f'0x{a:02x}' for a in addresses)} && $m i2c-dev "
+        "|| exit 1\n"
+        "for d in /sys/bus/i2c/devices/i2c-*; do\n"
+        '  grep -q "SMBus stub" "$d/name" 2>/dev/null && echo "${d##*/i2c-}"\n'
+        "done", timeout_s=60)
+    bus = load.stdout.split()
+    if load.returncode or not bus:
+        raise CommandError(f"i2c-stub did not load in the guest: {load.stderr.strip()}")
+    prefix = f"GUEST_I2C_BUS={bus[0]}; export GUEST_I2C_BUS\n"
+    run = guest.agent_dir  # writable in the guest (the host's /tmp is not)
+    started = guest.run(
+        prefix + f'"$BMG160_PY" -m bmg160_emu.commands._kernel_stub {options} $GUEST_I2C_BUS '
+        f"{run}/stub.ready > {run}/stub.log 2>&1 &\necho $! > {run}/stub.pid\n"
+        f"i=0; while [ ! -e {run}/stub.ready ] && [ $i -lt 1200 ] && kill -0 $! 2>/dev/null; "
+        "do sleep 0.1; i=$((i + 1)); done\n"
+        f"[ -e {run}/stub.ready ] || {{ cat {run}/stub.log >&2; exit 1; }}", timeout_s=180)
+    if started.returncode:
+        raise CommandError(f"the i2c-stub adapter did not start in the guest: "
+                           f"{started.stderr.strip().splitlines()[-1:]}")
+    return prefix
+
+
 def _module(engine: object, path: Path) -> list[Path]:
     from bmg160_emu.linux.guest.engine import EngineError
 
-    if not path.exists():
-        raise EngineError(f"--module {path}: no such file or folder")
     build = getattr(engine, "build_module", None)
     if build is None:
         raise EngineError(f"--module: the {getattr(engine, 'name', '?')} engine cannot load "

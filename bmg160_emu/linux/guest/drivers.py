@@ -56,22 +56,32 @@ def load_order(kos: Sequence[Path]) -> list[str | Path]:
     return kernel + ordered
 
 
-def driver_name(kos: Sequence[Path]) -> str | None:
-    """The first I2C device name the modules' id tables give (``modinfo -F alias``:
-    ``i2c:NAME``), or None when none declares one."""
-    for ko in kos:
-        names = [a.split(":", 1)[1] for a in _modinfo(ko, "alias") if a.startswith("i2c:")]
-        if names:
-            return names[0]
+def driver_name(kos: Sequence[Path], prefer: Sequence[str] = ()) -> str | None:
+    """The I2C device name to bind the modules' driver by: one of ``prefer`` (the emulated
+    parts' names) when the id tables list it, else the first entry of the first table that
+    has one (``modinfo -F alias`` lists a table's ``i2c:NAME`` aliases last entry first);
+    None when no module declares one."""
+    tables = [[a.split(":", 1)[1] for a in _modinfo(ko, "alias") if a.startswith("i2c:")]
+              for ko in kos]
+    for name in prefer:
+        if any(name in table for table in tables):
+            return name
+    for table in tables:
+        if table:
+            return table[-1]
     return None
 
 
 def bind_command(name: str, addresses: Sequence[int], lines: Sequence[int] | None = None,
-                 board: Path | None = None) -> str:
+                 board: Path | None = None, kernel_driver: bool = False) -> str:
     """Shell that binds driver ``name`` to the chips on ``$GUEST_I2C_BUS`` and waits (5 s at
     most) until each has a driver: with each chip's INT1 line as its IRQ through bmg160-board
-    when ``lines`` and ``board`` are given, else through ``new_device`` (no IRQ)."""
+    when ``lines`` and ``board`` are given, else through ``new_device`` (no IRQ).
+    ``kernel_driver``: first load the guest kernel's own module for ``name`` by its alias
+    (the guest runs no udev, so nothing loads it on its own; a built-in one needs nothing)."""
     bus = "/sys/bus/i2c/devices"
+    load = (f'modprobe -q ${{GUEST_ROOT:+-d "$GUEST_ROOT"}} i2c:{shlex.quote(name)} '
+            "2>/dev/null\n" if kernel_driver else "")
     if lines is not None and board is not None:
         command = (f"insmod {shlex.quote(str(board))} bus=$GUEST_I2C_BUS "
                    f"gpio_base=$GUEST_GPIO_BASE "
@@ -86,7 +96,7 @@ def bind_command(name: str, addresses: Sequence[int], lines: Sequence[int] | Non
         f"[ -e {bus}/$GUEST_I2C_BUS-{a:04x}/driver ] || "
         f"{{ echo 'no driver bound to 0x{a:02x} (dmesg:)' >&2; dmesg | tail -n 5 >&2; exit 1; }}"
         for a in addresses)
-    return f"{command}\n{waits}\n"
+    return f"{load}{command}\n{waits}\n"
 
 
 def unbind_command(addresses: Sequence[int], board: bool) -> str:

@@ -167,7 +167,9 @@ class Guest:
             if time.monotonic() - started > timeout_s:
                 self.kill()
                 raise GuestDied(f"{command!r} took over {timeout_s:g} s; the guest was killed")
-            time.sleep(0.002)
+            # short commands answer within milliseconds; a long one need not be polled
+            # often (each poll takes the GIL the back-end thread serves the guest with)
+            time.sleep(min(0.02, 0.001 + (time.monotonic() - started) / 20))
         result = CommandResult(
             command, int(rc_path.read_text() or "-1"),
             stem.with_suffix(".out").read_text(errors="replace"),
