@@ -12,6 +12,7 @@ buffers (patch 0001; checked here before a boot rather than hanging in it).
 from __future__ import annotations
 
 import os
+import secrets
 import shutil
 import subprocess
 from pathlib import Path
@@ -117,6 +118,8 @@ class UmlEngine:
             "con=null", "ssl=null", "con0=null,fd:1", "quiet", "panic=-1",
             f"guest_script={boot.script.resolve()}", f"guest_out={results}",
             f"guest_modroot={kernel.modules_root}",
+            # a reboot re-execs UML with this command line: init.sh ends it by this token
+            f"guest_boot={secrets.token_hex(4)}",
         ]
         if boot.cpus != 1:
             raise EngineError(f"the uml engine runs one CPU (asked for {boot.cpus})")
