@@ -12,7 +12,9 @@ mount -t tmpfs run /run
 mkdir -p /run/home /run/tmp
 mountpoint -q /dev/shm || mount -t tmpfs shm /dev/shm 2>/dev/null
 script=; out=; modroot=; vio=; mods=; boot=; envs=
-for arg in $(cat /proc/cmdline); do
+# shell built-ins where they do (every program started costs a ptrace'd fork and exec)
+read -r cmdline < /proc/cmdline
+for arg in $cmdline; do
     case "$arg" in
         guest_script=*) script=${arg#guest_script=} ;;
         guest_out=*) out=${arg#guest_out=} ;;
@@ -46,12 +48,14 @@ if [ -n "$vio" ]; then
     i=0
     while [ -z "$bus" ] && [ $i -lt 200 ]; do
         for d in /sys/bus/i2c/devices/i2c-*; do
-            grep -q virtio "$d/name" 2>/dev/null && bus=${d##*/i2c-}
+            name=; read -r name < "$d/name" 2>/dev/null
+            case "$name" in *virtio*) bus=${d##*/i2c-} ;; esac
         done
         [ -z "$bus" ] && sleep 0.01; i=$((i + 1))
     done
     for c in /sys/class/gpio/gpiochip*; do
-        case "$(cat "$c/label" 2>/dev/null)" in virtio*) gpiobase=$(cat "$c/base") ;; esac
+        label=; read -r label < "$c/label" 2>/dev/null
+        case "$label" in virtio*) read -r gpiobase < "$c/base" ;; esac
     done
 fi
 for m in $(echo "$mods" | tr ',' ' '); do
@@ -60,10 +64,11 @@ for m in $(echo "$mods" | tr ',' ' '); do
         *) modprobe -d "$modroot" "$m" || echo "init: modprobe $m failed" ;;
     esac
 done
+read -r release < /proc/sys/kernel/osrelease
 echo "init: running $script"
 cd /
 env -i PATH=$PATH HOME=/run/home TMPDIR=/run/tmp BMG160_RESULTS="$out" GUEST_OUT="$out" \
-    GUEST_ENGINE=uml GUEST_ROOT="$modroot" GUEST_MODULES="$modroot/lib/modules/$(uname -r)" GUEST_I2C_BUS="$bus" \
+    GUEST_ENGINE=uml GUEST_ROOT="$modroot" GUEST_MODULES="$modroot/lib/modules/$release" GUEST_I2C_BUS="$bus" \
     GUEST_GPIO_BASE="$gpiobase" $envs /bin/sh "$script"
 status=$?
 echo "init: script exited with status $status"
