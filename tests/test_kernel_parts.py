@@ -68,8 +68,8 @@ GUEST_SCRIPT = r"""
 set -u
 OUT=${GUEST_OUT:?}
 cd /run || exit 1
-modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68,0x69,0x18 || echo "modprobe i2c-stub failed"
-modprobe -d "$GUEST_ROOT" i2c-dev || echo "modprobe i2c-dev failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-stub chip_addr=0x68,0x69,0x18 || echo "modprobe i2c-stub failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-dev || echo "modprobe i2c-dev failed"
 rm -f /run/parts.ready /run/accel.ready
 S=$(for d in /sys/bus/i2c/devices/i2c-*; do grep -q "SMBus stub" "$d/name" && echo "${d##*/i2c-}"; done | head -n 1)
 export STUB_BUS=$S
@@ -83,7 +83,7 @@ done
 for a in 0x68 0x69; do
     i2cdump -y -r 0x00-0x3f "$S" $a b > "$OUT/i2cdump_$a.txt" 2>&1
 done
-modprobe -d "$GUEST_ROOT" bmg160_i2c || echo "modprobe bmg160_i2c failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} bmg160_i2c || echo "modprobe bmg160_i2c failed"
 n=0
 for spec in bmi055_gyro:0x68 bmi088_gyro:0x69; do
     name=${spec%:*}; a=${spec#*:}
@@ -112,7 +112,7 @@ while [ ! -e /run/accel.ready ] && [ $i -lt 3000 ] && kill -0 $ACCEL 2>/dev/null
     sleep 0.1; i=$((i + 1))
 done
 i2cget -y "$S" 0x18 0x00 > "$OUT/accel_chip_id.txt" 2>&1
-modprobe -d "$GUEST_ROOT" bmc150-accel-i2c || echo "modprobe bmc150-accel-i2c failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} bmc150-accel-i2c || echo "modprobe bmc150-accel-i2c failed"
 echo bmi055_accel 0x18 > /sys/bus/i2c/devices/i2c-$S/new_device
 i=0
 ACC=""

@@ -139,7 +139,7 @@ def run_command(args: argparse.Namespace) -> int:
         from bmg160_emu.linux.guest_pace import GuestPacedClock
 
         clock = GuestPacedClock()
-    chips = chips_from_args(args, clock=clock, announce=False)
+    chips = chips_from_args(args, clock=clock)  # a random seed is said, so a run can be repeated
     work = temporary_work()
     results = args.results
     if results is not None:

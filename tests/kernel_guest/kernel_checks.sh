@@ -9,7 +9,7 @@
 # TOOLS (optional: bmg160_emu.linux.guest.kmod's bundled modules, this folder) add the hrtimer capture.
 set -u
 OUT=${GUEST_OUT:?}
-: "${PY:?}" "${GUEST_ROOT:?}"
+: "${PY:?}"  # GUEST_ROOT: the kernel package's modules for modprobe -d, where the engine has one
 STUB_ARGS=${STUB_ARGS:-}
 cd /run || exit 1
 
@@ -19,12 +19,12 @@ emu() { "$PY" -m bmg160_emu "$@"; }
 sample() { i=0; while [ $i -lt "$3" ]; do cat "$IIO/$1"; sleep "$2"; i=$((i + 1)); done; }
 
 step "1. modules: i2c-stub chip_addr=0x68, i2c-dev"
-modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68 || echo "modprobe i2c-stub failed"
-modprobe -d "$GUEST_ROOT" i2c-dev || echo "modprobe i2c-dev failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-stub chip_addr=0x68 || echo "modprobe i2c-stub failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-dev || echo "modprobe i2c-dev failed"
 S=$(for d in /sys/bus/i2c/devices/i2c-*; do grep -q "SMBus stub" "$d/name" && echo "${d##*/i2c-}"; done | head -n 1)
 echo "$S" > "$OUT/stub_bus.txt"
 # A real (non-stub) SMBus adapter for the "not an i2c-stub adapter" error: QEMU's PIIX4.
-modprobe -d "$GUEST_ROOT" i2c-piix4 2>/dev/null
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-piix4 2>/dev/null
 i2cdetect -l > "$OUT/i2cdetect_l.txt" 2>&1
 
 step "1b. start bmg160-emu stub (in the background)"
@@ -61,7 +61,7 @@ for n in 1 2 3 4 5 6; do
 done > "$OUT/i2cdump_rate_blocks.txt" 2>&1
 
 step "3. kernel driver bmg160_i2c"
-modprobe -d "$GUEST_ROOT" bmg160_i2c || echo "modprobe bmg160_i2c failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} bmg160_i2c || echo "modprobe bmg160_i2c failed"
 echo bmg160 0x68 > /sys/bus/i2c/devices/i2c-$S/new_device
 i=0; IIO=/nowhere
 while [ ! -e "$IIO/in_anglvel_x_raw" ] && [ $i -lt 100 ]; do
@@ -106,7 +106,7 @@ sleep 2  # a stretch of refreshes at 200 Hz for the period and jitter figures
 
 if [ -n "${KMOD:-}" ] && [ -e "$KMOD/iio-trig-hrtimer.ko" ]; then
     step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz (bmg160_emu.linux.guest.kmod)"
-    modprobe -d "$GUEST_ROOT" configfs
+    modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} configfs
     mount -t configfs none /sys/kernel/config 2>/dev/null
     for m in industrialio-configfs industrialio-sw-trigger iio-trig-hrtimer; do  # dependency order
         insmod "$KMOD/$m.ko" || echo "insmod $m failed"
