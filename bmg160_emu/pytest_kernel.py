@@ -234,8 +234,10 @@ def bmg160_kernel(request: pytest.FixtureRequest,
     session = bmg160_kernel_session
     guest = session.ensure()
     addresses = tuple(options.get("addresses") or DEFAULT_ADDRESSES[:1])
-    for chip in session.backend.chips.values():
-        chip.write(0x14, b"\xb6")  # soft reset: each test starts at power-on (spec 4.2)
+    from bmg160_emu.device.registers import address_of
+
+    for chip in session.backend.chips.values():  # soft reset: each test starts at power-on
+        chip.write(address_of("BGW_SOFTRESET"), b"\xb6")  # (spec 4.2)
     name = options.get("driver", "bmg160")
     if options.get("module") is not None:
         kos = session.load(Path(options["module"]))

@@ -109,7 +109,7 @@ class Guest:
         script = work / "boot.sh"
         script.write_text(
             "cd /\n"
-            f"exec \"$BMG160_PY\" {shlex.quote(str(AGENT))} \"$BMG160_RESULTS/.agent\"\n")
+            f"exec \"$BMG160_PY\" -I -S {shlex.quote(str(AGENT))} \"$BMG160_RESULTS/.agent\"\n")
         self.boot = Boot(
             script=script, results=self.results,
             i2c_socket=backend.i2c_socket if backend else None,
