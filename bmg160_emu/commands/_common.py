@@ -43,6 +43,33 @@ def integer_at_least(minimum: int, what: str) -> Callable[[str], int]:
 bus_number = integer_at_least(0, "bus")
 
 
+def bounded_option(bounded: Any) -> Callable[[str], Any]:
+    """An argparse type reading an option's value through a :class:`bmg160_emu.limits.Bounded`:
+    a finite number in its stated range, or a usage error (argparse names the option) giving
+    the range."""
+    from bmg160_emu.limits import LimitError
+
+    def parse(text: str) -> Any:
+        try:
+            return bounded.parse(text)
+        except LimitError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = bounded.name.replace(" ", "_")
+    return parse
+
+
+def parsed_duration(text: str, option: str, *, allow_zero: bool = False) -> float:
+    """A duration option read after parsing (``--duration``, ``--skip``, ``--block``): seconds,
+    or a :class:`CommandError` naming ``option``."""
+    from bmg160_emu.durations import parse_duration
+
+    try:
+        return parse_duration(text, allow_zero=allow_zero)
+    except ValueError as exc:
+        raise CommandError(f"{option}: {exc}") from None
+
+
 def add_bus_option(parser: argparse.ArgumentParser, help_text: str, **kwargs: Any) -> None:
     """``--bus N``: the I2C bus number of ``/dev/i2c-N``."""
     parser.add_argument("--bus", type=bus_number, metavar="N", help=help_text, **kwargs)

@@ -8,7 +8,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from bmg160_emu.commands._common import Subparsers, add_command_parser
+from bmg160_emu import limits
+from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
 
 EPILOG = """\
 examples:
@@ -43,9 +44,9 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("file", type=Path, help="CSV with time, x, y, z (deg/s) and temperature")
     parser.add_argument("--temperature-column", default=None, metavar="NAME",
                         help=f"the temperature column (default: one of {', '.join(TEMPERATURE_COLUMNS)})")
-    parser.add_argument("--order", type=int, default=3, choices=(0, 1, 2, 3),
+    parser.add_argument("--order", type=bounded_option(limits.POLYNOMIAL_ORDER), default=3, choices=(0, 1, 2, 3),
                         help="polynomial order (default 3, as PX4)")
-    parser.add_argument("--reference", type=float, default=None, metavar="DEGC",
+    parser.add_argument("--reference", type=bounded_option(limits.REFERENCE_TEMPERATURE_C), default=None, metavar="DEGC",
                         help="reference temperature of the polynomial (default: mid-range)")
     parser.add_argument("--block", default="60s", metavar="DURATION",
                         help="block length the fit averages over (default 60s)")
@@ -53,7 +54,7 @@ def register(subparsers: Subparsers) -> None:
                         help="the unit's noise profile (default: identified from the residuals)")
     parser.add_argument("--px4-params", type=Path, default=None, metavar="FILE",
                         help="write PX4's TC_G0_* parameters as a QGroundControl .params file")
-    parser.add_argument("--px4-instance", type=int, default=0, metavar="N",
+    parser.add_argument("--px4-instance", type=bounded_option(limits.PX4_INSTANCE), default=0, metavar="N",
                         help="the gyro instance N of TC_G<N>_* (default 0)")
     parser.add_argument("--errors-out", type=Path, default=None, metavar="FILE.toml",
                         help="write the [errors] table of a noise profile")
