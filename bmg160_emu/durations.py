@@ -43,6 +43,8 @@ def parse_duration(text: str, *, unit_required: bool = False, allow_zero: bool =
     if not isinstance(text, str):
         raise TypeError(f"a duration is text such as '10s', not {type(text).__name__}")
     stripped = text.strip().lower()
+    if "_" in stripped:  # float() takes 1_000; a person typing a duration means a typo
+        raise ValueError(f"not a duration: {text!r} ({EXAMPLES})")
     number = stripped.rstrip("abcdefghijklmnopqrstuvwxyz")
     unit = stripped[len(number):]
     try:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 # an integer as people type it: decimal, or 0x/0o/0b; no exponent (1e23 is not an integer count)
-_INTEGER = re.compile(r"^[+-]?(0[xX][0-9a-fA-F_]+|0[oO][0-7_]+|0[bB][01_]+|\d[\d_]*)$")
+_INTEGER = re.compile(r"^[+-]?(0[xX][0-9a-fA-F]+|0[oO][0-7]+|0[bB][01]+|\d+)$")
 _MAX_DIGITS = 40  # longer integer text is refused before int() parses it (it is out of range)
 
 
@@ -56,6 +56,8 @@ class Bounded:
         stripped = text.strip() if isinstance(text, str) else text
         if not isinstance(stripped, str):
             return self.check(stripped, where)
+        if "_" in stripped:  # float() and int() take 1_000; a file or a person means a typo
+            raise self._error(text, where)
         if self.integer:
             if len(stripped) > _MAX_DIGITS or not _INTEGER.match(stripped):
                 raise self._error(text, where)
@@ -152,3 +154,5 @@ POLYNOMIAL_ORDER = Bounded("polynomial order", 0, 3, integer=True,
 RECORD_SAMPLES = Bounded("samples to record", 1, 100_000_000, integer=True,
                         reason="memory: record holds 56 bytes a sample until it writes them; "
                                "1e8 samples (5.6 GB) are 13.9 h at 2000 Hz, 11.6 days at 100 Hz")
+I2C_BUS = Bounded("bus", 0, 2**20 - 1, integer=True,
+                  reason="Linux numbers /dev/i2c-N below I2C_MINORS, 2**20 (drivers/i2c/i2c-dev.c)")

@@ -128,8 +128,8 @@ def _address(text: str) -> int:
 
 def _range_dps(text: str) -> int:
     try:
-        value = int(float(text))
-    except ValueError:
+        value = limits.FULL_SCALE_DPS.parse(text)
+    except limits.LimitError:
         value = -1
     if value not in RANGE_CODE_BY_DPS:
         raise argparse.ArgumentTypeError(
@@ -140,8 +140,8 @@ def _range_dps(text: str) -> int:
 
 def _bandwidth_code(text: str) -> int:
     try:
-        value = int(text, 0)
-    except ValueError:
+        value = limits.BANDWIDTH_CODE.parse(text)
+    except limits.LimitError:
         value = -1
     if not 0 <= value <= 7:
         raise argparse.ArgumentTypeError(f"bandwidth code must be 0..7 (spec 5.3), not {text}")
