@@ -178,9 +178,10 @@ def declared_size(name: str, data: bytes, rng: random.Random) -> bytes:
         with np.load(io.BytesIO(data)) as npz:
             columns = {key: npz[key] for key in npz.files}
         key = rng.choice(sorted(columns))
-        columns[key] = rng.choice([np.empty(0), np.zeros(()), np.zeros((2, 3, 4)),
-                                   columns[key][:1], np.full(columns[key].shape, np.nan)
-                                   if columns[key].dtype.kind == "f" else columns[key][:0]])
+        column = np.atleast_1d(columns[key])
+        columns[key] = rng.choice([np.empty(0), np.zeros(()), np.zeros((2, 3, 4)), column[:1],
+                                   np.full(column.shape, np.nan) if column.dtype.kind == "f"
+                                   else column[:0]])
         if key == "t_s" and rng.random() < 0.5:  # a replay span of 2e8 s in two samples
             columns = {k: v[:2] for k, v in columns.items() if np.ndim(v)}
             columns["t_s"] = np.array([0.0, 2e8])
