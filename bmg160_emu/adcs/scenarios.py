@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from bmg160_emu.durations import MAX_SIMULATED_S, MAX_TEXT
 from bmg160_emu.io.errors import FormatError, loads_toml, read_text
 
 # WGS-84 / EGM-96 constants for the orbital period of a circular orbit.
@@ -319,17 +320,18 @@ class Scenario:
         return cls(duration_s=duration_s, motions=[ConstantRotation(rate=rate)], name="constant")
 
 
-# Longest scenario accepted: ten years, beyond any mission test, and far inside the chips'
-# integer-nanosecond clock (2**63 ns = 292 years); an unbounded one could hang the loader
-# (a tumble integrates ahead) or overflow the sample schedule.
-MAX_DURATION_S = 10 * 365.25 * 86400.0
+# Longest scenario accepted: the cap on simulated time (30 days, bmg160_emu.durations), far
+# inside the chips' integer-nanosecond clock (2**63 ns = 292 years); an unbounded one could
+# hang the loader (a tumble integrates ahead), overflow the sample schedule, or make `record
+# --truth` simulate for days.
+MAX_DURATION_S = MAX_SIMULATED_S  # bmg160_emu.durations: the one cap on simulated time
 
 
 def _check_duration(duration_s: Any) -> float:
     if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) \
             or not 0 < duration_s <= MAX_DURATION_S:
         raise ScenarioError(f"duration_s must be a positive number of seconds up to "
-                            f"{MAX_DURATION_S:.0f} (ten years), not {duration_s!r}")
+                            f"{MAX_TEXT}, not {duration_s!r}")
     return float(duration_s)
 
 

@@ -83,8 +83,10 @@ def run(args: argparse.Namespace) -> int:
 
         try:
             scenario = load_scenario(args.truth)
-        except (ScenarioError, OSError) as exc:
-            raise CommandError(f"{args.truth}: {exc}") from None
+        except ScenarioError as exc:  # its message starts with the file
+            raise CommandError(str(exc)) from None
+        except OSError as exc:
+            raise CommandError(f"cannot read {args.truth}: {exc.strerror}") from None
     if args.duration is not None:
         try:
             duration = parse_duration(args.duration)

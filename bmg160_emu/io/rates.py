@@ -19,7 +19,6 @@ import math
 import os
 import re
 import tokenize
-import typing
 import zipfile
 import zlib
 from collections.abc import Callable, Sequence
@@ -28,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bmg160_emu.io.array_header import check_declared_size
 from bmg160_emu.io.errors import FileFormat, format_for, register_format
 from bmg160_emu.io.rate_table import ColumnChoice, RateFileError, RateTable
 
@@ -215,33 +215,14 @@ def open_npz(path: str | Path):
     return archive
 
 
-def check_declared_size(handle: typing.BinaryIO, available: int, path: str | Path,
-                        place: str | None = None) -> None:
-    """Refuse an .npy header (at ``handle``) whose shape needs more bytes than the
-    ``available`` ones after it: numpy would allocate what the header claims first (a
-    4 kB file claiming 1e11 rows asked for 2.2 TiB)."""
-    try:
-        version = np.lib.format.read_magic(handle)
-        read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                else np.lib.format.read_array_header_2_0)
-        shape, _fortran, dtype = read(handle)
-        header = handle.tell()
-    except ARRAY_ERRORS as exc:
-        raise RateFileError(f"not a readable .npy array ({exc})", path=path, place=place) from None
-    need = math.prod(int(n) for n in shape) * dtype.itemsize
-    if need > available - header:
-        raise RateFileError(f"its header declares shape {tuple(shape)} ({need:,} bytes) but the "
-                            f"file holds {max(0, available - header):,} bytes of data",
-                            path=path, place=place)
-
-
 def npz_array(archive, key: str, path: str | Path) -> np.ndarray:
     """One array of the archive; a damaged member, or one whose header declares more data
     than the member holds, is an error naming the key."""
     try:
         name = key if key in archive.zip.namelist() else f"{key}.npy"
         with archive.zip.open(name) as member:
-            check_declared_size(member, archive.zip.getinfo(name).file_size, path, f"key {key}")
+            check_declared_size(member, archive.zip.getinfo(name).file_size, path,
+                                RateFileError, f"key {key}")
     except RateFileError:
         raise
     except (AttributeError, *ARRAY_ERRORS):
@@ -293,7 +274,7 @@ def read_npy(path: str | Path) -> np.ndarray:
         with open(path, "rb") as handle:
             if handle.read(6) == b"\x93NUMPY":
                 handle.seek(0)
-                check_declared_size(handle, os.fstat(handle.fileno()).st_size, path)
+                check_declared_size(handle, os.fstat(handle.fileno()).st_size, path, RateFileError)
         data = np.load(path, allow_pickle=False)
     except RateFileError:
         raise
@@ -420,6 +401,8 @@ def load_rate_record(
       UART stream (told from a CSV by its first line): io/resd.py, io/uart_stream.py.
     """
     path = Path(path)
+    if path.is_dir():
+        raise RateFileError(f"{path}: is a directory, not a record file")
     if not path.is_file():
         raise RateFileError(f"no such record file: {path}")
     suffix = path.suffix.lower()
