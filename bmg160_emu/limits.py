@@ -25,6 +25,8 @@ def _shown(bound: float) -> str:
     """A range end as people read it: 1,000,000 rather than 1e+06; 0.001 and 1e+13 as %g."""
     if float(bound).is_integer() and abs(bound) < 1e12:
         return f"{int(bound):,}"
+    if isinstance(bound, int) and (bound + 1) & bound == 0:  # 2**64 - 1 and the like
+        return f"2**{(bound + 1).bit_length() - 1} - 1"
     return f"{bound:g}"
 
 

@@ -37,6 +37,7 @@ import numpy as np
 
 from bmg160_emu.durations import MAX_SIMULATED_S, MAX_TEXT
 from bmg160_emu.io.errors import FormatError, loads_toml, read_text
+from bmg160_emu.limits import RATE_DPS
 
 # WGS-84 / EGM-96 constants for the orbital period of a circular orbit.
 EARTH_MU_KM3_S2 = 398600.4418  # km^3/s^2, EGM-96 gravitational parameter
@@ -320,10 +321,8 @@ class Scenario:
         return cls(duration_s=duration_s, motions=[ConstantRotation(rate=rate)], name="constant")
 
 
-# Longest scenario accepted: the cap on simulated time (30 days, bmg160_emu.durations), far
-# inside the chips' integer-nanosecond clock (2**63 ns = 292 years); an unbounded one could
-# hang the loader (a tumble integrates ahead), overflow the sample schedule, or make `record
-# --truth` simulate for days.
+# Longest scenario: the cap on simulated time (30 days, bmg160_emu.durations); beyond, a tumble
+# integrates far ahead, and `record --truth` would simulate for days.
 MAX_DURATION_S = MAX_SIMULATED_S  # bmg160_emu.durations: the one cap on simulated time
 
 
@@ -526,7 +525,12 @@ def motion_from_dict(
     units = entry.get("units", "deg/s")
     if units not in ("deg/s", "rad/s"):
         raise ScenarioError(f"{where}: units must be 'deg/s' or 'rad/s', not {units!r}")
-    rates = data[:, 1:] if units == "deg/s" else np.degrees(data[:, 1:])
+    scale = 1.0 if units == "deg/s" else 180.0 / math.pi
+    beyond = np.abs(data[:, 1:]) > RATE_DPS.high / scale  # before scaling: no overflow
+    if beyond.any():
+        row = int(np.argmax(beyond.any(axis=1)))
+        raise ScenarioError(f"{where}: table row {row + 1}: a rate beyond {RATE_DPS.describe()}")
+    rates = data[:, 1:] * scale
     return Table(
         times_s=data[:, 0],
         rates_dps=rates,

@@ -121,6 +121,13 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         text = str(exc)  # a rate the BW code has not is named as the option it came from
         raise CommandError(f"--{text}" if text.startswith("rate ") else text) from None
+    if gen.profile.errors:  # not used by generate, but a bad table is a bad profile
+        from bmg160_emu.device.sensor_errors import SensorErrors
+
+        try:
+            SensorErrors.from_dict(gen.profile.errors, f"{args.profile} [errors]")
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
     total = round(duration * gen.rate_hz)
     if total < 1:
         raise CommandError(f"duration {args.duration!r} is shorter than one sample period")

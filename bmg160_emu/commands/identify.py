@@ -186,9 +186,12 @@ def register(subparsers: Subparsers) -> None:
 
 def _options(args: argparse.Namespace) -> dict:
     """The fit options from the command line, or a CommandError naming the bad one."""
-    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.durations import parse_duration
 
+    for out in (args.profile_out, args.adev_out, args.kalibr_out, args.matlab_out, args.plot):
+        if out is not None:  # refused by its own name before the fit, not as a hidden .part
+            check_writable(out)
     if args.poles == "auto":
         poles = None
     else:
@@ -245,7 +248,9 @@ def run(args: argparse.Namespace) -> int:
             if args.method == "gmwm":
                 gmwm_fits = _apply_gmwm(args, record, result)
     except (RateFileError, IdentificationError, InteropError) as exc:
-        raise CommandError(str(exc)) from None
+        text = str(exc)  # "record too short" and the like: name the file once
+        raise CommandError(text if text.startswith(str(args.file)) else f"{args.file}: {text}") \
+            from None
 
     written: list[Path] = []
     try:
@@ -253,7 +258,10 @@ def run(args: argparse.Namespace) -> int:
         if args.figures is not None:
             written += _write_figures(args, record, result)
     except OSError as exc:
-        raise CommandError(f"cannot write output: {exc}") from None
+        target = next((p for p in (args.profile_out, args.adev_out, args.kalibr_out,
+                                   args.matlab_out, args.plot, args.figures) if p is not None), "")
+        raise CommandError(f"cannot write {target if len(written) == 0 else 'an output'}: "
+                           f"{exc.strerror or exc}") from None
 
     if args.json:
         out = result.as_dict(args.units)

@@ -91,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.durations import parse_duration
     from bmg160_emu.io.atomic import atomic_open
-    from bmg160_emu.io.rates import RateFileError, read_csv_table
+    from bmg160_emu.io.rates import RateFileError, check_time_column, read_csv_table
+    from bmg160_emu.noise.identification import IdentificationError
     from bmg160_emu.noise.thermal_fit import ThermalFitError, fit_bias_temperature
 
     for out in (args.px4_params, args.errors_out):
@@ -109,9 +110,10 @@ def run(args: argparse.Namespace) -> int:
     assert t is not None
     if len(t) < 3 or not np.all(np.isfinite(table.values)) or not np.all(np.isfinite(t)):
         raise CommandError(f"{args.file}: needs finite times, rates and temperatures")
-    step = float(np.median(np.diff(t)))
-    if not step > 0:
-        raise CommandError(f"{args.file}: the time column must increase")
+    try:  # strictly increasing, named by line (a thermal log may pause: no gap check)
+        step = check_time_column(t, table.where, gap_factor=math.inf)
+    except RateFileError as exc:
+        raise CommandError(str(exc)) from None
     rate_hz = 1.0 / step
     noise = None
     if args.noise_profile is not None:
@@ -125,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
         fit = fit_bias_temperature(table.values[:, :3], table.values[:, 3], rate_hz,
                                    order=args.order, reference_c=args.reference,
                                    block_s=block_s, noise=noise)
-    except ThermalFitError as exc:
+    except (ThermalFitError, IdentificationError) as exc:  # the residuals' noise fit too
         raise CommandError(f"{args.file}: {exc}") from None
     try:
         if args.px4_params is not None:
