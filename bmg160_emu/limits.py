@@ -129,7 +129,7 @@ BANDWIDTH_CODE = Bounded("bandwidth code", 0, 7, integer=True, reason="BW regist
 RUNS = Bounded("runs", 1, 1_000_000, integer=True,
                reason="a million Monte Carlo runs: past any percentile's need, and the table of "
                       "curves they keep fits in memory")
-SEED_START = Bounded("first seed", 0, 2**63 - 1, integer=True,
+SEED_START = Bounded("seeds", 0, 2**63 - 1, integer=True,
                      reason="seeds START..START+runs-1 stay inside a signed 64-bit integer")
 WORKERS = Bounded("workers", 1, 1024, integer=True, reason="local processes: more than any machine's "
                                                           "cores")
