@@ -247,8 +247,8 @@ def classify(status: int | None, stderr: str) -> Outcome:
         return Outcome("warning", status, line[:300])
     if status == 0:
         return Outcome("ok", 0)
-    if status == 1 and stderr.startswith("divergence at "):  # trace --replay's finding: a report
-        return Outcome("ok", 1)
+    if status == 1 and (stderr.startswith("divergence at ") or not stderr.strip()):
+        return Outcome("ok", 1)  # a finding, not an error: trace --replay's report, diff's
     if status not in (1, 2):
         return Outcome("bad exit", status, stderr.strip()[-300:])
     lines = [x for x in stderr.strip().splitlines() if x.strip()]
