@@ -117,6 +117,7 @@ def test_mutated_files(fmt, tmp_path):
     ("recording-npz", ("identify", "{}", "--poles", "1")),
     ("recording-npz", ("replay", "{}", "--script", "{seeds}/short.script", "--seed", "1")),
     ("recording-csv", ("replay", "{}", "--script", "{seeds}/short.script", "--seed", "1")),
+    ("recording-csv", ("replay", "{}", "--seed", "1", "-o", "{tmp}/out.npz")),
 ])
 def test_declared_sizes_and_shapes(name, command, tmp_path):
     fmt = next(f for f in CLI_FORMATS if f.name == name)

@@ -60,6 +60,7 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device import spec_choices
+    from bmg160_emu.durations import check_simulated_time
     from bmg160_emu.session.playback import ReplayDataError, ReplaySource, load_replay_data
     from bmg160_emu.session.record import record, write_recording
 
@@ -84,6 +85,12 @@ def run(args: argparse.Namespace) -> int:
     ReplaySource(data, loop=args.loop).attach(chip)
     if args.output is not None:
         duration = data.duration_s + data.median_step_s
+        try:  # checked before recording: a span of 2e8 s asked for 45 GiB
+            check_simulated_time(duration, f"{duration:g} s", f"{args.data}: the replay span")
+            limits.RECORD_SAMPLES.check(round(duration * chip.odr_hz),
+                                        f"{args.data}: a replay of {duration:g} s")
+        except ValueError as exc:  # LimitError is one
+            raise CommandError(f"{exc} (at {chip.odr_hz:g} Hz)") from None
         rec = record(chip, duration)
         rec.metadata["replayed"] = str(args.data)
         rec.true_rate_dps = None  # the truth behind real data is unknown
