@@ -93,7 +93,10 @@ class Bounded:
             if not self.low <= value <= self.high:
                 raise self._error(shown, where)
             return value
-        value = float(value)
+        try:
+            value = float(value)  # an int of 400 digits overflows
+        except OverflowError:
+            raise self._error(shown, where) from None
         if not (math.isfinite(value) and self.low <= value <= self.high):
             raise self._error(shown, where)
         return value + 0.0  # -0.0 reads as 0.0

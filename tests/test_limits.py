@@ -77,3 +77,8 @@ def test_durations_are_capped_at_thirty_days_and_one_nanosecond():
     with pytest.raises(ValueError, match="1 ns step"):
         parse_duration("0.0004us", unit_required=True)
     assert parse_duration("0.001us") == pytest.approx(1e-9)
+
+
+def test_an_integer_too_large_for_a_float_is_refused_not_an_overflow():
+    with pytest.raises(LimitError, match="temperature must be"):
+        TEMPERATURE.check(10**400, "x.toml: key t")
