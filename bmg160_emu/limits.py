@@ -161,3 +161,6 @@ RECORD_SAMPLES = Bounded("samples to record", 1, 100_000_000, integer=True,
                                "1e8 samples (5.6 GB) are 13.9 h at 2000 Hz, 11.6 days at 100 Hz")
 I2C_BUS = Bounded("bus", 0, 2**20 - 1, integer=True,
                   reason="Linux numbers /dev/i2c-N below I2C_MINORS, 2**20 (drivers/i2c/i2c-dev.c)")
+ALLAN_DEVIATION_DPS = Bounded("Allan deviation", 0.0, 1e6, "deg/s",
+                             reason="the largest angular rate a file may hold (RATE_DPS): an "
+                                    "Allan deviation is below the rates it is made of")

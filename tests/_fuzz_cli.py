@@ -146,6 +146,8 @@ def cli_seed_folder() -> Path:
         _cli("record", "--duration", "6s", "--rate", "200", "--seed", "2", "--true-rate", "1",
              "2", "3", "-o", str(long / f"recording{suffix}"))
     (folder / "mc.toml").write_bytes((repo / "examples/scenarios/rest.toml").read_bytes())
+    # the numeric options' scenario: 3 s, so that a valid --runs 16 (0x10) takes seconds
+    (folder / "mc-short.toml").write_text('duration_s = 3.0\n[[motion]]\nkind = "rest"\n')
     return folder
 
 
@@ -379,15 +381,15 @@ NUMERIC_OPTIONS: dict[str, tuple[str, ...]] = {
     "thermal --order": ("thermal", "{seeds}/thermal.csv", "--block", "10s", "--order", "{v}"),
     "thermal --px4-instance": ("thermal", "{seeds}/thermal.csv", "--block", "10s",
                                "--px4-instance", "{v}", "--px4-params", "{tmp}/p.params"),
-    "montecarlo --runs": ("montecarlo", "{seeds}/mc.toml", "--scheduler", "sync",
+    "montecarlo --runs": ("montecarlo", "{seeds}/mc-short.toml", "--scheduler", "sync",
                           "--no-progress", "--runs", "{v}"),
-    "montecarlo --seeds": ("montecarlo", "{seeds}/mc.toml", "--scheduler", "sync",
+    "montecarlo --seeds": ("montecarlo", "{seeds}/mc-short.toml", "--scheduler", "sync",
                            "--no-progress", "--runs", "1", "--seeds", "{v}"),
-    "montecarlo --workers": ("montecarlo", "{seeds}/mc.toml", "--no-progress", "--runs",
+    "montecarlo --workers": ("montecarlo", "{seeds}/mc-short.toml", "--no-progress", "--runs",
                              "1", "--scheduler", "sync", "--workers", "{v}"),
-    "montecarlo --rows": ("montecarlo", "{seeds}/mc.toml", "--scheduler", "sync",
+    "montecarlo --rows": ("montecarlo", "{seeds}/mc-short.toml", "--scheduler", "sync",
                           "--no-progress", "--runs", "1", "--rows", "{v}"),
-    "montecarlo --percentiles": ("montecarlo", "{seeds}/mc.toml", "--scheduler", "sync",
+    "montecarlo --percentiles": ("montecarlo", "{seeds}/mc-short.toml", "--scheduler", "sync",
                                  "--no-progress", "--runs", "1", "--percentiles", "{v}"),
     "replay --max-gap-factor": ("replay", "{seeds}/recording.csv", "--script",
                                 "{seeds}/short.script", "--seed", "1", "--max-gap-factor",
