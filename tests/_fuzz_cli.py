@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from _fuzz_formats import Hang, _cli, mutate, seed_folder, time_limit
+from _fuzz_formats import Hang, _cli, line_endings, mutate, seed_folder, time_limit
 
 TIME_LIMIT_S = 20.0  # one CLI run; the slowest valid run here (identify) takes ~2 s
 
@@ -152,14 +152,6 @@ def cli_seed_folder() -> Path:
 
 
 # ---------------------------------------------------------------------------- mutations
-
-
-def line_endings(data: bytes, rng: random.Random) -> bytes:
-    """The same text with CR-only line endings, or a mix of LF, CRLF and CR."""
-    lines = data.split(b"\n")
-    if rng.random() < 0.5:
-        return b"\r".join(lines)
-    return b"".join(line + rng.choice((b"\n", b"\r\n", b"\r")) for line in lines)
 
 
 def _npy_bytes(array: np.ndarray) -> bytes:
