@@ -102,7 +102,10 @@ class Bounded:
         return value + 0.0  # -0.0 reads as 0.0
 
     def _error(self, shown: Any, where: str) -> LimitError:
-        text = repr(shown) if isinstance(shown, str) else f"{shown!r}"
+        if isinstance(shown, int) and shown.bit_length() > 4000:  # repr() refuses 4300 digits
+            text = f"an integer of {shown.bit_length()} bits"
+        else:
+            text = repr(shown)
         if len(text) > 60:
             text = text[:40] + "..." + text[-10:]
         prefix = f"{where}: " if where else ""

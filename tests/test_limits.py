@@ -82,3 +82,8 @@ def test_durations_are_capped_at_thirty_days_and_one_nanosecond():
 def test_an_integer_too_large_for_a_float_is_refused_not_an_overflow():
     with pytest.raises(LimitError, match="temperature must be"):
         TEMPERATURE.check(10**400, "x.toml: key t")
+
+
+def test_an_integer_past_python_s_digit_limit_is_named_by_its_size():
+    with pytest.raises(LimitError, match="an integer of 16610 bits"):
+        COUNT.check(10**5000)

@@ -126,7 +126,7 @@ def parse_seeds(text: str | None, runs: int | None) -> list[int]:
             RUNS.check(max(b - a, 1), f"--seeds {text}")
             seeds = list(range(a, b))
         elif "," in text:
-            seeds = [SEED_START.parse(s, "--seeds") for s in text.split(",")[:RUNS.high + 1]
+            seeds = [SEED_START.parse(s, "--seeds") for s in text.split(",")[: int(RUNS.high) + 1]
                      if s.strip()]
             RUNS.check(len(seeds), f"--seeds {text[:40]}")
         else:

@@ -103,8 +103,6 @@ def run(args: argparse.Namespace) -> int:
     chosen_seed = args.seed is None
     if chosen_seed:
         args.seed = secrets.randbits(32)  # a record names its seed: a random run can be repeated
-    elif args.seed < 0:
-        raise CommandError(f"--seed must be a non-negative integer, not {args.seed}")
     try:
         duration = parse_duration(args.duration)
     except ValueError as exc:
