@@ -340,8 +340,7 @@ def _finite(value: Any, what: str) -> float:
     return float(value)
 
 
-# Largest magnitude of any vector in a scenario (rates in deg/s, angles in deg): 500 times
-# the chip's largest range (+-2000 deg/s), so every derived rate and attitude stays finite.
+# Largest magnitude of any vector or slew value (deg/s, deg, deg/s2): 500 x the +-2000 deg/s range.
 MAX_COMPONENT = 1e6
 
 
@@ -490,16 +489,17 @@ def motion_from_dict(
         return ConstantRotation(rate=rate * axis, **window)
     if kind == "slew":
         angle = entry.get("angle_deg")
-        if not isinstance(angle, (int, float)):
-            raise ScenarioError(f"{where}: a slew needs angle_deg (a number)")
+        if isinstance(angle, bool) or not isinstance(angle, (int, float)) \
+                or not abs(angle) <= MAX_COMPONENT:  # 1e308 overflowed its rate profile
+            raise ScenarioError(f"{where}: a slew needs angle_deg, a number within +-1e6")
         if end is not None:
             raise ScenarioError(f"{where}: a slew ends by itself when its rate profile does; "
                                 "give start_s only (end_s is for the other motions)")
         return Slew(
             axis=_unit(entry.get("axis"), f"{where}: axis"),
             angle_deg=float(angle),
-            max_rate_dps=_positive(entry, "max_rate_dps", where),
-            max_accel_dps2=_positive(entry, "max_accel_dps2", where),
+            max_rate_dps=_positive(entry, "max_rate_dps", where, maximum=MAX_COMPONENT),
+            max_accel_dps2=_positive(entry, "max_accel_dps2", where, maximum=MAX_COMPONENT),
             start_s=start,
         )
     if kind == "jitter":
