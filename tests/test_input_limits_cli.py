@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
@@ -120,3 +122,27 @@ def test_a_scenario_path_is_named_once(tmp_path, capsys):
                        capsys)
     line = _one_error_line(err)
     assert status == 2 and line.count(str(scenario)) == 1
+
+
+@pytest.mark.parametrize("body,message", [
+    ("advance 20d\nadvance 20d\n", "2:1: simulated time reaches 3.456e+06 s: past the cap"),
+    ("poll INT_STATUS_1 bit 7 == 1 timeout 29d\n", "1:1: poll reads up to 2.51e+09 times"),
+    ("poll INT_STATUS_1 bit 7 == 1 timeout 20ms every 0.0004us\n", "1 ns step"),
+    ("advance 1e308us\n", "1:9: duration '1e308us' is longer than the cap"),
+    ("rate 1 nan 3\n", "1:8: angular rate must be a number"),
+])
+def test_a_script_that_would_run_for_ever_is_refused_before_it_runs(tmp_path, body, message):
+    from bmg160_emu.session.script import ScriptSyntaxError, parse_script
+
+    with pytest.raises(ScriptSyntaxError, match=re.escape(message)):
+        parse_script(body, source="s.script")
+
+
+def test_a_replay_span_past_the_cap_is_refused_before_recording(tmp_path, capsys):
+    t = np.arange(40000) * 100.0  # evenly spaced: no gap, 4e6 s
+    path = tmp_path / "span.csv"
+    np.savetxt(path, np.column_stack([t, np.zeros((t.size, 3))]), delimiter=",",
+               header="t_s,x_dps,y_dps,z_dps", comments="")
+    status, err = _run(["replay", str(path), "--seed", "1", "-o", str(tmp_path / "o.csv")],
+                       capsys)
+    assert status == 2 and "cap on simulated time" in _one_error_line(err)
