@@ -63,7 +63,7 @@ def test_every_named_limit_is_listed_in_the_docs_with_its_range():
     assert len(named) >= 20
     for key, bounded in named.items():
         assert f"`{key}`" in page, f"docs/limits.md does not list limits.{key}"
-        row = next(line for line in page.splitlines() if f"`{key}`" in line)
+        row = next(line for line in page.splitlines() if line.startswith(f"| `{key}` |"))
         low, high = re.findall(r"from (.+) to (.+?)(?: [a-zA-Z/ ]+)?$", bounded.describe())[0]
         assert low in row and high in row, f"docs/limits.md gives another range for {key}"
         assert bounded.reason, f"limits.{key} gives no reason for its range"
