@@ -167,3 +167,6 @@ I2C_BUS = Bounded("bus", 0, 2**20 - 1, integer=True,
 ALLAN_DEVIATION_DPS = Bounded("Allan deviation", 0.0, 1e6, "deg/s",
                              reason="the largest angular rate a file may hold (RATE_DPS): an "
                                     "Allan deviation is below the rates it is made of")
+DIE_TEMPERATURE_C = Bounded("temperature", -50.0, 150.0, "deg C",
+                           reason="what a die survives: the BMG160's storage range, -50 to "
+                                  "150 deg C (data sheet, table 1: absolute maximum ratings)")

@@ -146,3 +146,31 @@ def test_a_replay_span_past_the_cap_is_refused_before_recording(tmp_path, capsys
     status, err = _run(["replay", str(path), "--seed", "1", "-o", str(tmp_path / "o.csv")],
                        capsys)
     assert status == 2 and "cap on simulated time" in _one_error_line(err)
+
+
+def test_thermal_on_two_temperature_plateaus_is_refused_without_a_warning(tmp_path, capsys):
+    # a cubic through two plateaus: inv() of a singular matrix gave negative variances and
+    # "RuntimeWarning: invalid value encountered in sqrt" on stderr, then exit 0
+    import warnings
+
+    t = np.arange(6000) / 10.0
+    temp = np.where(t < 300, 20.0, 40.0)
+    rates = np.random.default_rng(3).standard_normal((t.size, 3)) * 0.01
+    path = tmp_path / "step.csv"
+    np.savetxt(path, np.column_stack([t, rates, temp]), delimiter=",",
+               header="time_s,x_dps,y_dps,z_dps,temperature_c", comments="")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        status, err = _run(["thermal", str(path), "--block", "10s"], capsys)
+    assert status == 2 and "determine only 2 of the 4 coefficients" in _one_error_line(err)
+
+
+def test_thermal_refuses_a_temperature_no_die_survives_naming_its_line(tmp_path, capsys):
+    t = np.arange(600) / 10.0
+    temp = 20.0 + t / 3
+    temp[5] = 1e12
+    path = tmp_path / "hot.csv"
+    np.savetxt(path, np.column_stack([t, np.zeros((t.size, 3)), temp]), delimiter=",",
+               header="time_s,x_dps,y_dps,z_dps,temperature_c", comments="")
+    status, err = _run(["thermal", str(path)], capsys)
+    assert status == 2 and f"{path}:7: temperature must be" in _one_error_line(err)

@@ -110,6 +110,13 @@ def run(args: argparse.Namespace) -> int:
     assert t is not None
     if len(t) < 3 or not np.all(np.isfinite(table.values)) or not np.all(np.isfinite(t)):
         raise CommandError(f"{args.file}: needs finite times, rates and temperatures")
+    die = limits.DIE_TEMPERATURE_C
+    bad = np.flatnonzero((table.values[:, 3] < die.low) | (table.values[:, 3] > die.high))
+    if bad.size:
+        try:
+            die.check(float(table.values[bad[0], 3]), table.where(bad[0]))
+        except limits.LimitError as exc:
+            raise CommandError(str(exc)) from None
     try:  # strictly increasing, named by line (a thermal log may pause: no gap check)
         step = check_time_column(t, table.where, gap_factor=math.inf)
     except RateFileError as exc:
