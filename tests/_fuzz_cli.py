@@ -199,6 +199,24 @@ def declared_size(name: str, data: bytes, rng: random.Random) -> bytes:
     return data
 
 
+def _temperatures(data: bytes, rng: random.Random) -> bytes:
+    """The thermal CSV with its temperature column as plateaus (fewer distinct values than a
+    cubic needs), a constant, or one absurd value."""
+    lines = data.split(b"\n")
+    rows = [i for i, line in enumerate(lines) if line[:1].isdigit()]
+    choice = rng.randrange(3)
+    for k, i in enumerate(rows):
+        cells = lines[i].split(b",")
+        if choice == 0:
+            cells[-1] = b"20" if k < len(rows) // 2 else b"40"
+        elif choice == 1:
+            cells[-1] = b"25"
+        elif k == len(rows) // 3:
+            cells[-1] = rng.choice((b"1e12", b"-300", b"1e308"))
+        lines[i] = b",".join(cells)
+    return b"\n".join(lines)
+
+
 def _huge_npy() -> bytes:
     header = "{'descr': '<f8', 'fortran_order': False, 'shape': (100000000000, 3), }"
     header += " " * (63 - (len(header) + 10) % 64) + "\n"
@@ -217,6 +235,8 @@ def mutated(fmt: CliFormat, seed: int) -> tuple[bytes, str]:
         return declared_size(fmt.name, data, rng), "declared size"
     if fmt.name == "recording-csv" and kind < 0.2:
         return declared_size(fmt.name, data, rng), "replay span"
+    if fmt.name == "thermal-csv" and kind < 0.2:  # temperatures a fit cannot use
+        return _temperatures(data, rng), "temperatures"
     from _fuzz_formats import FuzzFormat
 
     proxy = FuzzFormat(fmt.name, fmt.seed, lambda path: None, lambda: (), fmt.text)
