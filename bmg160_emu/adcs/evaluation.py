@@ -75,11 +75,14 @@ def readout_options(scenario: Scenario) -> dict[str, Any]:
     if unknown:
         raise ScenarioError(f"readout: unknown keys {sorted(unknown)}")
     options = {**READOUT_DEFAULTS, **scenario.readout}
-    if options["range_dps"] not in RANGE_CODE_BY_DPS:
-        raise ScenarioError(f"readout: range_dps must be one of {sorted(RANGE_CODE_BY_DPS)}")
-    if options["bandwidth_code"] not in range(8):
+    if not isinstance(options["range_dps"], int) or options["range_dps"] not in RANGE_CODE_BY_DPS:
+        raise ScenarioError(f"readout: range_dps must be one of {sorted(RANGE_CODE_BY_DPS)}, "
+                            f"not {options['range_dps']!r}"[:200])  # a list is unhashable
+    code = options["bandwidth_code"]
+    if isinstance(code, bool) or not isinstance(code, int) or code not in range(8):
         raise ScenarioError("readout: bandwidth_code must be 0..7 (spec 5.3)")
-    if options["bias"] not in ("none", "profile", "calibrate"):
+    if not isinstance(options["bias"], str) or options["bias"] not in ("none", "profile",
+                                                                        "calibrate"):
         raise ScenarioError("readout: bias must be 'none', 'profile' or 'calibrate'")
     try:  # limits.Bounded: finite, in range, one line naming the key
         for key, bounded in READOUT_LIMITS.items():
