@@ -35,6 +35,7 @@ LAYERS = {  # first name under bmg160_emu -> layer (a module may import its laye
     "bus": 3,
     "device": 2,
     "clock": 1, "durations": 1, "noise": 1,
+    "limits": 0,
 }
 
 # Names with a leading underscore that are public by their owner's documentation, used

@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from bmg160_emu import limits
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
 from bmg160_emu.commands._common import (
     Subparsers,
     add_command_parser,
+    bounded_option,
     check_writable,
     run_script_file,
 )
@@ -42,10 +44,10 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--unit", choices=("dps", "counts"), default="dps",
                         help="unit of the x, y, z data (default: dps)")
     parser.add_argument(
-        "--data-range", type=int, default=None, metavar="DPS", choices=sorted(RANGE_CODE_BY_DPS),
+        "--data-range", type=bounded_option(limits.FULL_SCALE_DPS), default=None, metavar="DPS", choices=sorted(RANGE_CODE_BY_DPS),
         help="for --unit counts without a settings line: the range they were recorded at",
     )
-    parser.add_argument("--max-gap-factor", type=float, default=3.0, metavar="F",
+    parser.add_argument("--max-gap-factor", type=bounded_option(limits.GAP_FACTOR), default=3.0, metavar="F",
                         help="a time step over F times the median step is a gap (default 3)")
     parser.add_argument("--loop", action="store_true", help="start over at the end (default: hold)")
     parser.add_argument("-o", "--output", type=Path, default=None,
@@ -58,6 +60,7 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device import spec_choices
+    from bmg160_emu.durations import check_simulated_time
     from bmg160_emu.session.playback import ReplayDataError, ReplaySource, load_replay_data
     from bmg160_emu.session.record import record, write_recording
 
@@ -82,6 +85,12 @@ def run(args: argparse.Namespace) -> int:
     ReplaySource(data, loop=args.loop).attach(chip)
     if args.output is not None:
         duration = data.duration_s + data.median_step_s
+        try:  # checked before recording: a span of 2e8 s asked for 45 GiB
+            check_simulated_time(duration, f"{duration:g} s", f"{args.data}: the replay span")
+            limits.RECORD_SAMPLES.check(round(duration * chip.odr_hz),
+                                        f"{args.data}: a replay of {duration:g} s")
+        except ValueError as exc:  # LimitError is one
+            raise CommandError(f"{exc} (at {chip.odr_hz:g} Hz)") from None
         rec = record(chip, duration)
         rec.metadata["replayed"] = str(args.data)
         rec.true_rate_dps = None  # the truth behind real data is unknown
