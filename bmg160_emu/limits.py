@@ -162,6 +162,9 @@ POLYNOMIAL_ORDER = Bounded("polynomial order", 0, 3, integer=True,
 RECORD_SAMPLES = Bounded("samples to record", 1, 100_000_000, integer=True,
                         reason="memory: record holds 56 bytes a sample until it writes them; "
                                "1e8 samples (5.6 GB) are 13.9 h at 2000 Hz, 11.6 days at 100 Hz")
+GUEST_TIMEOUT_S = Bounded("timeout", 1.0, 86_400.0, "s",
+                          reason="wall time for a command in a kernel guest: a second (a boot "
+                                 "takes about that) to a day")
 I2C_BUS = Bounded("bus", 0, 2**20 - 1, integer=True,
                   reason="Linux numbers /dev/i2c-N below I2C_MINORS, 2**20 (drivers/i2c/i2c-dev.c)")
 ALLAN_DEVIATION_DPS = Bounded("Allan deviation", 0.0, 1e6, "deg/s",

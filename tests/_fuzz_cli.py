@@ -414,6 +414,8 @@ NUMERIC_OPTIONS: dict[str, tuple[str, ...]] = {
     "firmware capture --odr": ("firmware", "capture", "--seconds", "1", "--odr", "{v}",
                                "--output", "{tmp}/s.txt"),
     "firmware build --seed": ("firmware", "build", "--seed", "{v}", "--out", "{tmp}/fw"),
+    # an unknown engine after the value: a valid timeout (1.5) ends there, no guest boots
+    "kernel run --timeout": ("kernel", "run", "--timeout", "{v}", "--engine", "none", "--", "true"),
     "stub --duration": ("stub", "--bus", "99", "--duration", "{v}"),
     "stub --max-refresh-hz": ("stub", "--bus", "99", "--max-refresh-hz", "{v}"),
     "stub --bus": ("stub", "--bus", "{v}", "--duration", "1s"),

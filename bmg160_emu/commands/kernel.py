@@ -9,8 +9,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bmg160_emu import limits
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import Subparsers, add_command_parser
+from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
 
 EPILOG = """\
 examples:
@@ -69,7 +70,7 @@ def register(subparsers: Subparsers) -> None:
     run.add_argument("--results", type=Path, default=None, metavar="DIR",
                      help="a folder COMMAND may write (created; default: a temporary one, "
                           "removed afterwards)")
-    run.add_argument("--timeout", type=float, default=600.0, metavar="SECONDS",
+    run.add_argument("--timeout", type=bounded_option(limits.GUEST_TIMEOUT_S), default=600.0, metavar="SECONDS",
                      help="give up on COMMAND after this long (default 600)")
     run.add_argument("--console", type=Path, default=None, metavar="FILE",
                      help="write the guest's console (kernel messages) to FILE")
