@@ -183,7 +183,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _progress(total: int):
-    if not sys.stderr.isatty():
+    from bmg160_emu.commands._extras import available
+
+    if not sys.stderr.isatty() or not available("tqdm"):  # a bar is a [noise] nicety
         return None
     from tqdm import tqdm
 
