@@ -75,7 +75,7 @@ def _say_what_a_long_test_does(request: pytest.FixtureRequest) -> None:
     reporter = request.config.pluginmanager.get_plugin("terminalreporter")
     if reporter is None:
         return
-    marker = {"slow": "a long statistical record", "kernel": "a Linux guest under QEMU",
+    marker = {"slow": "a long test", "kernel": "a Linux guest under QEMU",
               "firmware": "the AVR firmware in simavr", "umockdev": "a umockdev session"}[name]
     reporter.ensure_newline()
     reporter.write_line(f"[{name}] {request.node.nodeid}: running {marker}...")
