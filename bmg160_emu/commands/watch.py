@@ -9,7 +9,8 @@ from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
-  bmg160-emu script bringup.script --realtime --watch     # a watchable session
+  python3 examples/watch_session.py                       # a two-minute session to watch
+  bmg160-emu script bringup.script --realtime --watch     # a short one (0.1 s)
   bmg160-emu watch                                        # attach to the newest session
   bmg160-emu watch --list
   bmg160-emu watch --socket /run/user/1000/bmg160-emu/4242-0.sock
