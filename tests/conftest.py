@@ -11,6 +11,7 @@ taken for a hang.
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 import pytest
@@ -77,5 +78,8 @@ def _say_what_a_long_test_does(request: pytest.FixtureRequest) -> None:
         return
     marker = {"slow": "a long test", "kernel": "a Linux guest under QEMU",
               "firmware": "the AVR firmware in simavr", "umockdev": "a umockdev session"}[name]
-    reporter.ensure_newline()
-    reporter.write_line(f"[{name}] {request.node.nodeid}: running {marker}...")
+    capture = request.config.pluginmanager.get_plugin("capturemanager")
+    # out of the test's capture: the line must reach the terminal before the long part
+    with capture.global_and_fixture_disabled() if capture else contextlib.nullcontext():
+        reporter.ensure_newline()
+        reporter.write_line(f"[{name}] {request.node.nodeid}: running {marker}...")
