@@ -7,8 +7,10 @@ Each case runs the command in a fresh interpreter where the package cannot be im
 from __future__ import annotations
 
 import re
+import shutil
 import subprocess
 import sys
+import tempfile
 import textwrap
 from pathlib import Path
 
@@ -141,3 +143,19 @@ def test_the_core_depends_on_numpy_and_smbus2_only():
         "project"]["dependencies"]
     names = {re.split(r"[\[<>=;! ]", req, maxsplit=1)[0] for req in deps}
     assert names == {"numpy", "smbus2", "tomli"}
+
+
+def test_watch_without_rich_names_the_watch_extra(tmp_path, monkeypatch):
+    from bmg160_emu.device.chip import BMG160
+    from bmg160_emu.watch.session import WatchServer
+
+    folder = Path(tempfile.mkdtemp(prefix="bmgx", dir="/tmp"))  # short: a socket path
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(folder))
+    try:
+        with WatchServer({0x68: BMG160(seed=1)}, [], title="test") as server:
+            line = _one_line_error(_without(("rich",), ["watch", "--socket", str(server.path)],
+                                            tmp_path))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    assert line == ("bmg160-emu watch: error: watch needs the [watch] extra (rich): "
+                    "pip install 'bmg160-emu[watch]'")

@@ -61,10 +61,13 @@ def run(args: argparse.Namespace) -> int:
             path = sockets[0]
         try:
             from bmg160_emu.watch.view import run_viewer
-        except ImportError:
-            raise CommandError(
-                "the live view needs the rich package: pip install 'bmg160-emu[watch]'"
-            ) from None
+        except ModuleNotFoundError as exc:
+            from bmg160_emu.commands._extras import missing_message
+
+            message = missing_message("watch", exc.name or "")
+            if message is None:
+                raise
+            raise CommandError(message) from None
         return run_viewer(path)
     except WatchError as exc:
         raise CommandError(str(exc)) from None
