@@ -1,10 +1,12 @@
 """The default test selection: quick by default, whole with ``--all`` (CI).
 
-``python3 -m pytest`` leaves out the tests marked ``slow``, ``kernel``, ``firmware`` and
-``umockdev`` (long statistical records, QEMU guests, the AVR tool chain, umockdev
-sessions: minutes each) and says so in its header; ``python3 -m pytest --all`` (or
-``BMG160_ALL_TESTS=1``) runs them, as .ci/run does. An explicit ``-m EXPR`` chooses by
-itself (``pytest -m kernel`` runs the kernel tests). docs/contributing.md has the times.
+``python3 -m pytest`` leaves out the tests marked ``slow``, ``docs``, ``kernel``,
+``firmware`` and ``umockdev`` (long records and simulations, the documentation's examples
+run as written, QEMU guests, the AVR tool chain, umockdev sessions) and says so in its
+header; ``python3 -m pytest --all`` (or ``BMG160_ALL_TESTS=1``) runs them, as .ci/run
+does. An explicit ``-m EXPR`` chooses by itself (``pytest -m kernel`` runs the kernel
+tests). The tests long by their time alone are listed here, with the seconds measured,
+rather than decorated in each file (LONG_TESTS). docs/contributing.md has the times.
 Before each long test a line says what it is about to do, so a minute of silence is not
 taken for a hang.
 """
@@ -13,11 +15,50 @@ from __future__ import annotations
 
 import contextlib
 import os
+from pathlib import Path
 
 import pytest
 
 # markers left out of the default run; their descriptions are in pyproject.toml
-LONG = ("slow", "kernel", "firmware", "umockdev")
+LONG = ("slow", "docs", "kernel", "firmware", "umockdev")
+
+# Tests left out of the quick run for their time: node id (or its start) -> marker and the
+# seconds --durations=0 measured for it in the whole quick suite (3 December 2026, two cores
+# at load 6-7 from other jobs: 1702 s then, about 2.5x a quiet machine's time). A renamed
+# test left in this list is an error when the whole suite is collected.
+LONG_TESTS = {
+    "tests/test_docs_run.py::": ("docs", 421.2),  # every page's examples, 48 pages
+    "tests/test_chip_error_budget.py::test_over_an_orbit_the_bias_follows_its_polynomial": (
+        "slow", 200.7),
+    "tests/test_basilisk_module.py::test_chip_time_is_basilisk_time_to_the_nanosecond_over_an_"
+    "orbit": ("slow", 136.2),
+    "tests/test_basilisk_montecarlo.py::test_campaign_is_identical_in_process_and_on_dask": (
+        "slow", 93.6),
+    "tests/test_examples.py::test_example_test_suite_passes": ("slow", 33.3),
+    "tests/test_bus_properties.py::test_any_operation_sequence_matches_smbus2": ("slow", 33.2),
+    "tests/test_thermal_fit.py::test_without_a_noise_model_the_residuals_give_one": (
+        "slow", 29.7),
+    "tests/test_plots.py::test_identify_figures_of_a_firmware_capture_are_written_whole": (
+        "slow", 22.3),
+    "tests/test_basilisk_detumble.py::test_report_and_figures_are_written": ("slow", 17.9),
+    "tests/test_thermal_fit.py::test_block_covariance_matches_simulated_block_means": (
+        "slow", 17.1),
+    "tests/test_chip_properties.py::test_per_sample_engines_do_not_change_the_data": (
+        "slow", 16.6),
+    "tests/test_thermal_fit.py::test_the_thermal_command_fits_a_chamber_log_and_exports": (
+        "slow", 16.5),
+    "tests/test_identify_exports.py::test_units_rad_s_scales_every_rate_quantity": (
+        "slow", 15.6),
+    "tests/test_basilisk_detumble.py::test_the_documented_command_writes_report_summary": (
+        "slow", 15.0),
+    "tests/test_interrupted_commands.py::test_an_interrupted_generate_leaves_an_honest": (
+        "slow", 12.6),
+    "tests/test_basilisk_detumble.py::test_attitude_error_growth_between_fixes": ("slow", 11.2),
+    "tests/test_identify_exports.py::test_skip_poles_and_flicker_options": ("slow", 11.2),
+    "tests/test_identify_cli.py::test_progress_bar_only_on_a_terminal": ("slow", 10.9),
+    "tests/test_identify_output_stage.py::test_a_curve_read_in_the_wrong_units_is_warned": (
+        "slow", 10.2),
+}
 ALL_ENV = "BMG160_ALL_TESTS"
 
 
@@ -36,7 +77,23 @@ def _long_marker(item: pytest.Item) -> str | None:
     return next((name for name in LONG if item.get_closest_marker(name) is not None), None)
 
 
+def _mark_long_tests(config: pytest.Config, items: list[pytest.Item]) -> None:
+    used = set()
+    for item in items:
+        for start, (marker, _seconds) in LONG_TESTS.items():
+            if item.nodeid.startswith(start):
+                item.add_marker(getattr(pytest.mark, marker))
+                used.add(start)
+    whole = [Path(a).resolve() for a in config.args] == [config.rootpath / "tests"]
+    stale = sorted(set(LONG_TESTS) - used)
+    if whole and stale:
+        raise pytest.UsageError(f"tests/conftest.py LONG_TESTS names tests that no longer "
+                                f"exist: {', '.join(stale)}")
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m and -k select: `pytest -m slow` sees the marks
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    _mark_long_tests(config, items)
     if _everything(config) or config.getoption("markexpr"):
         return
     keep, left = [], []
@@ -76,7 +133,8 @@ def _say_what_a_long_test_does(request: pytest.FixtureRequest) -> None:
     reporter = request.config.pluginmanager.get_plugin("terminalreporter")
     if reporter is None:
         return
-    marker = {"slow": "a long test", "kernel": "a Linux guest under QEMU",
+    marker = {"slow": "a long test", "docs": "a page's examples as written",
+              "kernel": "a Linux guest under QEMU",
               "firmware": "the AVR firmware in simavr", "umockdev": "a umockdev session"}[name]
     capture = request.config.pluginmanager.get_plugin("capturemanager")
     # out of the test's capture: the line must reach the terminal before the long part

@@ -68,8 +68,8 @@ def test_the_default_run_leaves_the_long_markers_out_and_says_so(suite):
     passed, out = _pytest(suite)
     assert passed == {"plain"}
     assert "4 deselected" in out
-    assert "the quick suite; tests marked slow, kernel, firmware, umockdev are left out" in out
-    assert "4 long tests (slow, kernel, firmware, umockdev) left out" in out
+    assert "the quick suite; tests marked slow, docs, kernel, firmware, umockdev are left out" in out
+    assert "4 long tests (slow, docs, kernel, firmware, umockdev) left out" in out
 
 
 def test_all_runs_everything_and_says_what_each_long_test_runs(suite):
