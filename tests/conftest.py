@@ -85,7 +85,11 @@ def _mark_long_tests(config: pytest.Config, items: list[pytest.Item]) -> None:
                 item.add_marker(getattr(pytest.mark, marker))
                 used.add(start)
     whole = [Path(a).resolve() for a in config.args] == [config.rootpath / "tests"]
-    stale = sorted(set(LONG_TESTS) - used)
+    # a file skipped whole (Basilisk not installed) collects nothing: not a stale entry
+    files = {item.nodeid.partition("::")[0] for item in items}
+    stale = sorted(start for start in set(LONG_TESTS) - used
+                   if start.partition("::")[0] in files
+                   or not (config.rootpath / start.partition("::")[0]).is_file())
     if whole and stale:
         raise pytest.UsageError(f"tests/conftest.py LONG_TESTS names tests that no longer "
                                 f"exist: {', '.join(stale)}")
