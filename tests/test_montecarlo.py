@@ -144,6 +144,7 @@ def test_command_errors_are_one_line_and_exit_2(tmp_path, capsys, args, message)
     assert message in err and "Traceback" not in err
 
 
+@needs_dask  # without Dask: the [montecarlo] extra is named (test_extras.py)
 def test_a_scheduler_address_that_is_not_one_is_a_clear_error(tmp_path, capsys):
     scenario = tmp_path / "s.toml"
     scenario.write_text(SCENARIO_TOML)
