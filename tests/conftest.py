@@ -58,6 +58,19 @@ LONG_TESTS = {
     "tests/test_identify_cli.py::test_progress_bar_only_on_a_terminal": ("slow", 10.9),
     "tests/test_identify_output_stage.py::test_a_curve_read_in_the_wrong_units_is_warned": (
         "slow", 10.2),
+    # the longest left after that, from the quick suite on a fresh clone (load 6-8, 286 s)
+    "tests/test_gmwm_estimator.py::test_selection_finds_two_poles_and_orders_them": (
+        "slow", 18.7),
+    "tests/test_identify_cli.py::test_summary_profile_and_adev_plot": ("slow", 7.3),
+    "tests/test_identify_roundtrip.py::test_identified_profile_loads_back_into_the_generator": (
+        "slow", 7.3),
+    "tests/test_attitude.py::test_quaternions_stay_unit_norm_over_a_long_tumble": ("slow", 6.8),
+    "tests/test_identify_exports.py::test_adev_out_read_back_as_a_curve_gives_the_same_fit": (
+        "slow", 5.9),
+    "tests/test_gmwm_theory.py::test_finite_covariance_is_the_quadratic_forms_covariance[model5-"
+    "params5-1500]": ("slow", 5.9),
+    "tests/test_gmwm_theory.py::test_finite_covariance_is_the_quadratic_forms_covariance[model4-"
+    "params4-1500]": ("slow", 5.3),
 }
 ALL_ENV = "BMG160_ALL_TESTS"
 
