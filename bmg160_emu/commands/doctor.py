@@ -84,7 +84,7 @@ ROUTES = {**EXTRA_ROUTES, **SYSTEM_ROUTES}
 
 def _python_headers() -> bool:
     include = sysconfig.get_paths().get("include")
-    return bool(include) and (Path(include) / "Python.h").is_file()
+    return include is not None and (Path(include) / "Python.h").is_file()
 
 
 def _umockdev_typelib() -> bool:
