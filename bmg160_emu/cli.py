@@ -20,6 +20,7 @@ from collections.abc import Sequence
 
 from bmg160_emu import __version__, commands
 from bmg160_emu.commands._common import CommandError  # the commands raise it; old name here
+from bmg160_emu.commands._extras import missing_message
 
 __all__ = ["CommandError", "build_parser", "main"]
 
@@ -63,6 +64,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except CommandError as exc:
         print(f"bmg160-emu {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as exc:  # an optional package: the extra that brings it
+        message = missing_message(args.command, exc.name or "")
+        if message is None:
+            raise
+        print(f"bmg160-emu {args.command}: error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
         terminated = isinstance(exc, Terminated)

@@ -135,6 +135,7 @@ def test_generate_bandwidth_passes_the_noise_through_the_chip_filter(tmp_path, c
     out = tmp_path / "bw.npy"
     assert main(["generate", "--profile", "paper", "--bandwidth", "5", "--duration", "20min",
                  "--seed", "2", "-o", str(out)]) == 0
+    capsys.readouterr()  # generate's report, not identify's JSON
     data = np.load(out)
     # BW code 5: ODR 100 Hz, 12 Hz low-pass: the per-sample std of the white part drops
     # from N sqrt(100) = 0.178 to about N sqrt(pi/2 x 12 x 1.1) = 0.081 (noise bandwidth of a

@@ -83,3 +83,19 @@ def test_a_chip_read_through_fake_smbus_imports_nothing_heavy() -> None:
         """
     )
     assert _heavy(modules) == []
+
+
+def test_a_chip_read_imports_no_logging_resources_or_archives() -> None:
+    # issue 26: importlib.resources (with tempfile, zipfile, shutil, lzma) and logging were
+    # ~15 % of a cold chip; the built-in profiles are read from the package folder and the
+    # loggers are looked up when they have something to say
+    modules = _imported_after(
+        """
+        import bmg160_emu
+        c = bmg160_emu.BMG160(seed=1)
+        c.advance(0.01)
+        c.read(2, 6)
+        """
+    )
+    unwanted = {"logging", "importlib.resources", "tempfile", "zipfile", "shutil", "lzma"}
+    assert sorted(unwanted & modules) == []

@@ -16,6 +16,11 @@ from bmg160_emu.adcs.montecarlo import (
 )
 from bmg160_emu.adcs.scenarios import scenario_from_dict
 from bmg160_emu.cli import main
+from bmg160_emu.commands._extras import available
+
+# the [montecarlo] extra; the default test install ([test]) leaves Dask out
+needs_dask = pytest.mark.skipif(not available("distributed"),
+                                reason="Dask is not installed: pip install 'bmg160-emu[montecarlo]'")
 
 WHITE = {ax: {"N": 1.779073e-2, "B": 0.0, "T": 1.0, "K": 0.0, "bias": 0.0} for ax in "xyz"}
 
@@ -44,6 +49,7 @@ def _short():
         "readout": {"grid_s": 0.5, "bias": "profile"}})
 
 
+@needs_dask
 def test_same_seeds_give_identical_results_in_process_and_on_a_dask_local_cluster():
     seeds = [3, 4, 5, 6]
     in_process = run_montecarlo(_short(), seeds, scheduler="sync", progress=False)
@@ -141,6 +147,7 @@ def test_command_errors_are_one_line_and_exit_2(tmp_path, capsys, args, message)
     assert message in err and "Traceback" not in err
 
 
+@needs_dask  # without Dask: the [montecarlo] extra is named (test_extras.py)
 def test_a_scheduler_address_that_is_not_one_is_a_clear_error(tmp_path, capsys):
     scenario = tmp_path / "s.toml"
     scenario.write_text(SCENARIO_TOML)
@@ -150,6 +157,7 @@ def test_a_scheduler_address_that_is_not_one_is_a_clear_error(tmp_path, capsys):
     assert "cannot reach the Dask scheduler at 'bogus'" in err and "Traceback" not in err
 
 
+@needs_dask
 def test_an_existing_dask_cluster_given_by_address_gives_the_same_results():
     # In a fresh interpreter: after the in-process cluster and command tests above, a new
     # LocalCluster's IO loop in this process did not start within distributed's 10 s (seen in

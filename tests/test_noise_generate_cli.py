@@ -96,3 +96,14 @@ def test_negative_seed_is_named_in_the_error(tmp_path, capsys):
         main(["generate", "--duration", "1s", "--seed=-1", "-o", str(tmp_path / "n.npy")])
     assert exc.value.code == 2
     assert "argument --seed: seed must be an integer from 0" in capsys.readouterr().err
+
+
+def test_generate_reports_what_it_wrote(tmp_path, capsys):
+    out = tmp_path / "n.npy"
+    assert main(["generate", "--rate", "400", "--duration", "2s", "--seed", "4", "-o",
+                 str(out)]) == 0
+    report = capsys.readouterr().out.strip()
+    samples = np.load(out).shape[0]
+    assert report == (f"wrote {out}: {samples:,} samples x 3 axes, deg/s, at 400 Hz (2 s); "
+                      "profile paper, physical mode, seed 4")
+    assert samples == 800

@@ -271,3 +271,56 @@ def test_run_watch_serves_an_unmodified_programs_session(runtime_dir):
     finally:
         session.kill()
         session.wait(timeout=10)
+
+
+def test_a_64_column_pane_shows_registers_rates_and_changes_stacked():
+    # tmux splits a pane beside the session: 64 columns used to show every value as "..."
+    from rich.console import Console
+
+    from bmg160_emu.watch.view import WatchView
+
+    chip = BMG160(seed=1, noise=False, true_rate=(10.0, -20.0, 30.0))
+    bus = I2CBus(1, {0x68: chip})
+    server = WatchServer({0x68: chip}, [bus.log], path=None)
+    view = WatchView()
+    bus.write_byte_data(0x68, address_of("RANGE"), 0x01)
+    chip.advance(0.05)
+    view.update(server.snapshot(), now=100.0)
+    console = Console(record=True, width=64, force_terminal=True)
+    console.print(view.render(console.width))
+    lines = console.export_text().splitlines()
+    assert max(len(line) for line in lines) <= 64
+    text = "\n".join(lines)
+    assert "0F RANGE         01" in text and "3E FIFO_CONFIG_1 00" in text  # both columns
+    import re
+
+    rates = [float(v) for v in re.findall(r"^│ [xyz] +([-+][\d.]+) °/s", text, re.MULTILINE)]
+    # noise off: the true rates to one LSB of the +-1000 deg/s range
+    assert rates == pytest.approx([10.0, -20.0, 30.0], abs=1000 / 32768)
+    assert re.search(r"FIFO +\d+/100", text)
+    assert "RANGE = 0x01: fixed=0 range=1 (±1000 °/s)" in text
+    # the side column is under the registers, not squeezed beside them
+    assert text.index("°/s") > text.index("1E FIFO_WM_EN")
+
+
+def test_the_shipped_watch_example_runs_long_enough_to_attach_to(runtime_dir):
+    example = Path(__file__).resolve().parent.parent / "examples" / "watch_session.py"
+    env = {k: v for k, v in os.environ.items() if k != "TMUX"}  # no pane opened by the test
+    session = subprocess.Popen([sys.executable, str(example), "--seconds", "6"], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        line = session.stderr.readline()
+        assert "watch this session with: bmg160-emu watch --socket" in line
+        path = Path(line.split("--socket", 1)[1].strip())
+        time.sleep(2.0)  # attached late, as a person opening a second terminal would be
+        seen = []
+        for snapshot in read_snapshots(path):
+            [chip] = snapshot["chips"]
+            seen.append((chip["time_s"], chip["registers"][address_of("RANGE")]))
+            if len(seen) == 15:
+                break
+        assert seen[0][0] >= 2.0 and seen[-1][0] > seen[0][0]  # still live, in real time
+        assert {range_code for _, range_code in seen} <= {0x02, 0x03}
+    finally:
+        session.terminate()
+        session.wait(timeout=30)

@@ -1,8 +1,8 @@
 """Cold start of the chip path, against ``python -c "import numpy"`` measured in the same run.
 
-Target (issue 10): a fresh interpreter that imports the package, builds a chip, advances it
-and reads the rate registers takes at most 2x the time of a fresh interpreter importing
-numpy (which the chip needs anyway). Runs are interleaved (reference, chip, reference, ...)
+Targets (issue 26): a fresh interpreter that imports the package, builds a chip, advances
+it and reads the rate registers takes at most 1.6x the time of a fresh interpreter
+importing numpy (which the chip needs anyway), and with a FakeSMBus read at most 1.8x. Runs are interleaved (reference, chip, reference, ...)
 so that load from other processes hits both sides alike; each figure is the median of
 ``--runs`` runs.
 
@@ -10,11 +10,16 @@ so that load from other processes hits both sides alike; each figure is the medi
 
 ``--why`` adds the packages whose imports cost the chip path most (``python -X importtime``,
 self time of their modules summed), the first thing to read when the ratio grows.
+
+The runs may write .pyc files (PYTHONDONTWRITEBYTECODE is cleared for them), as an
+installed package has them: without, every run compiles the package's sources again and
+measures the compiler.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -32,11 +37,13 @@ COMMANDS = {
 }
 REFERENCE = "reference: import numpy"
 TARGET = "chip: import, BMG160(seed=1), advance, read"
+TARGETS = {TARGET: 1.6, "chip + FakeSMBus read": 1.8}
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 
 def _run_s(code: str) -> float:
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-c", code], check=True)
+    subprocess.run([sys.executable, "-c", code], check=True, env=ENV)
     return time.perf_counter() - start
 
 
@@ -44,7 +51,7 @@ def _import_costs(code: str, top: int) -> list[tuple[int, str]]:
     """(self time in us, top-level package) of the packages whose modules cost ``code`` most."""
     result = subprocess.run(
         [sys.executable, "-X", "importtime", "-c", code],
-        capture_output=True, text=True, check=True,
+        capture_output=True, text=True, check=True, env=ENV,
     )
     costs: dict[str, int] = {}
     for line in result.stderr.splitlines():
@@ -76,7 +83,8 @@ def main() -> int:
     for name, value in medians.items():
         spread = f"{min(times[name]) * 1e3:.0f}-{max(times[name]) * 1e3:.0f}"
         print(f"{name:45s} {value * 1e3:7.0f} ms  ({spread} ms)  {value / ref:5.2f} x numpy")
-    print(f"ratio chip / import numpy: {medians[TARGET] / ref:.2f}   (target <= 2)")
+    for name, target in TARGETS.items():
+        print(f"ratio {name} / import numpy: {medians[name] / ref:.2f}   (target <= {target})")
     if args.why:
         print("packages costing the chip path most (python -X importtime, self time summed):")
         for us, name in _import_costs(CHIP, 12):

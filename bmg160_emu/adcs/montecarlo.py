@@ -9,12 +9,14 @@ same numbers, bit for bit, whatever the scheduler.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -144,11 +146,13 @@ def parse_seeds(text: str | None, runs: int | None) -> list[int]:
 
 
 def _progress(total: int, enabled: bool | None):
-    from tqdm import tqdm
-
     # enabled None: a bar only on a terminal, so logs and CI output stay clean
     disable = (not sys.stderr.isatty()) if enabled is None else not enabled
-    return tqdm(total=total, unit="run", desc="monte carlo", disable=disable)
+    if disable:  # no bar: tqdm (an extra) is not needed
+        return contextlib.nullcontext(SimpleNamespace(update=lambda n: None))
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="run", desc="monte carlo")
 
 
 class Interrupted(KeyboardInterrupt):

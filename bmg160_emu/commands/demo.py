@@ -198,6 +198,9 @@ def run(args: argparse.Namespace) -> int:
         for address, chip in chips.items():
             chip.hold_data_int = True  # emulator convenience so polling sees data_int (6.3)
             print(f"BMG160 at 0x{address:02X} on emulated /dev/i2c-{args.bus} (smbus2)")
+            print(_given(args, chip, range_code, bw_code))
+            print("(spec N.N below: section N.N of the BMG160 data sheet, "
+                  "BST-BMG160-DS000-09)")
             with smbus2.SMBus(args.bus) as bus:
                 driver = DemoDriver(bus, address, print)
                 try:
@@ -212,3 +215,37 @@ def run(args: argparse.Namespace) -> int:
         transactions = buses[args.bus].log.total
     print(f"{transactions} bus transactions; run with another --seed or --true-rate to vary.")
     return 0
+
+
+REFERENCE_S = 20.0  # seconds of the reference chip behind the expected std (4000 samples at 200 Hz)
+
+
+def _given(args: argparse.Namespace, chip: Any, range_code: int, bw_code: int) -> str:
+    """What the chip is given (true rate, noise profile) and the std a reader should expect
+    at rest: measured on REFERENCE_S of a second chip built from the same options (same
+    seed, range and bandwidth), so the streamed values below can be judged."""
+    rate = getattr(args, "true_rate", None) or (0.0, 0.0, 0.0)
+    rate_text = " ".join(f"{r:g}" for r in rate)
+    if getattr(args, "no_noise", False):
+        return f"given: true rate {rate_text} deg/s (x y z), noise off (--no-noise)"
+    from bmg160_emu.commands._chip_options import configs_from_args
+
+    config = next(c for c in configs_from_args(args) if c.address == chip.address)
+    std = _expected_std(args, config, range_code, bw_code)
+    std_text = " ".join(f"{s:.3f}" for s in std)
+    return (f"given: true rate {rate_text} deg/s (x y z), noise profile {config.profile!r}\n"
+            f"expect: samples scattered with a std of {std_text} deg/s per axis ({REFERENCE_S:g} s "
+            "of the same chip), about the true rate plus the turn-on bias")
+
+
+def _expected_std(args: argparse.Namespace, config: Any, range_code: int, bw_code: int) -> Any:
+    from bmg160_emu.clock import VirtualClock
+    from bmg160_emu.session.record import record
+
+    reference = config.build(args.seed, VirtualClock())
+    reference.write(BGW_SOFTRESET, [SOFT_RESET])
+    reference.advance(STARTUP_S)
+    reference.write(BW, [bw_code])
+    reference.write(RANGE, [range_code])
+    rec = record(reference, REFERENCE_S)
+    return (rec.counts / rec.lsb_per_dps).std(axis=0)

@@ -15,8 +15,12 @@ EPILOG = """\
 examples:
   bmg160-emu generate --profile paper --rate 200 --duration 2h --seed 1 -o noise.npy
   bmg160-emu generate --profile datasheet --rate 2000 --duration 10min --seed 3 -o noise.csv
-  bmg160-emu generate --profile my-gyro.toml --mode physical --duration 1d -o day.npy
-  bmg160-emu generate --profile my-gyro.toml --bandwidth 7 --duration 2h -o filtered.npy
+  bmg160-emu generate --profile examples/profiles/my-gyro.toml --duration 1d -o day.npy
+  bmg160-emu generate --profile examples/profiles/my-gyro.toml --bandwidth 7 --duration 2h -o filtered.npy
+  bmg160-emu generate --profile examples/profiles/imu.yaml --duration 10min -o kalibr.npy
+
+The examples/ paths are in the source tree (git clone); a profile of your own is any TOML
+file of that form (docs/noise-engine.md).
 
 The output holds deg/s per axis, constant bias included: .npy is an (n, 3) float64 array;
 .csv has a header t_s,x_dps,y_dps,z_dps (sample k at t = (k + 1) / rate) after '#' lines
@@ -47,7 +51,9 @@ def register(subparsers: Subparsers) -> None:
         EPILOG,
     )
     parser.add_argument(
-        "--profile", default="paper", help="built-in profile (paper, datasheet) or a TOML file"
+        "--profile", default="paper",
+        help="built-in profile (paper, datasheet), a TOML profile, a Kalibr imu.yaml (.yaml, "
+        ".yml) or a MATLAB gyroparams .m file (default paper)"
     )
     parser.add_argument(
         "--rate",
@@ -185,11 +191,16 @@ def run(args: argparse.Namespace) -> int:
               f"{total:,} samples; {args.output} holds those {written:,} "
               f"(its header says so)", file=sys.stderr)
         return 143 if name == "SIGTERM" else 130
+    print(f"wrote {args.output}: {written:,} samples x 3 axes, deg/s, at {gen.rate_hz:g} Hz "
+          f"({total / gen.rate_hz:g} s); profile {gen.profile.name}, {gen.mode} mode, seed "
+          f"{args.seed}" + (f", output stage {gen.describe()}" if gen.describe() != "none" else ""))
     return 0
 
 
 def _progress(total: int):
-    if not sys.stderr.isatty():
+    from bmg160_emu.commands._extras import available
+
+    if not sys.stderr.isatty() or not available("tqdm"):  # a bar is a [noise] nicety
         return None
     from tqdm import tqdm
 

@@ -40,9 +40,10 @@ def register(subparsers: Subparsers) -> None:
     )
     parser.add_argument(
         "--scheduler",
-        default="local",
-        help="'local' (Dask local cluster, default), 'sync' (this process) or a Dask "
-        "scheduler address such as tcp://host:8786",
+        default=None,
+        help="'local' (Dask local cluster; the default with the [montecarlo] extra), 'sync' "
+        "(this process; the default without Dask) or a Dask scheduler address such as "
+        "tcp://host:8786",
     )
     parser.add_argument(
         "--workers", type=bounded_option(limits.WORKERS), default=None, help="local worker processes (default: all cores)"
@@ -87,14 +88,15 @@ def run(args: argparse.Namespace) -> int:
         from bmg160_emu.commands._common import check_writable
 
         check_writable(Path(args.output))  # before the runs: else all of them would be lost
+    scheduler, progress = _scheduler_and_progress(args.scheduler, args.progress)
     try:
         scenario = load_scenario(args.scenario)
         result = run_montecarlo(
             scenario,
             seeds,
-            scheduler=args.scheduler,
+            scheduler=scheduler,
             workers=args.workers,
-            progress=args.progress,
+            progress=progress,
             percentiles=percentiles,
         )
     except ScenarioError as exc:
@@ -118,3 +120,27 @@ def run(args: argparse.Namespace) -> int:
               + (f" and in {args.output}" if args.output else ""), file=sys.stderr)
         return 143 if result.stopped_by == "SIGTERM" else 130
     return 0
+
+
+def _scheduler_and_progress(scheduler: str | None, progress: bool | None) -> tuple[str, bool | None]:
+    """The scheduler this install can use (Dask's local cluster, or this process without
+    Dask, said on stderr) and the bar (off without tqdm unless asked for)."""
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._extras import available, install_line
+
+    has_dask = available("dask") and available("distributed")
+    if scheduler is None:
+        scheduler = "local" if has_dask else "sync"
+        if not has_dask:
+            print("bmg160-emu montecarlo: Dask is not installed: the runs go in this process "
+                  f"(--scheduler sync); {install_line('montecarlo')} runs them on all cores",
+                  file=sys.stderr)
+    elif scheduler != "sync" and not has_dask:
+        raise CommandError(f"--scheduler {scheduler} needs the [montecarlo] extra (Dask): "
+                           f"{install_line('montecarlo')}, or --scheduler sync")
+    if not available("tqdm"):
+        if progress:
+            raise CommandError("--progress needs the [montecarlo] extra (tqdm): "
+                               f"{install_line('montecarlo')}")
+        progress = False
+    return scheduler, progress

@@ -109,7 +109,9 @@ def run(args: argparse.Namespace) -> int:
         chip.set_true_rate(scenario)
 
     progress = None
-    if sys.stderr.isatty():
+    from bmg160_emu.commands._extras import available
+
+    if sys.stderr.isatty() and available("tqdm"):  # a bar is an extra's nicety, not needed
         from tqdm import tqdm
 
         bar = tqdm(total=round(duration * chip.odr_hz), unit="sample", file=sys.stderr)

@@ -113,7 +113,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         devices = VirtualI2CDevices(buses)
     except UMockdevUnavailable as exc:
-        raise CommandError(str(exc)) from None
+        raise CommandError(f"{exc}; `bmg160-emu doctor umockdev` prints the install lines for "
+                           "this system") from None
     log_file = None
     if args.log is not None:
         try:  # opened now: a bad path is an error before the program runs, not after

@@ -9,7 +9,8 @@ from bmg160_emu.commands._common import Subparsers, add_command_parser
 
 EPILOG = """\
 examples:
-  bmg160-emu script bringup.script --realtime --watch     # a watchable session
+  python3 examples/watch_session.py                       # a two-minute session to watch
+  bmg160-emu script bringup.script --realtime --watch     # a short one (0.1 s)
   bmg160-emu watch                                        # attach to the newest session
   bmg160-emu watch --list
   bmg160-emu watch --socket /run/user/1000/bmg160-emu/4242-0.sock
@@ -60,10 +61,13 @@ def run(args: argparse.Namespace) -> int:
             path = sockets[0]
         try:
             from bmg160_emu.watch.view import run_viewer
-        except ImportError:
-            raise CommandError(
-                "the live view needs the rich package: pip install 'bmg160-emu[watch]'"
-            ) from None
+        except ModuleNotFoundError as exc:
+            from bmg160_emu.commands._extras import missing_message
+
+            message = missing_message("watch", exc.name or "")
+            if message is None:
+                raise
+            raise CommandError(message) from None
         return run_viewer(path)
     except WatchError as exc:
         raise CommandError(str(exc)) from None

@@ -14,7 +14,6 @@ not depend on how far ahead a block was computed.
 
 from __future__ import annotations
 
-import logging
 import math
 import struct
 from collections.abc import Sequence
@@ -24,8 +23,6 @@ import numpy as np
 
 from bmg160_emu.device import spec_choices as choice
 from bmg160_emu.device.lowpass import LowPass
-
-log = logging.getLogger(__name__)
 
 NOISE_CHUNK = 2048  # noise computed in chunks of this many samples (a multiple of the
 # filter's 1024-sample pieces, lowpass.py), each with its filter state kept
@@ -404,7 +401,9 @@ class SensorNoise:
                 f"{odr_hz:g} Hz ODR) instead")
         if note not in self.notes:
             self.notes.append(note)
-            log.info(note)
+            import logging  # only when there is a note: not on a chip's import path
+
+            logging.getLogger(__name__).info(note)
 
 
 class ProfileNoise:

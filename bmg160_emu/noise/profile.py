@@ -29,7 +29,6 @@ import math
 import sys
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -176,9 +175,14 @@ class Profile:
         return out
 
 
+# The package's own folder, not importlib.resources: that import (with tempfile, zipfile,
+# shutil, lzma) was ~10 % of a chip's cold start (issue 26); the package is never zipped.
+BUILTIN_FOLDER = Path(__file__).resolve().parent / "profiles"
+
+
 @functools.lru_cache(maxsize=1)
 def _builtin_names() -> tuple[str, ...]:
-    folder = resources.files("bmg160_emu.noise").joinpath("profiles")
+    folder = BUILTIN_FOLDER
     return tuple(sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml")))
 
 
@@ -235,8 +239,7 @@ def load_profile(name_or_path: str | Path | Profile | Mapping[str, Any] = "paper
 @functools.cache
 def _builtin_profile(name: str) -> Profile:
     """Built-ins are parsed once (Profile is frozen, so sharing it is safe)."""
-    folder = resources.files("bmg160_emu.noise").joinpath("profiles")
-    data = folder.joinpath(f"{name}.toml").read_text(encoding="utf-8")
+    data = (BUILTIN_FOLDER / f"{name}.toml").read_text(encoding="utf-8")
     return _parse(data, origin=f"built-in profile {name!r}", default_name=name)
 
 

@@ -31,6 +31,10 @@ HIGHLIGHT_S = 2.0  # how long a changed register stays highlighted
 DECODED_CHANGES = 6
 FIFO_CAPACITY = 100  # frames (spec 6.5)
 SPARK = "▁▂▃▄▅▆▇█"
+# Below this many columns the side column (rates, FIFO, decoded changes) goes under the
+# registers instead of beside them: the two-column register grid is 40 wide, the side ~62
+# (a tmux pane split beside a session is often 64-80 columns).
+SIDE_BY_SIDE_COLUMNS = 110
 QUIT_KEYS = frozenset("qQ")  # leave the view (the session goes on)
 CHANGED = "bold black on yellow"
 LIVE = "cyan"
@@ -93,7 +97,8 @@ class WatchView:
         for chip in snapshot["chips"]:
             self.chips.setdefault(chip["name"], ChipView()).update(chip, self.now)
 
-    def render(self) -> RenderableType:
+    def render(self, width: int | None = None) -> RenderableType:
+        """The view for a terminal ``width`` columns wide (None: wide)."""
         if self.snapshot is None:
             return Text("waiting for the session's first snapshot ...")
         snap = self.snapshot
@@ -104,21 +109,28 @@ class WatchView:
         )  # fmt: skip
         parts: list[RenderableType] = [head]
         for chip in snap["chips"]:
-            parts.append(self._chip_panel(chip, self.chips[chip["name"]]))
+            parts.append(self._chip_panel(chip, self.chips[chip["name"]], width))
         last = Text("\n".join(snap["last"]) or "(none yet)", overflow="ellipsis", no_wrap=True)
         parts.append(Panel(last, title="last transactions", title_align="left"))
         return Group(*parts)
 
-    def _chip_panel(self, chip: dict[str, Any], view: ChipView) -> Panel:
+    def _chip_panel(self, chip: dict[str, Any], view: ChipView, width: int | None) -> Panel:
+        narrow = width is not None and width < SIDE_BY_SIDE_COLUMNS
+        # in a narrow pane the sparkline gets what the panel leaves after 'x  +10.132 °/s '
+        spark = HISTORY if width is None else max(8, min(HISTORY, width - 4 - 16))
         side = Table.grid(padding=(0, 1))
         side.add_column()
-        side.add_row(self._rates(chip, view))
+        side.add_row(self._rates(chip, view, spark))
         side.add_row(self._fifo_and_lines(chip))
         side.add_row(self._decoded(chip, view))
         body = Table.grid(padding=(0, 2))
         body.add_column()
-        body.add_column()
-        body.add_row(self._register_grid(chip, view), side)
+        if narrow:  # registers, then the rest underneath
+            body.add_row(self._register_grid(chip, view))
+            body.add_row(side)
+        else:
+            body.add_column()
+            body.add_row(self._register_grid(chip, view), side)
         title = (
             f"BMG160 {chip['name']}  t = {chip['time_s']:.3f} s  ODR {chip['odr_hz']:g} Hz  "
             f"{chip.get('power_mode', '')}"
@@ -144,13 +156,14 @@ class WatchView:
             grid.add_row(cells[row], cells[row + half])
         return grid
 
-    def _rates(self, chip: dict[str, Any], view: ChipView) -> Table:
+    def _rates(self, chip: dict[str, Any], view: ChipView, points: int = HISTORY) -> Table:
         table = Table.grid(padding=(0, 1))
         table.add_column(no_wrap=True)
         table.add_column(justify="right", no_wrap=True)
         table.add_column(no_wrap=True)
         for axis, value, history in zip("xyz", chip["rate_dps"], view.rates):
-            table.add_row(axis, f"{value:+9.3f} °/s", Text(sparkline(list(history)), "green"))
+            recent = list(history)[-points:]
+            table.add_row(axis, f"{value:+9.3f} °/s", Text(sparkline(recent), "green"))
         return table
 
     def _fifo_and_lines(self, chip: dict[str, Any]) -> Text:
@@ -204,7 +217,7 @@ def run_viewer(path: Path, console: Console | None = None, keys: IO[str] | None 
     view = WatchView()
     ended = False
     with SnapshotConnection(path) as connection, keyboard(keys or sys.stdin) as key_fd, \
-            Live(view.render(), console=console, auto_refresh=False, screen=False) as live:
+            Live(view.render(console.width), console=console, auto_refresh=False, screen=False) as live:
         waiting = [connection] + ([key_fd] if key_fd is not None else [])
         heard = time.monotonic()
         try:
@@ -224,7 +237,7 @@ def run_viewer(path: Path, console: Console | None = None, keys: IO[str] | None 
                     if snapshots:
                         heard = time.monotonic()
                         view.update(snapshots[-1])
-                        live.update(view.render(), refresh=True)
+                        live.update(view.render(console.width), refresh=True)
                 elif time.monotonic() - heard > timeout_s:
                     raise WatchError(f"{path}: the session stopped answering")
         except KeyboardInterrupt:
