@@ -6,6 +6,24 @@ command that needs only one part of the package does not pay for the others.
 
 from __future__ import annotations
 
+import signal as _signal
+import sys as _sys
+
+
+def _stopped_while_starting(number: int, frame: object) -> None:
+    _sys.stderr.write(f"bmg160-emu: interrupted by {_signal.Signals(number).name} while "
+                      "starting; nothing written\n")
+    raise SystemExit(128 + number)
+
+
+# Run as the command (console script, python -m bmg160_emu), SIGINT and SIGTERM stop it with
+# one line and their exit status from the package's first line on, never a KeyboardInterrupt
+# traceback out of an import (issue 24); bmg160_emu.cli takes over when the command starts.
+if _sys.argv[0].endswith("bmg160-emu") or _sys.orig_argv[1:3] == ["-m", "bmg160_emu"]:
+    for _number in (_signal.SIGINT, _signal.SIGTERM):
+        if _signal.getsignal(_number) is not _signal.SIG_IGN:  # nohup, a background job
+            _signal.signal(_number, _stopped_while_starting)
+
 import importlib
 from typing import Any
 

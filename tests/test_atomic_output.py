@@ -87,3 +87,26 @@ def test_check_free_space_names_what_is_needed_and_what_is_free(tmp_path):
     check_free_space(tmp_path / "small.npy", 1000)
     with pytest.raises(OutputError, match=r"needs 1000000000\.0 TB and .* free"):
         check_free_space(tmp_path / "huge.npy", 10**21)
+
+
+@pytest.mark.parametrize("number", [2, 15])  # SIGINT, SIGTERM
+def test_a_signal_while_an_output_is_finished_is_held_until_it_is_whole(tmp_path, number):
+    # a ^C while the file is written used to remove it, and every sample with it (issue 24)
+    import signal
+
+    from bmg160_emu.io.atomic import held_signals
+
+    stops = []
+    previous = signal.signal(number, lambda n, frame: stops.append(n))
+    try:
+        target = tmp_path / "out.csv"
+        with held_signals() as arrived, atomic_open(target, "w") as f:
+            f.write("a\n")
+            signal.raise_signal(number)
+            f.write("b\n")
+            assert stops == [] and arrived == [number]
+        assert stops == [number]  # delivered again, to the handler it was meant for
+        assert target.read_text() == "a\nb\n"
+        assert signal.getsignal(number) is not None and stops == [number]
+    finally:
+        signal.signal(number, previous)
