@@ -110,3 +110,41 @@ def test_a_signal_while_an_output_is_finished_is_held_until_it_is_whole(tmp_path
         assert signal.getsignal(number) is not None and stops == [number]
     finally:
         signal.signal(number, previous)
+
+
+def test_every_cut_output_says_it_is_partial_and_a_complete_one_does_not(tmp_path):
+    # io.partial reads the mark of each format (docs/outputs.md); numpy still loads a cut .npy
+    import json
+
+    import numpy as np
+
+    from bmg160_emu.io.partial import npy_trailer, partial_note, write_sidecar
+    from bmg160_emu.io.rate_stream import RateStreamWriter
+
+    for suffix in (".npy", ".csv"):
+        for cut in (False, True):
+            path = tmp_path / f"r{int(cut)}{suffix}"
+            with open(path, "w+b") as handle:
+                writer = RateStreamWriter(handle, suffix, 10, 100.0, ["made here"])
+                writer.write(0, np.ones((4, 3)))
+                if cut:
+                    writer.end_short("interrupted after 4 of 10 samples")
+                else:
+                    writer.write(4, np.ones((6, 3)))
+            note = partial_note(path)
+            assert (note is not None and "4 of 10" in note) if cut else note is None, (path, note)
+            if suffix == ".npy":
+                assert np.load(path).shape == ((4, 3) if cut else (10, 3))
+    plain = tmp_path / "plain.npy"
+    np.save(plain, np.zeros((3, 3)))
+    assert partial_note(plain) is None
+    plain.write_bytes(plain.read_bytes() + npy_trailer("by hand"))
+    assert partial_note(plain) == "partial: by hand"
+    runs = tmp_path / "curves.json"
+    runs.write_text(json.dumps({"seeds": [0, 1], "runs_planned": 9, "interrupted": True}))
+    assert partial_note(runs) == "interrupted: 2 of 9 runs"
+    resd = tmp_path / "x.resd"
+    resd.write_bytes(b"RESD")
+    assert partial_note(resd) is None
+    write_sidecar(resd, "interrupted after 1 of 2 samples")
+    assert partial_note(resd) == "partial: interrupted after 1 of 2 samples"

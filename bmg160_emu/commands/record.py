@@ -144,15 +144,21 @@ def _write(path: Path, rec) -> None:
     from bmg160_emu.session.record import write_recording
 
     if path.suffix.lower() == ".resd":
+        from bmg160_emu.io.partial import clear_sidecar, write_sidecar
         from bmg160_emu.io.resd import ResdFormatError, write_resd
 
         channels = {0: rec.rate_dps}
         if rec.true_rate_dps is not None:
             channels[1] = rec.true_rate_dps
+        if rec.metadata.get("interrupted"):  # RESD has no field for it: said beside the file
+            write_sidecar(path, f"interrupted after {len(rec)} of "
+                          f"{rec.metadata.get('samples_planned')} samples")
         try:
             write_resd(path, rec.t_s, channels)  # written atomically by io.resd
         except ResdFormatError as exc:
             raise CommandError(f"{path}: {exc}") from None
+        if not rec.metadata.get("interrupted"):
+            clear_sidecar(path)  # an earlier cut run's mark
     else:
         with atomic_path(path) as partial:
             write_recording(rec, partial)
