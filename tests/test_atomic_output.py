@@ -148,3 +148,89 @@ def test_every_cut_output_says_it_is_partial_and_a_complete_one_does_not(tmp_pat
     assert partial_note(resd) is None
     write_sidecar(resd, "interrupted after 1 of 2 samples")
     assert partial_note(resd) == "partial: interrupted after 1 of 2 samples"
+
+
+@pytest.fixture
+def full_disk(monkeypatch):
+    """Every write to a temporary output file (io.atomic's ``.NAME.*.part*``) fails with
+    ENOSPC after its first 10 bytes, as a file system that fills up mid-file."""
+    import pathlib
+
+    real_open = pathlib.Path.open
+
+    class Filling:
+        def __init__(self, handle):
+            self.handle, self.written = handle, 0
+
+        def write(self, data):
+            self.written += len(data)
+            if self.written > 10:
+                raise OSError(errno.ENOSPC, "No space left on device")
+            return self.handle.write(data)
+
+        def __getattr__(self, name):
+            return getattr(self.handle, name)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.handle.close()
+
+    def open_filling(self, mode="r", *args, **kwargs):
+        handle = real_open(self, mode, *args, **kwargs)
+        return Filling(handle) if ".part" in self.name and "w" in mode else handle
+
+    import builtins
+
+    real_builtin_open = builtins.open
+
+    def builtin_open_filling(file, mode="r", *args, **kwargs):
+        handle = real_builtin_open(file, mode, *args, **kwargs)
+        named = isinstance(file, (str, os.PathLike)) and ".part" in os.path.basename(file)
+        return Filling(handle) if named and "w" in mode else handle
+
+    monkeypatch.setattr(pathlib.Path, "open", open_filling)
+    monkeypatch.setattr(builtins, "open", builtin_open_filling)
+
+
+def test_dump_to_a_full_disk_is_one_line_and_keeps_the_old_file(tmp_path, full_disk, capsys):
+    from bmg160_emu.cli import main
+
+    out = tmp_path / "regs.txt"
+    out.write_text("old dump\n")
+    assert main(["dump", "--seed", "1", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"cannot write {out}: No space left on device" in err
+    assert out.read_text() == "old dump\n"  # it used to be cut to what fitted
+    assert leftovers(tmp_path) == []
+
+
+def test_replay_to_a_full_disk_is_one_line_and_keeps_the_old_file(tmp_path, full_disk, capsys):
+    from bmg160_emu.cli import main
+
+    data = tmp_path / "real.csv"
+    data.write_text("t_s,x,y,z\n" + "".join(f"{k / 100:.2f},0.1,0.2,0.3\n" for k in range(50)))
+    out = tmp_path / "out.csv"
+    out.write_text("old recording\n")
+    assert main(["replay", str(data), "--seed", "1", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"cannot write {out}: No space left on device" in err
+    assert out.read_text() == "old recording\n"
+    assert leftovers(tmp_path) == []
+
+
+def test_vhost_user_i2c_keeps_its_old_stats_and_log_on_a_start_up_error(tmp_path, capsys):
+    # they were opened (truncated to 0 bytes) before the socket was tried
+    from bmg160_emu.cli import main
+
+    stats, log = tmp_path / "stats.json", tmp_path / "bus.log"
+    stats.write_text('{"old": 1}\n')
+    log.write_text("old log\n")
+    socket = tmp_path / "i2c.sock"
+    socket.write_text("a file, not a socket\n")
+    assert main(["vhost-user-i2c", "--socket", str(socket), "--stats", str(stats),
+                 "--log", str(log), "--seed", "1", "--duration", "2s"]) == 2
+    assert "exists and is not a socket" in capsys.readouterr().err
+    assert stats.read_text() == '{"old": 1}\n' and log.read_text() == "old log\n"
+    assert leftovers(tmp_path) == []
