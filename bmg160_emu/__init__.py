@@ -11,9 +11,15 @@ import sys as _sys
 
 
 def _stopped_while_starting(number: int, frame: object) -> None:
+    # os._exit, not SystemExit: the handler may run inside a finaliser during an import,
+    # where an exception is printed and ignored (a traceback, and the command ran on); and
+    # before the command runs there is nothing to finish or clean up
     _sys.stderr.write(f"bmg160-emu: interrupted by {_signal.Signals(number).name} while "
                       "starting; nothing written\n")
-    raise SystemExit(128 + number)
+    _sys.stderr.flush()
+    import os
+
+    os._exit(128 + number)
 
 
 # Run as the command (console script, python -m bmg160_emu), SIGINT and SIGTERM stop it with

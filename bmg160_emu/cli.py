@@ -28,6 +28,9 @@ def _stopped_while_starting(number: int, frame: object) -> None:
     a KeyboardInterrupt traceback from the middle of an import (issue 24)."""
     name = signal.Signals(number).name
     sys.stderr.write(f"bmg160-emu: interrupted by {name} while starting; nothing written\n")
+    if _AS_COMMAND:  # nothing to clean up yet, and no finaliser can swallow it (__init__.py)
+        sys.stderr.flush()
+        os._exit(128 + number)
     raise SystemExit(128 + number)
 
 
