@@ -1,9 +1,9 @@
 """Signals at random moments for every command that writes a file (issue 24).
 
 Each trial starts the command as a subprocess (``python -m bmg160_emu``, fixed seeds), sends
-SIGINT or SIGTERM after a seeded random delay between 0 and the command's run time (a
-quarter of the trials inside the first 0.15 s, while the package is still importing), and
-checks what it left:
+SIGINT or SIGTERM after a seeded random delay between 0 and 1.1 times the command's run
+time (stratified: one trial in four inside the first 0.15 s, while the package is still
+importing, the others in the thirds of the rest), and checks what it left:
 
 - no traceback on stderr, no hang (the command ends within ``HANG_S`` of the signal);
 - the exit status says the signal (130, 143, or death by it: -2, -15), or 0 when the command
@@ -217,12 +217,16 @@ class Outcome:
 
 
 def plan(seed: int, wall_s: float) -> tuple[signal.Signals, float]:
-    """The seeded signal and delay of trial ``seed``."""
+    """The seeded signal and delay of trial ``seed``, stratified so that any four
+    consecutive seeds cover the whole run: ``seed % 4`` 0 falls in the first ``EARLY_S``
+    (the imports), 1..3 in the thirds of ``EARLY_S .. 1.1 wall_s`` (work, writing, after)."""
     rng = random.Random(seed)
     number = rng.choice(SIGNALS)
-    if rng.random() < 0.25:
+    stratum = seed % 4
+    if stratum == 0:
         return number, rng.uniform(0.0, EARLY_S)
-    return number, rng.uniform(0.0, wall_s * 1.1)
+    span = max(wall_s * 1.1 - EARLY_S, 0.0) / 3
+    return number, EARLY_S + span * (stratum - 1 + rng.random())
 
 
 def trial(command: Command, work: Path, ref: Reference, seed: int) -> Outcome:
