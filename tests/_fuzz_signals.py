@@ -65,11 +65,11 @@ class Command:
 
 
 COMMANDS = [
-    Command("generate-npy", ["generate", "--duration", "20min", "--seed", "3",
+    Command("generate-npy", ["generate", "--duration", "1h", "--seed", "3",
                              "-o", "{work}/noise.npy"], ["noise.npy"]),
-    Command("generate-csv", ["generate", "--duration", "5min", "--seed", "3",
+    Command("generate-csv", ["generate", "--duration", "15min", "--seed", "3",
                              "-o", "{work}/noise.csv"], ["noise.csv"]),
-    Command("generate-resd", ["generate", "--duration", "20min", "--seed", "3",
+    Command("generate-resd", ["generate", "--duration", "1h", "--seed", "3",
                               "-o", "{work}/noise.resd"], ["noise.resd"]),
     Command("record-csv", ["record", "--duration", "4s", "--rate", "2000", "--seed", "4",
                            "-o", "{work}/rec.csv"], ["rec.csv"]),

@@ -196,7 +196,12 @@ class TraceWriter:
         else:
             self._file = path_or_file
             self._owns = False
-        self._file.write(json.dumps((header or TraceHeader()).to_dict()) + "\n")
+        try:
+            self._file.write(json.dumps((header or TraceHeader()).to_dict()) + "\n")
+        except BaseException:  # a full disk at the first line: no hidden .part file left
+            if self._atomic is not None:
+                self._atomic.discard()
+            raise
         self.count = 0
         self._closed = False
 
