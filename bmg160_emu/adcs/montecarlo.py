@@ -148,7 +148,12 @@ def _progress(total: int, enabled: bool | None):
 
     # enabled None: a bar only on a terminal, so logs and CI output stay clean
     disable = (not sys.stderr.isatty()) if enabled is None else not enabled
-    return tqdm(total=total, unit="run", desc="monte carlo", disable=disable)
+    from bmg160_emu.io.atomic import held_signals
+
+    # held: a signal inside tqdm's constructor left a half-built bar whose __del__ printed
+    # an AttributeError traceback (found by tests/_fuzz_signals.py)
+    with held_signals():
+        return tqdm(total=total, unit="run", desc="monte carlo", disable=disable)
 
 
 class Interrupted(KeyboardInterrupt):
