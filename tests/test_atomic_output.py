@@ -261,3 +261,21 @@ def test_a_trace_and_log_on_a_full_disk_are_one_line_and_leave_no_hidden_file(
     assert err.count("\n") == 1 and "No space left on device" in err and "Traceback" not in err
     assert not trace.exists() and not log.exists()
     assert leftovers(tmp_path) == []
+
+
+def test_vhost_user_i2c_on_a_full_disk_is_one_line_and_leaves_no_hidden_file(
+        tmp_path, full_disk, capsys):
+    # it was a traceback at io/atomic.py
+    from bmg160_emu.cli import main
+
+    folder = tmp_path / "s"
+    folder.mkdir(mode=0o700)
+    stats = tmp_path / "stats.json"
+    stats.write_text('{"old": 1}\n')
+    status = main(["vhost-user-i2c", "--socket", str(folder / "i2c.sock"), "--seed", "1",
+                   "--duration", "0.3s", "--stats", str(stats)])
+    err = capsys.readouterr().err
+    assert status == 2 and "Traceback" not in err
+    assert f"cannot write {stats}: No space left on device" in err
+    assert stats.read_text() == '{"old": 1}\n'
+    assert leftovers(tmp_path) == []
