@@ -2,9 +2,9 @@
 
 Each trial starts the command as a subprocess (``python -m bmg160_emu``, fixed seeds), sends
 SIGINT or SIGTERM after a seeded random delay between 0 and 1.1 times the command's run
-time (stratified: one trial in four inside the first 0.15 s, while the package is still
-importing, one while the output file is being written, the others earlier and later), and
-checks what it left:
+time, stratified by the phases of a reference run (one trial in four inside the first
+0.15 s, while the package is still importing; one before the output file appears; one
+while it is written; one after), and checks what it left:
 
 - no traceback on stderr, no hang (the command ends within ``HANG_S`` of the signal);
 - the exit status says the signal (130, 143, or death by it: -2, -15), or 0 when the command
@@ -248,34 +248,41 @@ class Outcome:
                 + ("; " + "; ".join(self.problems) if self.problems else ""))
 
 
-def plan(seed: int, wall_s: float) -> tuple[signal.Signals, float]:
-    """The seeded signal and delay of trial ``seed``, stratified so that any four
-    consecutive seeds cover the whole run: ``seed % 4`` 0 falls in the first ``EARLY_S``
-    (the imports), 1..3 in the thirds of ``EARLY_S .. 1.1 wall_s``; :func:`trial` times
-    stratum 2 from the moment the output file appears instead (the imports take from a
-    third to most of a run, more on a loaded machine: by the clock alone the work and the
-    writing were often missed)."""
+def plan(seed: int, wall_s: float, writing_at_s: float) -> tuple[signal.Signals, float, bool]:
+    """The seeded signal of trial ``seed`` and when to send it: (signal, delay, whether the
+    delay counts from the moment the output file appears rather than from the start).
+
+    Stratified by the phases of the reference run, so that any four consecutive seeds cover
+    them all: ``seed % 4`` 0 in the first ``EARLY_S`` (the imports), 1 between that and the
+    output file's appearance (the rest of the start-up, and the work of a command that
+    writes at the end: record's sampling), 2 while the output is written (timed from its
+    appearance: the work of a command that writes as it goes, wherever the load puts it),
+    3 from then to 1.1 times the run (the writing's end, the exit, after). By the clock
+    alone the work and the writing were often missed: the imports take from a third to most
+    of a run, more on a loaded machine."""
     rng = random.Random(seed)
     number = rng.choice(SIGNALS)
     stratum = seed % 4
+    writing_at_s = min(max(writing_at_s, EARLY_S), wall_s)
     if stratum == 0:
-        return number, rng.uniform(0.0, EARLY_S)
-    span = max(wall_s * 1.1 - EARLY_S, 0.0) / 3
-    return number, EARLY_S + span * (stratum - 1 + rng.random())
+        return number, rng.uniform(0.0, EARLY_S), False
+    if stratum == 1:
+        return number, rng.uniform(EARLY_S, writing_at_s), False
+    if stratum == 2:  # the first 70 % of the writing: the rest is mostly the interpreter's exit
+        return number, rng.uniform(0.0, 0.7) * max(wall_s - writing_at_s, 0.02), True
+    return number, rng.uniform(writing_at_s, 1.1 * wall_s), False
 
 
 def trial(command: Command, work: Path, ref: Reference, seed: int) -> Outcome:
     prepare(work)
     for name in [*command.outputs, "i2c.sock"]:
         (work / name).unlink(missing_ok=True)
-    number, delay = plan(seed, ref.wall_s)
+    number, delay, from_writing = plan(seed, ref.wall_s, ref.writing_at_s)
     process = start(command, work)
-    if seed % 4 == 2:  # while the output is written, wherever the load puts that moment
+    if from_writing:
         waited = _wait_for_writing(process, work, 2.0 * ref.wall_s)
-        writing = max(ref.wall_s - ref.writing_at_s, 0.02)
-        # within the first 70 %: the rest of a run is mostly the interpreter's exit
-        delay = waited + random.Random(-seed).uniform(0.0, 0.7) * writing
-        time.sleep(delay - waited)
+        time.sleep(delay)
+        delay += waited
     else:
         time.sleep(delay)
     process.send_signal(number)
