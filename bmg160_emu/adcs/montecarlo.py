@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -202,6 +203,10 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
             if arrived:  # stopped before any run: the cluster goes down before the signal acts
                 client.close()
                 cluster.close()
+        if arrived:  # held_signals delivered it; should a handler have let it pass (seen once
+            cause = KeyboardInterrupt()  # in campaign 3: client.map on the closed client)
+            cause.signal_name = signal.Signals(arrived[0]).name  # type: ignore[attr-defined]
+            raise Interrupted([], cause)
     else:
         try:
             client = Client(address, timeout="10s")
