@@ -21,7 +21,7 @@ def test_a_signal_at_a_random_moment_leaves_every_output_honest(tmp_path, name):
             failures.append(line.strip())
 
     counts = campaign([name], TRIALS, 0, tmp_path, report)
-    assert failures == []
+    assert failures == [], "\n".join(failures)
     if name in counts:  # run-trace is skipped where umockdev cannot run
         assert counts[name].get("ok", 0) + counts[name].get("start-up", 0) == TRIALS
 
