@@ -3,6 +3,10 @@
 Every command-line option and the register-script language read durations through
 :func:`parse_duration`, so the same text means the same time everywhere. Callers choose
 only whether a bare number (seconds) is accepted and whether zero is a valid duration.
+
+Every duration, and every simulated time a file gives (scenarios, trace records, replay
+spans), is at most :data:`MAX_SIMULATED_S` and, when positive, at least the chip clock's
+1 ns step (:data:`MIN_STEP_S`): a script interval that rounds to 0 ns would never advance.
 """
 
 from __future__ import annotations
@@ -19,6 +23,13 @@ UNIT_SECONDS: dict[str, float] = {
     "d": 86400.0,
 }
 UNIT_NAMES = "us, ms, s, min, h or d"
+# The one cap on simulated time: 30 days. Longer than any Allan-variance or mission run the
+# project serves (the long runs in docs/noise-engine.md are 24 h), and what the emulator
+# simulates in about 15-25 min at 2000 Hz (about 1 s per simulated hour, measured with
+# `script` and `advance 1h`); a longer request is refused, not left to run for hours.
+MAX_SIMULATED_S = 30 * 86400.0
+MIN_STEP_S = 1e-9  # the chip clock's step (bmg160_emu.clock counts integer nanoseconds)
+MAX_TEXT = "30 days (2592000 s)"
 EXAMPLES = "e.g. 10s, 5min, 2h, 1d, 250ms"
 
 
@@ -32,6 +43,8 @@ def parse_duration(text: str, *, unit_required: bool = False, allow_zero: bool =
     if not isinstance(text, str):
         raise TypeError(f"a duration is text such as '10s', not {type(text).__name__}")
     stripped = text.strip().lower()
+    if "_" in stripped:  # float() takes 1_000; a person typing a duration means a typo
+        raise ValueError(f"not a duration: {text!r} ({EXAMPLES})")
     number = stripped.rstrip("abcdefghijklmnopqrstuvwxyz")
     unit = stripped[len(number):]
     try:
@@ -46,4 +59,15 @@ def parse_duration(text: str, *, unit_required: bool = False, allow_zero: bool =
     if not math.isfinite(seconds) or seconds < 0 or (seconds == 0 and not allow_zero):
         qualifier = "zero or positive" if allow_zero else "positive"
         raise ValueError(f"duration must be {qualifier}: {text!r}")
+    check_simulated_time(seconds, repr(text.strip()))
     return seconds + 0.0  # -0.0 (from '-0s') reads as 0.0
+
+
+def check_simulated_time(seconds: float, shown: str, what: str = "duration") -> float:
+    """``seconds`` unchanged if it is 0 or from 1 ns to :data:`MAX_SIMULATED_S`; else a
+    ``ValueError`` naming ``what`` and ``shown`` (the text or value as given)."""
+    if not math.isfinite(seconds) or seconds > MAX_SIMULATED_S:
+        raise ValueError(f"{what} {shown} is longer than the cap on simulated time, {MAX_TEXT}")
+    if 0 < seconds < MIN_STEP_S:
+        raise ValueError(f"{what} {shown} is shorter than the chip clock's 1 ns step")
+    return seconds

@@ -78,11 +78,11 @@ def _ini_defaults(config: pytest.Config) -> dict[str, Any]:
         if text.lower() == "none":
             defaults["seed"] = None  # a fresh random realisation per test
         else:
-            try:
-                defaults["seed"] = int(text, 0)
-            except ValueError:
-                defaults["seed"] = -1
-            if defaults["seed"] < 0:  # numpy's SeedSequence refuses negative seeds
+            from bmg160_emu.limits import SEED, LimitError
+
+            try:  # the command line's seed range (limits.SEED), or 'none'
+                defaults["seed"] = SEED.parse(text)
+            except LimitError:
                 raise pytest.UsageError(
                     f"{_ini_name(config)}: bmg160_seed must be an integer >= 0 or none, "
                     f"not {text!r}"

@@ -368,12 +368,41 @@ def _empty(data: bytes, rng: random.Random) -> bytes:
     return rng.choice((b"", b"\n", b" ", b"#\n", b"\xff\xfe"))
 
 
+def line_endings(data: bytes, rng: random.Random) -> bytes:
+    """The same text with CR-only line endings, or a mix of LF, CRLF and CR (issue 24)."""
+    lines = data.split(b"\n")
+    if rng.random() < 0.5:
+        return b"\r".join(lines)
+    return b"".join(line + rng.choice((b"\n", b"\r\n", b"\r")) for line in lines)
+
+
+def _declared(data: bytes, rng: random.Random) -> bytes:
+    """An .npy header (a file's, or an NPZ member's, found by its magic) whose shape claims
+    far more rows than follow (issue 24: 1e11 rows in a 4 kB file asked for 2.2 TiB)."""
+    at = data.find(b"'shape': (")
+    if at < 0:
+        return _flip(data, rng)
+    start = at + len(b"'shape': (")
+    end = data.find(b",", start)
+    rows = rng.choice((b"100000000000", b"9223372036854775807", b"0", b"1"))
+    newline = data.find(b"\n", end)
+    if end < 0 or newline < 0:
+        return _flip(data, rng)
+    header = data[end:newline]
+    grow = len(rows) - (end - start)  # the header keeps its length: padding gives or takes
+    padding = len(header) - len(header.rstrip(b" "))
+    if grow > padding:
+        return _flip(data, rng)
+    header = header[: len(header) - grow] if grow > 0 else header + b" " * -grow
+    return data[:start] + rows + header + data[newline:]
+
+
 MUTATIONS: dict[str, Callable[[bytes, random.Random], bytes]] = {
     "flip": _flip, "truncate": _truncate, "delete": _delete_span, "duplicate": _duplicate_span,
     "lines": _lines, "number": _number, "value": _value, "nest": _nest, "long_line": _long_line,
-    "junk": _junk, "empty": _empty,
+    "junk": _junk, "empty": _empty, "line_endings": line_endings, "declared": _declared,
 }
-BINARY_MUTATIONS = ("flip", "truncate", "delete", "duplicate", "junk", "empty")
+BINARY_MUTATIONS = ("flip", "truncate", "delete", "duplicate", "junk", "empty", "declared")
 
 
 def mutate(fmt: FuzzFormat, seed: int, rounds: int | None = None) -> tuple[bytes, list[str]]:

@@ -240,8 +240,9 @@ def test_one_gyro_sessions_offer_no_device_option(capsys):
 
 
 def test_a_negative_seed_is_refused():
-    with pytest.raises(CommandError, match="--seed must be a non-negative integer"):
-        chips_from_args(parse("--seed", "-3"))
+    # a usage error at parse time now (limits.SEED), before any chip is built
+    with pytest.raises(argparse.ArgumentError, match="seed must be an integer from 0"):
+        parse("--seed", "-3")
 
 
 # --------------------------------------------------------------------------- rigs

@@ -11,7 +11,11 @@ from bmg160_emu import cli
 from bmg160_emu.device.registers import BY_NAME, REGISTERS, RESET_VALUES, WRITE_MASKS
 from bmg160_emu.firmware import build as build_mod
 from bmg160_emu.firmware import register_table
-from bmg160_emu.firmware.params_header import BW_ODR_HZ, render_params_header
+from bmg160_emu.firmware.params_header import (
+    BW_ODR_HZ,
+    render_params_header,
+    unapplied_output_note,
+)
 from bmg160_emu.firmware.register_table import FIRMWARE_REGISTERS
 from bmg160_emu.noise.discretization import axis_coefficients
 from bmg160_emu.noise.profile import load_profile
@@ -75,6 +79,23 @@ def test_profile_with_quantization_noise_is_refused(tmp_path):
     path.write_text(text)
     with pytest.raises(ValueError, match="Q or R"):
         render_params_header(profile=str(path))
+
+
+def test_sine_terms_are_refused_and_an_output_stage_is_named(tmp_path):
+    # the firmware makes white, Gauss-Markov and random-walk noise, unfiltered: a sine term
+    # it would drop is an error; a sensor filter it cannot apply is said, not dropped unseen
+    axes = "\n".join(
+        f"[{a}]\nN = 0.01\nB = 0.001\nT = 10.0\nK = 0.0001\nbias = 0.0" for a in "xyz"
+    )
+    path = tmp_path / "p.toml"
+    path.write_text(axes.replace("bias = 0.0", "bias = 0.0\nsine = [{ A = 0.002, f = 1.3 }]"))
+    with pytest.raises(ValueError, match="sine terms"):
+        render_params_header(profile=str(path))
+    path.write_text(axes)
+    assert unapplied_output_note(str(path)) is None
+    path.write_text("[output]\norder = 2\ncorner_hz = 40.0\nrate_hz = 200.0\n" + axes)
+    assert "bmg_noise_white" in render_params_header(profile=str(path))
+    assert "no filter model" in unapplied_output_note(str(path))
 
 
 def test_build_fits_the_atmega328p_with_room_for_the_stack():

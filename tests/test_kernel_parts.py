@@ -1,6 +1,6 @@
 """The kernel's bmg160 driver binds to the BMI055 and BMI088 gyroscope parts through i2c-stub.
 
-One QEMU guest (tools/qemu/guest.py) loads i2c-stub with two chip addresses and runs one
+The bmg160_kernel fixture's session guest loads i2c-stub with two chip addresses and runs one
 Python process that builds a ``bmi055_gyro`` at 0x68 and a ``bmi088_gyro`` at 0x69 with
 ``make_chip`` and keeps both in i2c-stub's memory (``I2CStubAdapter``, one thread each).
 The guest then reads both with i2c-tools, binds the driver by the names its I2C ID table
@@ -10,13 +10,13 @@ sysfs. The tests assert on what it wrote; the guest console is attached to every
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import shlex
 import shutil
 import statistics
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -31,9 +31,10 @@ TEMPERATURE_C = 30.0
 PARTS = {"bmi055_gyro": 0x68, "bmi088_gyro": 0x69}
 SAMPLES = 12
 
-# Runs in the guest: both parts on bus 0, until SIGTERM; then a JSON report per part.
+# Runs in the guest: both parts on the i2c-stub bus ($STUB_BUS), until SIGTERM; then a JSON report per part.
 ADAPTERS = """
-import json, signal, sys, threading
+import json, os, signal, sys, threading
+from dataclasses import dataclass
 from pathlib import Path
 from bmg160_emu.linux.i2c_stub import I2CStubAdapter
 from bmg160_emu.clock import RealTimeClock
@@ -48,7 +49,7 @@ for spec in parts:
     name, address = spec.split("@")
     chip = make_chip(name, seed=7, clock=clock, address=int(address, 0),
                      true_rate=(20.0, -10.0, 5.0), temperature_c=30.0)
-    adapters[name] = I2CStubAdapter(chip, 0, int(address, 0))
+    adapters[name] = I2CStubAdapter(chip, int(os.environ["STUB_BUS"]), int(address, 0))
     adapters[name].preload()
 threads = [threading.Thread(target=a.run, kwargs={"should_stop": stop.is_set, "preload": False})
            for a in adapters.values()]
@@ -67,8 +68,11 @@ GUEST_SCRIPT = r"""
 set -u
 OUT=${GUEST_OUT:?}
 cd /run || exit 1
-modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68,0x69,0x18 || echo "modprobe i2c-stub failed"
-modprobe -d "$GUEST_ROOT" i2c-dev || echo "modprobe i2c-dev failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-stub chip_addr=0x68,0x69,0x18 || echo "modprobe i2c-stub failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-dev || echo "modprobe i2c-dev failed"
+rm -f /run/parts.ready /run/accel.ready
+S=$(for d in /sys/bus/i2c/devices/i2c-*; do grep -q "SMBus stub" "$d/name" && echo "${d##*/i2c-}"; done | head -n 1)
+export STUB_BUS=$S
 "$PY" "$ADAPTERS" "$OUT" bmi055_gyro@0x68 bmi088_gyro@0x69 > "$OUT/adapters.log" 2>&1 &
 STUB=$!
 i=0
@@ -77,16 +81,18 @@ while [ ! -e /run/parts.ready ] && [ $i -lt 3000 ] && kill -0 $STUB 2>/dev/null;
 done
 [ -e /run/parts.ready ] && echo ready > "$OUT/ready.txt"
 for a in 0x68 0x69; do
-    i2cdump -y -r 0x00-0x3f 0 $a b > "$OUT/i2cdump_$a.txt" 2>&1
+    i2cdump -y -r 0x00-0x3f "$S" $a b > "$OUT/i2cdump_$a.txt" 2>&1
 done
-modprobe -d "$GUEST_ROOT" bmg160_i2c || echo "modprobe bmg160_i2c failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} bmg160_i2c || echo "modprobe bmg160_i2c failed"
 n=0
 for spec in bmi055_gyro:0x68 bmi088_gyro:0x69; do
     name=${spec%:*}; a=${spec#*:}
-    echo "$name $a" > /sys/bus/i2c/devices/i2c-0/new_device
-    IIO=/sys/bus/iio/devices/iio:device$n
-    i=0
-    while [ ! -e "$IIO/in_anglvel_x_raw" ] && [ $i -lt 100 ]; do sleep 0.1; i=$((i + 1)); done
+    echo "$name $a" > /sys/bus/i2c/devices/i2c-$S/new_device
+    i=0; IIO=/nowhere
+    while [ ! -e "$IIO/in_anglvel_x_raw" ] && [ $i -lt 100 ]; do
+        sleep 0.1; i=$((i + 1))
+        IIO=$(ls -d /sys/bus/i2c/devices/$S-00${a#0x}/iio:device* 2>/dev/null | head -n 1)
+    done
     cat "$IIO/name" > "$OUT/iio_name_$name.txt" 2>&1
     cat "$IIO/in_anglvel_scale" > "$OUT/scale_$name.txt" 2>&1
     for axis in x y z; do
@@ -98,20 +104,20 @@ for spec in bmi055_gyro:0x68 bmi088_gyro:0x69; do
     n=$((n + 1))
 done
 # the BMI055's accelerometer as a stand-in behind i2c-stub, bound by the kernel's bmc150-accel
-"$PY" -m bmg160_emu stub --bus 0 --device bma2x2_accel@0x18 --ready-file /run/accel.ready \
+"$PY" -m bmg160_emu stub --bus "$S" --device bma2x2_accel@0x18 --ready-file /run/accel.ready \
     --stats "$OUT/stub_accel.json" > "$OUT/stub_accel.log" 2>&1 &
 ACCEL=$!
 i=0
 while [ ! -e /run/accel.ready ] && [ $i -lt 3000 ] && kill -0 $ACCEL 2>/dev/null; do
     sleep 0.1; i=$((i + 1))
 done
-i2cget -y 0 0x18 0x00 > "$OUT/accel_chip_id.txt" 2>&1
-modprobe -d "$GUEST_ROOT" bmc150-accel-i2c || echo "modprobe bmc150-accel-i2c failed"
-echo bmi055_accel 0x18 > /sys/bus/i2c/devices/i2c-0/new_device
+i2cget -y "$S" 0x18 0x00 > "$OUT/accel_chip_id.txt" 2>&1
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} bmc150-accel-i2c || echo "modprobe bmc150-accel-i2c failed"
+echo bmi055_accel 0x18 > /sys/bus/i2c/devices/i2c-$S/new_device
 i=0
 ACC=""
 while [ -z "$ACC" ] && [ $i -lt 100 ]; do
-    for d in /sys/bus/iio/devices/iio:device*; do
+    for d in /sys/bus/i2c/devices/$S-0018/iio:device*; do
         [ -e "$d/in_accel_x_raw" ] && ACC=$d
     done
     [ -z "$ACC" ] && sleep 0.1
@@ -129,37 +135,44 @@ wait $ACCEL
 kill -TERM $STUB 2>/dev/null
 wait $STUB
 dmesg > "$OUT/dmesg.txt"
+# leave the shared guest as it was: no clients, no i2c-stub
+for a in 0x68 0x69 0x18; do echo $a > /sys/bus/i2c/devices/i2c-$S/delete_device; done
+rmmod i2c-stub
 echo done > "$OUT/done.txt"
 """
 
 
-def _load_guest_module():
-    spec = importlib.util.spec_from_file_location("bmg160_guest", REPO / "tools/qemu/guest.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+@dataclass(frozen=True)
+class Checks:
+    returncode: int
+    output: str
+    console: str
+    timed_out: bool = False
 
 
 @pytest.fixture(scope="module")
-def guest(tmp_path_factory):
-    harness = _load_guest_module()
-    reason = harness.missing_requirements()
-    if reason is None and shutil.which("i2cdump") is None:
-        reason = "i2cdump is missing (Debian package i2c-tools; the guest runs the host's)"
-    if reason:
-        pytest.skip(f"kernel tests need a bootable guest: {reason}")
+def guest(bmg160_kernel_session, tmp_path_factory):
+    """The script as one command on the bmg160_kernel session's guest: (out folder, Checks)."""
+    from bmg160_emu.linux.guest.harness import GuestDied
+
+    if shutil.which("i2cdump") is None:
+        pytest.skip("i2cdump is missing (Debian package i2c-tools; the guest runs the host's)")
+    session_guest = bmg160_kernel_session.ensure()
     work = tmp_path_factory.mktemp("kernel_parts")
     adapters = work / "adapters.py"
     adapters.write_text(ADAPTERS)
-    script = work / "run.sh"
-    script.write_text(
-        f"export PY={shlex.quote(sys.executable)} ADAPTERS={shlex.quote(str(adapters))}\n"
-        f"export PYTHONPATH={shlex.quote(str(REPO))}\n" + GUEST_SCRIPT)
-    out = work / "out"
+    out = session_guest.results / "parts"
+    out.mkdir(exist_ok=True)
+    command = (f"export PY={shlex.quote(sys.executable)} ADAPTERS={shlex.quote(str(adapters))}\n"
+               f"export PYTHONPATH={shlex.quote(str(REPO))} GUEST_OUT={shlex.quote(str(out))}\n"
+               + GUEST_SCRIPT)
     # 400 s as tests/test_kernel_i2c_stub.py: the guest's Python imports are slow under TCG
-    result = harness.run_guest(script, out, console_log=work / "console.txt", timeout_s=400)
-    return out, result
+    try:
+        result = session_guest.run(command, timeout_s=400, check=False)
+    except GuestDied as exc:
+        return out, Checks(-1, "", str(exc), timed_out="took over" in str(exc))
+    return out, Checks(result.returncode, result.stdout + result.stderr,
+                       session_guest.console())
 
 
 @pytest.fixture(autouse=True)

@@ -1,158 +1,74 @@
 """The kernel talks to the model itself: virtio-i2c and virtio-gpio through vhost-user.
 
-One QEMU guest boots once per test session with `bmg160-emu vhost-user-i2c` serving two
-chips (0x68 and 0x69) on the host, and runs tools/qemu/virtio_checks.sh: i2c-tools, an
-i2c-dev program draining the FIFO and clearing a latched status, a C read loop (speed),
-the kernel's bmg160 driver bound with its interrupt on a virtio-gpio line, 60 s of
-triggered-buffer capture from both chips at once (100 Hz and 200 Hz) with the driver's own
-data-ready triggers, and an any-motion event. The tests assert on what it wrote.
+Through the ``bmg160_kernel`` fixture (bmg160_emu/pytest_kernel.py): one guest per session
+with the back ends in this process serving two chips (0x68 and 0x69); i2c-tools, an i2c-dev
+program draining the FIFO and clearing a latched status, a C read loop (speed), the kernel's
+bmg160 driver bound with its interrupt on a virtio-gpio line, triggered-buffer captures with
+the driver's own data-ready triggers (100 Hz on 0x68, 200 Hz on 0x69), and an any-motion
+event. The transaction log the tests read is the bus the guest's kernel talks to.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import json
 import math
 import os
-import shlex
-import shutil
-import signal
 import statistics
 import struct
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
-import bmg160_emu
-
 pytestmark = pytest.mark.kernel
 
-REPO = Path(bmg160_emu.__file__).resolve().parents[1]
-TOOLS = REPO / "tools" / "qemu"
+GUEST_FILES = Path(__file__).resolve().parent / "kernel_guest"
 TRUE_RATE_DPS = (20.0, -10.0, 5.0)
-SEED = 7
-CAPTURE_S = float(os.environ.get("BMG160_VIRTIO_CAPTURE_S", "60"))
-# One vCPU: under TCG on a busy host two vCPU threads plus QEMU and the back end compete
-# for the cores; one kept 87 % of the 100 Hz frames where two kept 37 % (same load).
-CPUS = int(os.environ.get("BMG160_VIRTIO_CPUS", "1"))
+CAPTURE_S = float(os.environ.get("BMG160_VIRTIO_CAPTURE_S", "30"))
+BOTH = [0x68, 0x69]
 
 
-def _load(name: str, path: Path):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+@pytest.fixture
+def rates(bmg160_kernel):
+    for chip in bmg160_kernel.chips.values():
+        chip.set_true_rate(TRUE_RATE_DPS)
+    return bmg160_kernel
 
 
-@pytest.fixture(scope="module")
-def session(tmp_path_factory):
-    """Start the back end, boot the guest once, stop the back end: (out folder, result)."""
-    harness = _load("bmg160_guest", TOOLS / "guest.py")
-    reason = harness.missing_requirements()
-    for tool in ("i2cget", "gcc", "make", "patch"):
-        if reason is None and shutil.which(tool) is None:
-            reason = f"{tool} is missing"
-    if reason:
-        pytest.skip(f"kernel tests need a bootable guest: {reason}")
-    modules = _load("bmg160_guest_modules", TOOLS / "modules.py")
-    try:
-        kmod = modules.build_modules()
-    except (RuntimeError, subprocess.CalledProcessError) as exc:
-        pytest.skip(f"cannot build the guest modules: {exc}")
-    work = tmp_path_factory.mktemp("virtio")
-    out = work / "out"
-    out.mkdir()
-    sockets = work / "sockets"  # the back end creates it 0700
-    read_loop = work / "i2c_read_loop"
-    subprocess.run(["gcc", "-O2", "-o", str(read_loop), str(TOOLS / "i2c_read_loop.c")],
-                   check=True)
-    backend = subprocess.Popen(
-        [sys.executable, "-m", "bmg160_emu", "vhost-user-i2c",
-         "--socket", str(sockets / "i2c.sock"), "--gpio-socket", str(sockets / "gpio.sock"),
-         "--address", "0x68", "--address", "0x69", "--seed", str(SEED),
-         "--true-rate", *map(str, TRUE_RATE_DPS), "--trace", str(work / "trace.jsonl"),
-         "--stats", str(work / "stats.json"), "--ready-file", str(work / "ready"),
-         "--true-rate-file", str(out / "true_rate.txt")],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env={**os.environ, "PYTHONPATH": str(REPO)},
-    )
-    deadline = time.monotonic() + 60
-    while not (work / "ready").exists() and backend.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    if not (work / "ready").exists():
-        backend.kill()
-        pytest.fail(f"the back end did not start: {backend.communicate()[0].decode()}")
-    script = work / "run.sh"
-    script.write_text(
-        f"export PY={shlex.quote(sys.executable)}\n"
-        f"export PYTHONPATH={shlex.quote(str(REPO))}\n"
-        f"export KMOD={shlex.quote(str(kmod))} TOOLS={shlex.quote(str(TOOLS))}\n"
-        f"export READ_LOOP={shlex.quote(str(read_loop))} CAPTURE_S={CAPTURE_S:g}\n"
-        f". {shlex.quote(str(TOOLS / 'virtio_checks.sh'))}\n"
-    )
-    started = time.monotonic()
-    result = harness.run_guest(
-        script, out, console_log=work / "console.txt", timeout_s=CAPTURE_S + 150, cpus=CPUS,
-        qemu_args=harness.vhost_user_args(sockets / "i2c.sock", sockets / "gpio.sock"))
-    wall = time.monotonic() - started
-    backend.send_signal(signal.SIGTERM)
-    try:
-        backend_log = backend.communicate(timeout=30)[0].decode()
-    except subprocess.TimeoutExpired:
-        backend.kill()
-        backend_log = backend.communicate()[0].decode()
-    (work / "backend.log").write_text(backend_log)
-    print(f"virtio guest session: {wall:.1f} s wall time")
-    return {"out": out, "work": work, "result": result, "backend": backend_log,
-            "returncode": backend.returncode, "wall_s": wall}
-
-
-@pytest.fixture(autouse=True)
-def _console_in_report(request, session):
-    request.node.add_report_section("setup", "guest console", session["result"].console)
-    request.node.add_report_section("setup", "back end", session["backend"])
-
-
-def text(session, name: str) -> str:
-    path = session["out"] / name
-    assert path.exists(), f"the guest did not write {name} (timed out: {session['result'].timed_out})"
-    return path.read_text()
-
-
-def stats(session) -> dict:
-    return json.loads((session["work"] / "stats.json").read_text())
-
-
-def test_guest_ran_every_step_and_the_back_end_stopped_cleanly(session):
-    assert not session["result"].timed_out
-    assert text(session, "done.txt").strip() == "done"
-    assert session["returncode"] == 0, session["backend"]
-    assert "Traceback" not in session["backend"]
-
-
-def test_i2c_tools_see_both_chips_and_a_nack_elsewhere(session):
-    assert "i2c_virtio" in text(session, "i2cdetect_l.txt")
-    grid = text(session, "i2cdetect.txt")
+@pytest.mark.bmg160_kernel(driver=None)
+def test_i2c_tools_see_both_chips_and_a_nack_elsewhere(bmg160_kernel):
+    assert "i2c_virtio" in bmg160_kernel.run("i2cdetect -l").stdout
+    grid = bmg160_kernel.run("i2cdetect -y $GUEST_I2C_BUS").stdout
     row60 = next(line for line in grid.splitlines() if line.startswith("60:"))
     assert row60.split()[9:11] == ["68", "69"]
-    assert text(session, "chip_id_68.txt").strip() == "0x0f"
-    assert text(session, "chip_id_69.txt").strip() == "0x0f"
-    nack = text(session, "nack.txt")
-    assert "status 2" in nack or "Read failed" in nack or "status 1" in nack, nack
+    for address in ("0x68", "0x69"):
+        assert bmg160_kernel.run(f"i2cget -y $GUEST_I2C_BUS {address} 0x00").stdout.strip() \
+            == "0x0f"
+    nack = bmg160_kernel.run("i2cget -y $GUEST_I2C_BUS 0x50 0x00", check=False)
+    assert nack.returncode != 0 and "Read failed" in nack.stderr
+    assert bmg160_kernel.bus.log.filter(address=0x50, failed=True)
 
 
-def test_i2cdump_shows_the_reset_map(session):
-    rows = {line[:2]: line[4:51].split() for line in text(session, "i2cdump_i.txt").splitlines()[1:]}
+@pytest.mark.bmg160_kernel(driver=None)
+def test_i2cdump_shows_the_reset_map(bmg160_kernel):
+    dump = bmg160_kernel.run("i2cdump -y $GUEST_I2C_BUS 0x68 i").stdout
+    rows = {line[:2]: line[4:51].split() for line in dump.splitlines()[1:]}
     block = [int(v, 16) for v in rows["00"] + rows["10"]]
     assert block[0x00] == 0x0F and block[0x10] == 0x80
 
 
-def test_guest_program_drains_the_fifo_and_reads_leave_a_latched_status(session):
-    checks = json.loads(text(session, "i2c_checks.json"))
+@pytest.mark.bmg160_kernel(driver=None)
+def test_guest_program_drains_the_fifo_and_reads_leave_a_latched_status(bmg160_kernel):
+    line = bmg160_kernel.session.backend.line_of(0x69)  # INT1 of 0x69
+    result = bmg160_kernel.run(
+        f"n=$((GUEST_GPIO_BASE + {line})); echo $n > /sys/class/gpio/export\n"
+        "v=$(ls -d /sys/class/gpio/bmg160-0x69-INT1 /sys/class/gpio/gpio$n 2>/dev/null "
+        "| head -n 1)/value\n"
+        f'"$BMG160_PY" {GUEST_FILES / "guest_i2c_checks.py"} $GUEST_I2C_BUS 0x69 "$v"\n'
+        "s=$?; echo $n > /sys/class/gpio/unexport; exit $s")
+    checks = json.loads(result.stdout)
     assert checks["count_full"] == 100
     # 60 frames popped; new ones arrive at 100 Hz in the two transfers between the reads
     # (under TCG on a loaded host up to ~50 ms: 5 frames)
@@ -169,38 +85,38 @@ def test_guest_program_drains_the_fifo_and_reads_leave_a_latched_status(session)
     assert checks["line_after_reset_int"] == 0
 
 
-def test_the_trace_shows_the_guest_drivers_reads(session):
-    from bmg160_emu.io.trace import read_trace
-
-    _, records = read_trace(session["work"] / "trace.jsonl")
-    # the driver's probe soft-resets each chip (0x14 = 0xB6), then reads the rates as
-    # 6-byte bursts from 0x02 (register write + read in one transfer: an I2C block read)
-    probes = {r["address"]: r["time"] for r in records
-              if r["kind"] == "i2c_write" and r["register"] == 0x14 and r["written"] == [0xB6]}
-    assert set(probes) >= {0x68, 0x69}
-    for address, capture in ((0x68, "capture_100.bin"), (0x69, "capture_200.bin")):
-        bursts = [r for r in records if r["address"] == address and r["time"] > probes[address]
-                  and r["kind"] == "read_i2c_block_data" and r["register"] == 0x02
-                  and len(r["read"]) == 6]
-        frames = _frames(session, capture)
-        # every frame in the guest's buffer came from one of these reads
-        assert frames and len(bursts) >= len(frames), (address, len(bursts), len(frames))
-        assert {f[:3] for f in frames} <= {struct.unpack("<3h", bytes(r["read"])) for r in bursts}
+@pytest.mark.bmg160_kernel(driver=None)
+def test_guest_read_loop_speed(bmg160_kernel, tmp_path):
+    loop = tmp_path / "i2c_read_loop"
+    subprocess.run(["gcc", "-O2", "-o", str(loop), str(GUEST_FILES / "i2c_read_loop.c")],
+                   check=True)
+    out = bmg160_kernel.run(f"{loop} $GUEST_I2C_BUS 0x68 0x02 6 20000", timeout_s=600).stdout
+    fields = dict(item.split("=") for item in out.split())
+    assert int(fields["reads"]) == 20000
+    # the acceptance figure (issue 14); tools/bench_kernel.py reports it against QEMU
+    assert float(fields["per_s"]) > 0
+    assert bmg160_kernel.bus.log.total - bmg160_kernel.mark >= 20000  # each one reached the bus
+    print(f"guest read loop: {fields}")
 
 
-def _rate_reads(session, address: int) -> list[tuple[float, tuple[int, int, int]]]:
-    """(chip time, counts) of every 6-byte rate read of ``address`` in the trace."""
-    from bmg160_emu.io.trace import read_trace
+@pytest.mark.bmg160_kernel(addresses=BOTH)
+def test_the_driver_binds_both_chips_with_their_interrupts(bmg160_kernel):
+    for address in BOTH:
+        device = bmg160_kernel.iio(address)
+        assert bmg160_kernel.run(f"cat {device}/name").stdout.strip() == "bmg160"
+        assert bmg160_kernel.run(f"ls {device}/events").stdout.split()  # only with an IRQ
+    triggers = bmg160_kernel.run("cat /sys/bus/iio/devices/trigger*/name").stdout.split()
+    assert sum(t.startswith("bmg160-dev") for t in triggers) >= 2
+    assert "virtio-gpio" in bmg160_kernel.run("grep -i gpio /proc/interrupts").stdout
+    # the probe soft-reset each chip: 0x14 = 0xB6 in the log, then 6-byte rate reads later
+    for address in BOTH:
+        assert (0x14, 0xB6) in bmg160_kernel.writes(address)
 
-    _, records = read_trace(session["work"] / "trace.jsonl")
-    return [(r["time"], struct.unpack("<3h", bytes(r["read"]))) for r in records
-            if r["address"] == address and r["kind"] == "read_i2c_block_data"
-            and r["register"] == 0x02 and len(r["read"]) == 6]
 
-
-def _frames(session, name: str) -> list[tuple[int, int, int, int]]:
-    data = (session["out"] / name).read_bytes()
-    return [struct.unpack_from("<hhhxxq", data, i) for i in range(0, len(data) - 15, 16)]
+def _rate_reads(kernel, address: int) -> list[tuple[float, tuple[int, int, int]]]:
+    """(chip time, counts) of every 6-byte rate read of ``address`` in the test's log."""
+    return [(t.time, struct.unpack("<3h", t.read)) for t in kernel.bus.log.filter(
+        address=address, register=0x02) if len(t.read) == 6 and t.error is None]
 
 
 def _reference_std(odr_hz: int, bw_code: int, range_code: int, n: int) -> list[float]:
@@ -218,50 +134,48 @@ def _reference_std(odr_hz: int, bw_code: int, range_code: int, n: int) -> list[f
     return [statistics.stdev(v[axis] for v in values) for axis in range(3)]
 
 
-@pytest.mark.parametrize(("odr_hz", "name", "address"),
-                         [(100, "capture_100.bin", "0x68"), (200, "capture_200.bin", "0x69")])
-def test_triggered_buffer_with_the_drivers_data_ready_trigger(session, odr_hz, name, address):
-    frames = _frames(session, name)
+@pytest.mark.parametrize(("odr_hz", "address"), [
+    pytest.param(100, 0x68, marks=pytest.mark.bmg160_kernel(addresses=[0x68])),
+    pytest.param(200, 0x69, marks=pytest.mark.bmg160_kernel(addresses=[0x69]))])
+def test_triggered_buffer_with_the_drivers_data_ready_trigger(rates, odr_hz, address):
+    kernel = rates
+    kernel.set_attr("in_anglvel_sampling_frequency", odr_hz)
+    # the reader wakes every 32 frames, not every frame: the guest's one vCPU has the
+    # interrupt handlers to run (under TCG a Python wake-up costs about a millisecond)
+    frames = kernel.capture(CAPTURE_S, watermark=32)
+    assert len(frames) > 10, len(frames)
     stamps = [f[3] for f in frames]
     assert all(b > a for a, b in itertools.pairwise(stamps)), "timestamps not monotonic"
     span_s = (stamps[-1] - stamps[0]) * 1e-9
-    # The frames are the driver's capture reads, in order, in the back end's trace: their
-    # chip times give the span of the chip's own time the capture covered.
-    reads = _rate_reads(session, int(address, 16))
+    # The frames are the driver's capture reads, in order, in the bus's log: their chip
+    # times give the span of the chip's own time the capture covered.
+    reads = _rate_reads(kernel, address)
     values = [v for _, v in reads]
     triples = [f[:3] for f in frames]
     starts = [i for i in range(len(values) - len(triples) + 1)
               if values[i] == triples[0] and values[i:i + len(triples)] == triples]
-    assert len(starts) == 1, "the capture is not one run of the driver's reads in the trace"
+    assert len(starts) == 1, "the capture is not one run of the driver's reads in the log"
     chip_span_s = reads[starts[0] + len(frames) - 1][0] - reads[starts[0]][0]
     samples = odr_hz * chip_span_s + 1
-    # Issue 14: the frame count within 1 % of ODR x time. On the chip's time axis (the
-    # samples the model produced while the capture ran) this holds: the back end paces the
-    # chips (--pace guest) so that a guest stalled by its host misses no data-ready sample.
-    # What is still lost are edges IIO drops because the handler of the previous one has not
-    # finished (measured 0.5 % at 100 Hz and 1.1 % at 200 Hz with a 0.3 ms guard on a host
-    # at load 10; the 1 ms guard is there for them) and edges given up after 50 ms.
+    # Issue 14: the frame count within 1 % of ODR x time on the chip's time axis (the back
+    # end paces the chips so that a guest stalled by its host misses no data-ready sample;
+    # IIO still drops an edge whose previous handler has not finished: measured 0.5 % at
+    # 100 Hz and 1.1 % at 200 Hz at load 10, the 1 ms guard is there for them).
     assert samples * 0.99 <= len(frames) <= samples + 1, (len(frames), samples, chip_span_s)
-    # On the guest's clock the chips' time lags when the guest cannot take 300 interrupts
-    # and reads a second: a paced clock never runs ahead of the host's wall time and makes
-    # up its lag at twice wall speed when it can. The guest's clock is not the host's: under
-    # TCG its TSC is calibrated at boot, and a quiet run (no lag) kept 100.07 % and 100.13 %
-    # of ODR x guest time, the guest's clock 0.07-0.14 % slow; 0.5 % bounds that. How much
-    # the chips lag is the host's doing: this project's 2-core host gave 93 %, 82 % and 71 %
-    # at load 8-10, and 64 % with the in-process test suite running beside it. The lower
-    # bound only says the pacing never stalls the chips (a hold that always ran to its 50 ms
-    # timeout would give < 10 %).
+    # On the guest's clock the chips lag when the guest cannot keep up (a paced clock never
+    # runs ahead of wall time); the guest's TSC-calibrated clock was 0.07-0.14 % slow in a
+    # quiet run, 0.5 % bounds that. The lower bound says only that the pacing never stalls
+    # the chips (a hold that always ran to its 50 ms timeout would give < 10 %).
     expected = odr_hz * span_s + 1
     assert len(frames) <= expected * 1.005 + 1, (len(frames), expected, span_s)
     assert len(frames) >= 0.5 * expected, (len(frames), expected, span_s)
+    gpio = kernel.session.backend.gpio
     print(f"{odr_hz} Hz: {len(frames)} frames, {len(frames) / samples:.2%} of the chip's "
-          f"samples, {len(frames) / expected:.2%} of ODR x guest time; back end "
-          f"{stats(session).get('paced')}")
-    # No sample repeated. Two consecutive samples can agree on all three axes by chance (the
-    # filtered noise moves a few counts per sample): the expected number of such pairs is
-    # (N - 1) * prod_axis P(consecutive values equal), P taken from the record itself. A
-    # trigger reading one sample twice would add to that; allow only what a Poisson count
-    # of that mean exceeds with probability 1e-6.
+          f"samples, {len(frames) / expected:.2%} of ODR x guest time; held "
+          f"{gpio.held_samples}, given up {gpio.given_up}")
+    # No sample repeated beyond chance: the expected number of equal consecutive triples
+    # is (N - 1) * prod_axis P(consecutive values equal); allow what a Poisson count of
+    # that mean exceeds with probability 1e-6.
     from scipy.stats import poisson
 
     pairs = list(itertools.pairwise(frames))
@@ -269,37 +183,45 @@ def test_triggered_buffer_with_the_drivers_data_ready_trigger(session, odr_hz, n
     chance = len(pairs) * math.prod(
         sum(a[axis] == b[axis] for a, b in pairs) / len(pairs) for axis in range(3))
     assert repeats <= poisson.isf(1e-6, chance), (repeats, chance)
-    final = stats(session)["final"][address]
-    registers = bytes.fromhex(final["registers"])
-    assert final["odr_hz"] == odr_hz
+    chip = kernel.chip
+    assert chip.odr_hz == odr_hz
+    registers = chip.dump()
     range_code, bw_code = registers[0x0F] & 7, registers[0x10] & 7
     full_scale = 2000 / 2 ** range_code
     for axis in range(3):
         mean_dps = statistics.fmean(f[axis] for f in frames) * full_scale / 32768
-        # N >= 5400 samples: the mean's noise is < 0.01 deg/s; 0.5 deg/s bounds the model's
+        # N >= 2700 samples: the mean's noise is < 0.02 deg/s; 0.5 deg/s bounds the model's
         # turn-on bias (noise-model.md), a wrong scale would be off by >= 5 deg/s
         assert math.isclose(mean_dps, TRUE_RATE_DPS[axis], abs_tol=0.5), (axis, mean_dps)
     seen = [statistics.stdev(f[axis] for f in frames) for axis in range(3)]
     reference = _reference_std(odr_hz, bw_code, range_code, len(frames))
     for s, r in zip(seen, reference):
-        # Each std comes from N >= 5400 samples whose noise is correlated over a few samples
-        # (low-pass at ~1/3 of ODR): N_eff >= 1000, so each estimate is within 2.2 % (1
-        # sigma, sqrt(1/(2 N_eff))) and their ratio within 3.2 %; 15 % is > 4.5 sigma.
-        assert math.isclose(s, r, rel_tol=0.15), (seen, reference)
+        # N >= 2700 samples correlated over a few samples (low-pass at ~1/3 of ODR):
+        # N_eff >= 500, each std within 3.2 % (1 sigma, sqrt(1/(2 N_eff))), their ratio
+        # within 4.5 %; 20 % is > 4.4 sigma.
+        assert math.isclose(s, r, rel_tol=0.20), (seen, reference)
 
 
-def test_any_motion_event_reaches_user_space(session):
-    events = [line for line in text(session, "events.txt").splitlines() if line.startswith("id=")]
-    assert events, text(session, "events.txt")
+def test_any_motion_event_reaches_user_space(rates):
+    kernel = rates
+    device = kernel.iio()
+    ready = kernel.guest.results / "events.ready"
+    out = kernel.guest.results / "events.txt"
+    kernel.run(f"echo 2 > {device}/events/in_anglvel_roc_either_value\n"
+               f"echo 1 > {device}/events/in_anglvel_roc_either_en\n"
+               f'"$BMG160_PY" {GUEST_FILES / "guest_iio_events.py"} /dev/{device.rsplit("/")[-1]}'
+               f" 4 {ready} > {out} 2>&1 &")
+    deadline = time.monotonic() + 60
+    while not ready.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert ready.exists(), "the event reader did not start"
+    time.sleep(0.5)
+    kernel.chip.set_true_rate((200.0, 0.0, 0.0))  # a step: any-motion fires
+    time.sleep(1.0)
+    kernel.chip.set_true_rate(TRUE_RATE_DPS)
+    time.sleep(4.0)
+    kernel.run(f"sleep 1; echo 0 > {device}/events/in_anglvel_roc_either_en")
+    events = [line for line in out.read_text().splitlines() if line.startswith("id=")]
+    assert events, out.read_text()
     # IIO_EV_TYPE_ROC = 2 on IIO_ANGL_VEL = 4 (uapi/linux/iio/types.h)
     assert all("type=2" in e and "chan_type=4" in e for e in events), events
-    changes = stats(session)["true_rate_changes"]
-    assert [c["true_rate_dps"] for c in changes][:2] == [[200.0, 0.0, 0.0], list(TRUE_RATE_DPS)]
-
-
-def test_guest_read_loop_speed(session):
-    fields = dict(item.split("=") for item in text(session, "speed.txt").split())
-    assert int(fields["reads"]) == 20000
-    # the acceptance figure (issue 14); the benchmark reports it against the other routes
-    assert float(fields["per_s"]) > 0
-    print(f"guest read loop: {fields}")

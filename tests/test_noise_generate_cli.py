@@ -92,5 +92,7 @@ def test_without_seed_a_random_seed_is_named_and_repeats_the_record(tmp_path, ca
 
 
 def test_negative_seed_is_named_in_the_error(tmp_path, capsys):
-    assert main(["generate", "--duration", "1s", "--seed=-1", "-o", str(tmp_path / "n.npy")]) == 2
-    assert "--seed must be a non-negative integer" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # a usage error now: the seed's range is limits.SEED
+        main(["generate", "--duration", "1s", "--seed=-1", "-o", str(tmp_path / "n.npy")])
+    assert exc.value.code == 2
+    assert "argument --seed: seed must be an integer from 0" in capsys.readouterr().err

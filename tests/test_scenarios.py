@@ -251,7 +251,7 @@ def test_a_slew_with_end_s_is_refused_since_its_profile_sets_its_end():
         ("duration_s = true", "duration_s must be a positive number"),
         # a tumble integrated ahead to 2**63 s hung the loader
         ('duration_s = 9.2e18\n[[motion]]\nkind = "tumble"\ninitial_rate_dps = [1, 2, 3]',
-         "up to 315576000"),
+         "up to 30 days"),
         (('duration_s = 10\n[[motion]]\nkind = "tumble"\ninitial_rate_dps = [1, 2, 3]\n'
          "inertia_kg_m2 = [inf, 1, 1]"), "(finite, symmetric)"),
         (('duration_s = 10\n[[motion]]\nkind = "jitter"\namplitude_dps = [1, 1, 1]\n'
@@ -266,12 +266,20 @@ def test_malformed_scenarios_are_refused_naming_the_file_and_the_key(tmp_path, b
     assert str(exc.value).startswith(f"{path}: ") and message in str(exc.value)
 
 
-def test_a_ten_year_tumble_loads_without_integrating_ten_years_ahead(tmp_path):
+def test_a_thirty_day_tumble_loads_without_integrating_thirty_days_ahead(tmp_path):
     path = tmp_path / "long.toml"
-    path.write_text('duration_s = 315576000\n[[motion]]\nkind = "tumble"\n'
+    path.write_text('duration_s = 2592000\n[[motion]]\nkind = "tumble"\n'
                     "initial_rate_dps = [1, 2, 3]\n")
     scenario = load_scenario(path)
     assert scenario.rate_dps(1.0).shape == (3,)
+
+
+def test_a_scenario_past_the_cap_on_simulated_time_is_refused(tmp_path):
+    # ten years used to load, and `record --truth` would then simulate them (issue 24)
+    path = tmp_path / "long.toml"
+    path.write_text('duration_s = 315576000\n[[motion]]\nkind = "rest"\n')
+    with pytest.raises(ScenarioError, match="30 days"):
+        load_scenario(path)
 
 
 def test_montecarlo_on_a_scenario_shorter_than_its_readout_is_a_one_line_error(tmp_path, capsys):

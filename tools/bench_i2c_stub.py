@@ -1,6 +1,6 @@
 """Benchmark: the i2c-stub adapter's refresh period, jitter and CPU use in the QEMU guest.
 
-Boots the guest (tools/qemu/guest.py), loads i2c-stub and i2c-dev, and runs
+Boots the guest (bmg160_emu.linux.guest, QEMU), loads i2c-stub and i2c-dev, and runs
 ``bmg160-emu stub`` at ODR 200 Hz (BW code 4) for --seconds, first alone, then with the
 kernel's bmg160 driver bound and a reader polling in_anglvel_x_raw. The adapter reports its
 refresh start times; the target period (1 / ODR) is the reference, so each line prints the
@@ -13,7 +13,6 @@ for that guest, not for hardware.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import shlex
 import sys
@@ -46,14 +45,6 @@ wait $STUB
 """
 
 
-def load_guest():
-    spec = importlib.util.spec_from_file_location("bmg160_guest", REPO / "tools/qemu/guest.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
 def describe(name: str, report: dict, odr_hz: float) -> str:
     group = report["summary"]["by_odr_hz"].get(f"{odr_hz:g}")
     if not group:
@@ -73,10 +64,13 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=15.0)
     args = parser.parse_args()
-    guest = load_guest()
-    reason = guest.missing_requirements()
-    if reason:
-        raise SystemExit(reason)
+    from bmg160_emu.linux.guest.engine import Boot
+    from bmg160_emu.linux.guest.harness import run_script
+    from bmg160_emu.linux.guest.qemu import QemuEngine
+
+    engine = QemuEngine()
+    if engine.missing():
+        raise SystemExit("; ".join(engine.missing()))
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         script = work / "bench.sh"
@@ -85,7 +79,8 @@ def main() -> int:
             f"export SECONDS_={args.seconds:g}\n" + GUEST_SCRIPT
         )
         out = work / "out"
-        result = guest.run_guest(script, out, timeout_s=600 + 4 * args.seconds)
+        result = run_script(engine, Boot(script=script, results=out, memory_mb=1024, cpus=2),
+                            timeout_s=600 + 4 * args.seconds)
         if result.timed_out:
             raise SystemExit("the guest timed out:\n" + result.console[-3000:])
         try:

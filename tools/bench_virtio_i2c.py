@@ -4,7 +4,7 @@ One QEMU guest (TCG, one vCPU) boots with two vhost-user-i2c adapters: one serve
 ``bmg160-emu vhost-user-i2c`` (the full model), one by a bare back end (this file with
 ``--serve-bare``: the same vhost-user code answering every read with zeros, no I2CBus and no
 chip; the reference for "what the model costs"). i2c-stub and ``bmg160-emu stub`` come up
-after. The same C program (tools/qemu/i2c_read_loop.c: I2C_RDWR write [0x02] + read 6,
+after. The same C program (tests/kernel_guest/i2c_read_loop.c: I2C_RDWR write [0x02] + read 6,
 timed one by one) runs
 
 - in the guest on the full virtio-i2c adapter: every read reaches the model as it is made;
@@ -26,7 +26,6 @@ CPU per read says where a read's time goes; what the wall time adds is waiting f
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import os
 import shlex
@@ -39,12 +38,12 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-QEMU = REPO / "tools" / "qemu"
+GUEST_FILES = REPO / "tests" / "kernel_guest"
 
 GUEST_SCRIPT = r"""
 set -u
 cd /run
-insmod "$KMOD/i2c-virtio.ko"
+[ -n "${GUEST_I2C_BUS:-}" ] || insmod "$KMOD/i2c-virtio.ko"  # (the engine loads it)
 modprobe -d "$GUEST_ROOT" i2c-dev
 modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68
 sleep 1
@@ -103,14 +102,6 @@ def serve_bare(socket_path: str, ready: str) -> int:
     finally:
         server.close()
     return 0
-
-
-def _load(name: str, path: Path):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def _cpu_s(pid: int) -> dict[str, float]:
@@ -195,17 +186,21 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.serve_bare:
         return serve_bare(*args.serve_bare)
-    guest = _load("bmg160_guest", QEMU / "guest.py")
-    reason = guest.missing_requirements()
-    if reason:
-        print(f"cannot boot a guest: {reason}", file=sys.stderr)
+    from bmg160_emu.linux.guest.engine import Boot
+    from bmg160_emu.linux.guest.harness import run_script
+    from bmg160_emu.linux.guest.kmod import bundled_dir
+    from bmg160_emu.linux.guest.qemu import QemuEngine
+
+    missing = QemuEngine().missing()
+    if missing:
+        print(f"cannot boot a guest: {'; '.join(missing)}", file=sys.stderr)
         return 2
-    kmod = _load("bmg160_guest_modules", QEMU / "modules.py").build_modules()
+    kmod = bundled_dir()
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         loop = work / "i2c_read_loop"
-        subprocess.run(["gcc", "-O2", "-o", str(loop), str(QEMU / "i2c_read_loop.c")], check=True)
+        subprocess.run(["gcc", "-O2", "-o", str(loop), str(GUEST_FILES / "i2c_read_loop.c")], check=True)
         # the reference: the same program on the host, on umockdev's /dev/i2c-1
         umockdev = subprocess.run(
             [sys.executable, "-m", "bmg160_emu", "run", "--seed", "7", "--bandwidth", "6", "--",
@@ -240,11 +235,12 @@ def main(argv: list[str] | None = None) -> int:
         watch = _CpuWatch(out, str(sockets / "i2c.sock"), rounds,
                           {"back end": backend.pid, "bare back end": bare.pid})
         watch.start()
-        qemu_args = [*guest.vhost_user_args(sockets / "i2c.sock"),
-                     "-chardev", f"socket,id=vbare,path={sockets / 'bare.sock'}",
-                     "-device", "vhost-user-i2c-pci,chardev=vbare",
-                     "-name", "bench,debug-threads=on"]  # QEMU names its threads
-        result = guest.run_guest(script, out, timeout_s=900, cpus=1, qemu_args=qemu_args)
+        engine = QemuEngine(extra_args=(
+            "-chardev", f"socket,id=vbare,path={sockets / 'bare.sock'}",
+            "-device", "vhost-user-i2c-pci,chardev=vbare",
+            "-name", "bench,debug-threads=on"))  # QEMU names its threads
+        result = run_script(engine, Boot(script=script, results=out, memory_mb=1024,
+                                         i2c_socket=sockets / "i2c.sock"), timeout_s=900)
         watch.join(1)
         for process in (backend, bare):
             process.send_signal(signal.SIGTERM)

@@ -2,6 +2,7 @@
 
     python tools/fuzz.py --examples 2000            # 2000 mutated files per format
     python tools/fuzz.py --examples 500 --format trace --save failures/
+    python tools/fuzz.py --cli --examples 200      # the command line (tests/_fuzz_cli.py)
     python tools/fuzz.py --signals --trials 50      # signals at random moments (issue 24)
 
 Each example is a valid file (made by the project's own CLI) with 1-3 random mutations (bit
@@ -23,6 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from _fuzz_cli import CLI_FORMATS, campaign
 from _fuzz_formats import FORMATS, mutate, try_load
 
 
@@ -31,11 +33,17 @@ def main() -> int:
         return signals_main(sys.argv[1:])
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--examples", type=int, default=1000, help="mutated files per format")
-    parser.add_argument("--format", action="append", choices=[f.name for f in FORMATS],
+    parser.add_argument("--cli", action="store_true",
+                        help="run the command line instead of the loaders: --examples mutated "
+                        "files per CLI format, then every numeric option with every bad value")
+    parser.add_argument("--format", action="append",
+                        choices=sorted({f.name for f in FORMATS} | {f.name for f in CLI_FORMATS}),
                         help="only this format (repeatable; default all)")
     parser.add_argument("--first-seed", type=int, default=0, help="seed of the first example")
     parser.add_argument("--save", type=Path, default=None, help="folder for breaking files")
     args = parser.parse_args()
+    if args.cli:
+        return 1 if campaign(args.examples, args.first_seed, args.save, args.format) else 0
     formats = [f for f in FORMATS if not args.format or f.name in args.format]
     failures = 0
     started = time.monotonic()

@@ -13,7 +13,7 @@ is written for authors in docs/contributing.md; in short:
 - An HTML comment right before a block (``<!-- docs-run: ... -->``) says how to run it:
   ``mask='REGEX'`` hides what varies (timings) in the expected and the actual output alike,
   ``needs=umockdev`` runs it only where umockdev and i2c-tools are installed (and under the
-  pytest marker of the same name), ``fails`` expects its last command to exit non-zero,
+  pytest marker of the same name; ``needs=kernel`` where a guest engine is ready), ``fails`` expects its last command to exit non-zero,
   ``timeout=SECONDS`` allows longer than 120 s, and ``skip='REASON'`` does not run it (a
   root prompt ``# ``, a QEMU guest, hardware); ``sh``/``bash`` blocks must say ``skip``.
   Skipped ``bmg160-emu`` commands are still parsed by the real argument parser, every
@@ -53,6 +53,7 @@ DEFAULT_TIMEOUT_S = 120.0
 NEEDS = {
     "umockdev": ("umockdev-run", "i2cget", "i2ctransfer", "i2cdetect", "i2cset", "i2cdump"),
     "firmware": ("avr-gcc", "avr-objcopy", "simavr"),
+    "kernel": ("modinfo", "i2cget"),  # and a ready guest engine (bmg160-emu kernel prepare)
 }
 
 
@@ -301,6 +302,11 @@ def unavailable(options: Options) -> list[str]:
                if shutil.which(program) is None]
     if "umockdev" in options.needs and not missing:
         missing += [reason for reason in [umockdev_missing()] if reason]
+    if "kernel" in options.needs and not missing:
+        from bmg160_emu.linux.guest.engine import default_engine
+
+        if default_engine() is None:
+            missing.append("a ready guest engine (bmg160-emu kernel prepare)")
     return missing
 
 

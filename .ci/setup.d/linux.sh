@@ -32,10 +32,9 @@ if ! python3 -c "import gi" 2>/dev/null; then
 fi
 python3 -c "import gi; gi.require_version('UMockdev', '1.0'); from gi.repository import UMockdev"
 
-# The guest: Debian's kernel package unpacked into the cache, and the busybox initramfs.
-python3 tools/qemu/guest.py prepare
-
-# C: i2c-virtio, gpio-virtio (patched), the IIO software triggers and bmg160-board, built
-# against the guest kernel's linux-headers with sources from linux-source-6.1 of the same
-# version (apt-get download + dpkg -x into the cache; rebuilt only when a patch changes).
-python3 tools/qemu/modules.py build
+# The guest (bmg160_emu.linux.guest): Debian's kernel package unpacked into the cache, the
+# busybox initramfs, and the modules Debian's configuration leaves out (i2c-virtio,
+# gpio-virtio (patched), the IIO software triggers, bmg160-board), built against the guest
+# kernel's linux-headers with sources from linux-source-6.1 of the same version (apt-get
+# download + dpkg -x into the cache; rebuilt only when their sources change).
+PYTHONPATH=$PWD${PYTHONPATH:+:$PYTHONPATH} python3 -m bmg160_emu kernel prepare --engine qemu

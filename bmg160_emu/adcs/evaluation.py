@@ -20,7 +20,6 @@ Readout options, from the scenario's ``[readout]`` table:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,6 +35,8 @@ from bmg160_emu.adcs.results import RunResult
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
 from bmg160_emu.device.registers import address_of, field_of
 from bmg160_emu.device.spec_choices import RANGE_CODE_BY_DPS
+from bmg160_emu.durations import MAX_SIMULATED_S
+from bmg160_emu.limits import Bounded, LimitError
 
 RANGE, BW, FIFO_STATUS, FIFO_CONFIG_1, FIFO_DATA = (
     address_of(name) for name in ("RANGE", "BW", "FIFO_STATUS", "FIFO_CONFIG_1", "FIFO_DATA"))
@@ -56,26 +57,43 @@ READOUT_DEFAULTS: dict[str, Any] = {
 }
 
 
+# [readout] times: at most the cap on simulated time; steps (poll_s, grid_s) from 0.1 ms,
+# shorter than the chip's fastest output period (0.5 ms at 2000 Hz, data sheet 5.3), and at
+# most MAX_READOUT_STEPS of them in a run (about 100 s of work at ~10 us a read).
+READOUT_LIMITS = {
+    "settle_s": Bounded("settle_s", 0.0, MAX_SIMULATED_S, "s"),
+    "poll_s": Bounded("poll_s", 1e-4, MAX_SIMULATED_S, "s"),
+    "calibrate_s": Bounded("calibrate_s", 1e-4, MAX_SIMULATED_S, "s"),
+    "grid_s": Bounded("grid_s", 1e-4, MAX_SIMULATED_S, "s"),
+}
+MAX_READOUT_STEPS = 10_000_000
+
+
 def readout_options(scenario: Scenario) -> dict[str, Any]:
     """The scenario's ``[readout]`` table over the defaults, checked."""
     unknown = set(scenario.readout) - set(READOUT_DEFAULTS)
     if unknown:
         raise ScenarioError(f"readout: unknown keys {sorted(unknown)}")
     options = {**READOUT_DEFAULTS, **scenario.readout}
-    if options["range_dps"] not in RANGE_CODE_BY_DPS:
-        raise ScenarioError(f"readout: range_dps must be one of {sorted(RANGE_CODE_BY_DPS)}")
-    if options["bandwidth_code"] not in range(8):
+    if not isinstance(options["range_dps"], int) or options["range_dps"] not in RANGE_CODE_BY_DPS:
+        raise ScenarioError(f"readout: range_dps must be one of {sorted(RANGE_CODE_BY_DPS)}, "
+                            f"not {options['range_dps']!r}"[:200])  # a list is unhashable
+    code = options["bandwidth_code"]
+    if isinstance(code, bool) or not isinstance(code, int) or code not in range(8):
         raise ScenarioError("readout: bandwidth_code must be 0..7 (spec 5.3)")
-    if options["bias"] not in ("none", "profile", "calibrate"):
+    if not isinstance(options["bias"], str) or options["bias"] not in ("none", "profile",
+                                                                        "calibrate"):
         raise ScenarioError("readout: bias must be 'none', 'profile' or 'calibrate'")
-    if not isinstance(options["settle_s"], (int, float)) or options["settle_s"] < 0:
-        raise ScenarioError("readout: settle_s must be a number of seconds >= 0")
-    for key in ("poll_s", "calibrate_s", "grid_s"):
-        if not isinstance(options[key], (int, float)) or not options[key] > 0:
-            raise ScenarioError(f"readout: {key} must be a positive number of seconds")
-    for key in ("settle_s", "poll_s", "calibrate_s", "grid_s"):
-        if isinstance(options[key], bool) or not math.isfinite(options[key]):
-            raise ScenarioError(f"readout: {key} must be a finite number of seconds")
+    try:  # limits.Bounded: finite, in range, one line naming the key
+        for key, bounded in READOUT_LIMITS.items():
+            options[key] = bounded.check(options[key], "readout")
+    except LimitError as exc:
+        raise ScenarioError(str(exc)) from None
+    for key in ("poll_s", "grid_s"):  # a step that would read for hours
+        if scenario.duration_s / options[key] > MAX_READOUT_STEPS:
+            raise ScenarioError(f"readout: {key} = {options[key]:g} s gives "
+                                f"{scenario.duration_s / options[key]:.3g} steps in "
+                                f"duration_s; at most {MAX_READOUT_STEPS:,}")
     # the run settles, calibrates (bias = "calibrate") and then needs one grid step to
     # compare the attitude with truth: a shorter scenario has nothing to evaluate
     needed = options["settle_s"] + options["grid_s"] + (

@@ -123,18 +123,24 @@ def parse_seeds(text: str | None, runs: int | None) -> list[int]:
         if runs is None:
             raise ValueError("give --runs, --seeds or both")
         text = "0"
+    from bmg160_emu.limits import RUNS, SEED_START, LimitError
+
     text = text.strip()
-    try:
+    try:  # each seed, and the count, bounded before any list is made (0:10**12 was one)
         if ":" in text:
             first, _, last = text.partition(":")
-            seeds = list(range(int(first), int(last)))
+            a, b = SEED_START.parse(first, "--seeds"), SEED_START.parse(last, "--seeds")
+            RUNS.check(max(b - a, 1), f"--seeds {text}")
+            seeds = list(range(a, b))
         elif "," in text:
-            seeds = [int(s) for s in text.split(",") if s.strip()]
+            seeds = [SEED_START.parse(s, "--seeds") for s in text.split(",")[: int(RUNS.high) + 1]
+                     if s.strip()]
+            RUNS.check(len(seeds), f"--seeds {text[:40]}")
         else:
-            start = int(text)
+            start = SEED_START.parse(text, "--seeds")
             seeds = list(range(start, start + (runs if runs is not None else 1)))
-    except ValueError:
-        raise ValueError(f"seeds must be START, A:B or a comma list of integers, not {text!r}") from None
+    except LimitError as exc:
+        raise ValueError(str(exc)) from None
     if runs is not None and len(seeds) != runs and (":" in text or "," in text):
         raise ValueError(f"--runs {runs} but --seeds {text!r} gives {len(seeds)} seeds")
     if not seeds:

@@ -35,7 +35,9 @@ from typing import Any
 
 import numpy as np
 
+from bmg160_emu.durations import MAX_SIMULATED_S, MAX_TEXT
 from bmg160_emu.io.errors import FormatError, loads_toml, read_text
+from bmg160_emu.limits import RATE_DPS
 
 # WGS-84 / EGM-96 constants for the orbital period of a circular orbit.
 EARTH_MU_KM3_S2 = 398600.4418  # km^3/s^2, EGM-96 gravitational parameter
@@ -319,17 +321,16 @@ class Scenario:
         return cls(duration_s=duration_s, motions=[ConstantRotation(rate=rate)], name="constant")
 
 
-# Longest scenario accepted: ten years, beyond any mission test, and far inside the chips'
-# integer-nanosecond clock (2**63 ns = 292 years); an unbounded one could hang the loader
-# (a tumble integrates ahead) or overflow the sample schedule.
-MAX_DURATION_S = 10 * 365.25 * 86400.0
+# Longest scenario: the cap on simulated time (30 days, bmg160_emu.durations); beyond, a tumble
+# integrates far ahead, and `record --truth` would simulate for days.
+MAX_DURATION_S = MAX_SIMULATED_S  # bmg160_emu.durations: the one cap on simulated time
 
 
 def _check_duration(duration_s: Any) -> float:
     if isinstance(duration_s, bool) or not isinstance(duration_s, (int, float)) \
             or not 0 < duration_s <= MAX_DURATION_S:
         raise ScenarioError(f"duration_s must be a positive number of seconds up to "
-                            f"{MAX_DURATION_S:.0f} (ten years), not {duration_s!r}")
+                            f"{MAX_TEXT}, not {duration_s!r}")
     return float(duration_s)
 
 
@@ -339,8 +340,7 @@ def _finite(value: Any, what: str) -> float:
     return float(value)
 
 
-# Largest magnitude of any vector in a scenario (rates in deg/s, angles in deg): 500 times
-# the chip's largest range (+-2000 deg/s), so every derived rate and attitude stays finite.
+# Largest magnitude of any vector or slew value (deg/s, deg, deg/s2): 500 x the +-2000 deg/s range.
 MAX_COMPONENT = 1e6
 
 
@@ -489,16 +489,17 @@ def motion_from_dict(
         return ConstantRotation(rate=rate * axis, **window)
     if kind == "slew":
         angle = entry.get("angle_deg")
-        if not isinstance(angle, (int, float)):
-            raise ScenarioError(f"{where}: a slew needs angle_deg (a number)")
+        if isinstance(angle, bool) or not isinstance(angle, (int, float)) \
+                or not abs(angle) <= MAX_COMPONENT:  # 1e308 overflowed its rate profile
+            raise ScenarioError(f"{where}: a slew needs angle_deg, a number within +-1e6")
         if end is not None:
             raise ScenarioError(f"{where}: a slew ends by itself when its rate profile does; "
                                 "give start_s only (end_s is for the other motions)")
         return Slew(
             axis=_unit(entry.get("axis"), f"{where}: axis"),
             angle_deg=float(angle),
-            max_rate_dps=_positive(entry, "max_rate_dps", where),
-            max_accel_dps2=_positive(entry, "max_accel_dps2", where),
+            max_rate_dps=_positive(entry, "max_rate_dps", where, maximum=MAX_COMPONENT),
+            max_accel_dps2=_positive(entry, "max_accel_dps2", where, maximum=MAX_COMPONENT),
             start_s=start,
         )
     if kind == "jitter":
@@ -524,7 +525,12 @@ def motion_from_dict(
     units = entry.get("units", "deg/s")
     if units not in ("deg/s", "rad/s"):
         raise ScenarioError(f"{where}: units must be 'deg/s' or 'rad/s', not {units!r}")
-    rates = data[:, 1:] if units == "deg/s" else np.degrees(data[:, 1:])
+    scale = 1.0 if units == "deg/s" else 180.0 / math.pi
+    beyond = np.abs(data[:, 1:]) > RATE_DPS.high / scale  # before scaling: no overflow
+    if beyond.any():
+        row = int(np.argmax(beyond.any(axis=1)))
+        raise ScenarioError(f"{where}: table row {row + 1}: a rate beyond {RATE_DPS.describe()}")
+    rates = data[:, 1:] * scale
     return Table(
         times_s=data[:, 0],
         rates_dps=rates,

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from bmg160_emu import limits
+from bmg160_emu.commands._common import bounded_option
 from bmg160_emu.device.config import DEFAULT_PART, ChipConfig
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.device.spec_choices import DEFAULT_ADDRESS, RANGE_CODE_BY_DPS, VALID_ADDRESSES
@@ -126,8 +128,8 @@ def _address(text: str) -> int:
 
 def _range_dps(text: str) -> int:
     try:
-        value = int(float(text))
-    except ValueError:
+        value = limits.FULL_SCALE_DPS.parse(text)
+    except limits.LimitError:
         value = -1
     if value not in RANGE_CODE_BY_DPS:
         raise argparse.ArgumentTypeError(
@@ -138,8 +140,8 @@ def _range_dps(text: str) -> int:
 
 def _bandwidth_code(text: str) -> int:
     try:
-        value = int(text, 0)
-    except ValueError:
+        value = limits.BANDWIDTH_CODE.parse(text)
+    except limits.LimitError:
         value = -1
     if not 0 <= value <= 7:
         raise argparse.ArgumentTypeError(f"bandwidth code must be 0..7 (spec 5.3), not {text}")
@@ -153,7 +155,7 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
     ``devices=True`` where the command's session takes other devices (``--device``: run,
     stub, dump, script; not where the session is one gyro's, as record's and demo's are)."""
     group = parser.add_argument_group("emulated chip")
-    group.add_argument("--seed", type=int, default=None, help="master noise seed (default: random)")
+    group.add_argument("--seed", type=bounded_option(limits.SEED), default=None, help="master noise seed (default: random)")
     group.add_argument(
         "--profile", default=None,
         help="noise profile name or TOML (default: the part's own: paper for the bmg160, the "
@@ -169,7 +171,7 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
     group.add_argument(
         "--true-rate",
         nargs=3,
-        type=float,
+        type=bounded_option(limits.RATE_DPS),
         metavar=("X", "Y", "Z"),
         default=None,
         help="constant true angular rate in deg/s",
@@ -219,7 +221,7 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
     )
     group.add_argument(
         "--temperature",
-        type=float,
+        type=bounded_option(limits.TEMPERATURE_C),
         default=23.0,
         metavar="DEGC",
         help="die temperature in deg C (default 23)",

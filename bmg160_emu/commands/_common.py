@@ -40,7 +40,41 @@ def integer_at_least(minimum: int, what: str) -> Callable[[str], int]:
     return parse
 
 
-bus_number = integer_at_least(0, "bus")
+def bus_number(text: str) -> int:
+    """An argparse type: a Linux I2C bus number (limits.I2C_BUS)."""
+    from bmg160_emu.limits import I2C_BUS
+
+    return bounded_option(I2C_BUS)(text)
+
+
+bus_number.__name__ = "bus"
+
+
+def bounded_option(bounded: Any) -> Callable[[str], Any]:
+    """An argparse type reading an option's value through a :class:`bmg160_emu.limits.Bounded`:
+    a finite number in its stated range, or a usage error (argparse names the option) giving
+    the range."""
+    from bmg160_emu.limits import LimitError
+
+    def parse(text: str) -> Any:
+        try:
+            return bounded.parse(text)
+        except LimitError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = bounded.name.replace(" ", "_")
+    return parse
+
+
+def parsed_duration(text: str, option: str, *, allow_zero: bool = False) -> float:
+    """A duration option read after parsing (``--duration``, ``--skip``, ``--block``): seconds,
+    or a :class:`CommandError` naming ``option``."""
+    from bmg160_emu.durations import parse_duration
+
+    try:
+        return parse_duration(text, allow_zero=allow_zero)
+    except ValueError as exc:
+        raise CommandError(f"{option}: {exc}") from None
 
 
 def add_bus_option(parser: argparse.ArgumentParser, help_text: str, **kwargs: Any) -> None:
@@ -64,7 +98,8 @@ duration_seconds.__name__ = "duration"  # argparse names the type in some messag
 # argparse takes a word that starts with '-' for an option unless it looks like a negative
 # number, so "--duration -5s" used to fail with "expected one argument". Negative durations
 # count as negative numbers here, and reach the duration parser, which says what is wrong.
-_NEGATIVE_NUMBER_OR_DURATION = re.compile(r"^-(\d+\.?\d*|\.\d+)(e[+-]?\d+)?[a-z]*$", re.IGNORECASE)
+_NEGATIVE_NUMBER_OR_DURATION = re.compile(r"^-((\d+\.?\d*|\.\d+)(e[+-]?\d+)?[a-z]*|inf|infinity|nan)$",
+                                          re.IGNORECASE)
 
 
 def add_command_parser(

@@ -13,11 +13,13 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from bmg160_emu import limits
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
 from bmg160_emu.commands._common import (
     Subparsers,
     add_bus_option,
     add_command_parser,
+    bounded_option,
     integer_at_least,
 )
 from bmg160_emu.device.registers import address_of, field_of
@@ -60,7 +62,7 @@ def register(subparsers: Subparsers) -> None:
     add_bus_option(parser, "I2C bus number (default 1)", default=1)
     parser.add_argument(
         "--samples",
-        type=integer_at_least(1, "samples"),
+        type=bounded_option(limits.DEMO_SAMPLES),
         default=8,
         metavar="N",
         help="samples to stream by polling (default 8)",

@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bmg160_emu.commands._common import Subparsers, add_command_parser
+from bmg160_emu import limits
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    bounded_option,
+    duration_seconds,
+)
 
 EPILOG = """\
 examples:
@@ -49,8 +55,10 @@ def register(subparsers: Subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     _common(capture)
-    capture.add_argument("--seconds", type=float, required=True, help="simulated seconds")
-    capture.add_argument("--odr", type=int, default=200, help="output data rate in Hz (200)")
+    capture.add_argument("--seconds", type=duration_seconds, required=True,
+                         help="simulated seconds (at most 30 days)")
+    capture.add_argument("--odr", type=bounded_option(limits.ODR_HZ), default=200,
+                         choices=(100, 200, 400, 1000, 2000), help="output data rate in Hz (200)")
     capture.add_argument("--output", required=True, help="file for the UART stream")
     capture.set_defaults(func=run_capture)
     parser.set_defaults(func=lambda args: _missing_action(parser))
@@ -64,7 +72,7 @@ def _common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--mode", default="physical", choices=("physical", "paper"), help="noise discretization"
     )
-    parser.add_argument("--seed", type=int, default=1, help="seed of the on-chip generator")
+    parser.add_argument("--seed", type=bounded_option(limits.FIRMWARE_SEED), default=1, help="seed of the on-chip generator")
     parser.add_argument(
         "--normal",
         default="ziggurat",
@@ -106,8 +114,12 @@ def _build(args: argparse.Namespace):
 
 def run_build(args: argparse.Namespace) -> int:
     from bmg160_emu.firmware.build import ATMEGA328P_FLASH, ATMEGA328P_SRAM
+    from bmg160_emu.firmware.params_header import unapplied_output_note
 
     build = _build(args)
+    note = unapplied_output_note(args.profile)
+    if note:
+        print(note)
     print(f"header: {build.header}")
     print(f"elf:    {build.elf}")
     print(f"hex:    {build.hex}")

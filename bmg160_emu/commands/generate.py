@@ -7,7 +7,8 @@ import secrets
 import sys
 from pathlib import Path
 
-from bmg160_emu.commands._common import Subparsers, add_command_parser
+from bmg160_emu import limits
+from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
 from bmg160_emu.durations import parse_duration
 
 EPILOG = """\
@@ -50,7 +51,7 @@ def register(subparsers: Subparsers) -> None:
     )
     parser.add_argument(
         "--rate",
-        type=float,
+        type=bounded_option(limits.SAMPLE_RATE_HZ),
         default=None,
         metavar="HZ",
         help="output data rate: 100, 200, 400, 1000 or 2000 Hz (default 200)",
@@ -60,7 +61,7 @@ def register(subparsers: Subparsers) -> None:
         help="simulated time: 10s, 5min, 2h, 1d, or seconds (positive)",
     )
     parser.add_argument(
-        "--seed", type=int, default=None,
+        "--seed", type=bounded_option(limits.SEED), default=None,
         help="noise seed (default: random, chosen, printed and written to a CSV header)",
     )
     parser.add_argument(
@@ -72,7 +73,7 @@ def register(subparsers: Subparsers) -> None:
     )
     parser.add_argument(
         "--bandwidth",
-        type=int,
+        type=bounded_option(limits.BANDWIDTH_CODE),
         default=None,
         metavar="CODE",
         help="BW code 0-7: the code's ODR, and the noise through the chip's low-pass for it "
@@ -109,8 +110,6 @@ def run(args: argparse.Namespace) -> int:
     chosen_seed = args.seed is None
     if chosen_seed:
         args.seed = secrets.randbits(32)  # a record names its seed: a random run can be repeated
-    elif args.seed < 0:
-        raise CommandError(f"--seed must be a non-negative integer, not {args.seed}")
     try:
         duration = parse_duration(args.duration)
     except ValueError as exc:
@@ -127,6 +126,13 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         text = str(exc)  # a rate the BW code has not is named as the option it came from
         raise CommandError(f"--{text}" if text.startswith("rate ") else text) from None
+    if gen.profile.errors:  # not used by generate, but a bad table is a bad profile
+        from bmg160_emu.device.sensor_errors import SensorErrors
+
+        try:
+            SensorErrors.from_dict(gen.profile.errors, f"{args.profile} [errors]")
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
     total = round(duration * gen.rate_hz)
     if total < 1:
         raise CommandError(f"duration {args.duration!r} is shorter than one sample period")

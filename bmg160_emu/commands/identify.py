@@ -8,7 +8,8 @@ import json
 import sys
 from pathlib import Path
 
-from bmg160_emu.commands._common import Subparsers, add_command_parser
+from bmg160_emu import limits
+from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
 
 EPILOG = """\
 examples:
@@ -50,7 +51,7 @@ def register(subparsers: Subparsers) -> None:
                         "the firmware's UART stream (.txt)")
     parser.add_argument(
         "--rate",
-        type=float,
+        type=bounded_option(limits.SAMPLE_RATE_HZ),
         default=None,
         metavar="HZ",
         help="sample rate in Hz (default: from the time column)",
@@ -85,7 +86,7 @@ def register(subparsers: Subparsers) -> None:
     )
     parser.add_argument(
         "--seed",
-        type=int,
+        type=bounded_option(limits.SEED),
         default=None,
         help="seed of the --compare emulator record (default: random; the same seed as the "
         "recording's own generator would reproduce its noise almost sample for sample)",
@@ -101,13 +102,13 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--with-r", action="store_true", help="also fit rate ramp R")
     parser.add_argument(
         "--tau-min",
-        type=float,
+        type=bounded_option(limits.TAU_S),
         default=None,
         metavar="S",
         help="shortest tau fitted (e.g. above the chip filter's time constant)",
     )
     parser.add_argument(
-        "--tau-max", type=float, default=None, metavar="S", help="longest tau fitted"
+        "--tau-max", type=bounded_option(limits.TAU_S), default=None, metavar="S", help="longest tau fitted"
     )
     parser.add_argument(
         "--poles",
@@ -126,7 +127,7 @@ def register(subparsers: Subparsers) -> None:
     )
     parser.add_argument(
         "--bootstrap",
-        type=int,
+        type=bounded_option(limits.BOOTSTRAP),
         default=0,
         metavar="N",
         help="with --method gmwm: also N parametric-bootstrap replicates per axis "
@@ -158,7 +159,7 @@ def register(subparsers: Subparsers) -> None:
         help="the file is an Allan deviation curve (CSV), not samples",
     )
     parser.add_argument(
-        "--samples", type=int, default=None, metavar="N",
+        "--samples", type=bounded_option(limits.CURVE_SAMPLES), default=None, metavar="N",
         help="with --curve: number of samples of the record behind the curve",
     )
     parser.add_argument(
@@ -185,9 +186,12 @@ def register(subparsers: Subparsers) -> None:
 
 def _options(args: argparse.Namespace) -> dict:
     """The fit options from the command line, or a CommandError naming the bad one."""
-    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.durations import parse_duration
 
+    for out in (args.profile_out, args.adev_out, args.kalibr_out, args.matlab_out, args.plot):
+        if out is not None:  # refused by its own name before the fit, not as a hidden .part
+            check_writable(out)
     if args.poles == "auto":
         poles = None
     else:
@@ -244,7 +248,9 @@ def run(args: argparse.Namespace) -> int:
             if args.method == "gmwm":
                 gmwm_fits = _apply_gmwm(args, record, result)
     except (RateFileError, IdentificationError, InteropError) as exc:
-        raise CommandError(str(exc)) from None
+        text = str(exc)  # "record too short" and the like: name the file once
+        raise CommandError(text if text.startswith(str(args.file)) else f"{args.file}: {text}") \
+            from None
 
     written: list[Path] = []
     try:
@@ -252,7 +258,10 @@ def run(args: argparse.Namespace) -> int:
         if args.figures is not None:
             written += _write_figures(args, record, result)
     except OSError as exc:
-        raise CommandError(f"cannot write output: {exc}") from None
+        target = next((p for p in (args.profile_out, args.adev_out, args.kalibr_out,
+                                   args.matlab_out, args.plot, args.figures) if p is not None), "")
+        raise CommandError(f"cannot write {target if len(written) == 0 else 'an output'}: "
+                           f"{exc.strerror or exc}") from None
 
     if args.json:
         out = result.as_dict(args.units)

@@ -6,7 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from bmg160_emu.commands._common import Subparsers, add_command_parser
+from bmg160_emu import limits
+from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
 
 EPILOG = """\
 examples:
@@ -31,7 +32,7 @@ def register(subparsers: Subparsers) -> None:
         EPILOG,
     )
     parser.add_argument("scenario", metavar="SCENARIO", help="scenario file (TOML)")
-    parser.add_argument("--runs", type=int, default=None, help="number of runs (default 100)")
+    parser.add_argument("--runs", type=bounded_option(limits.RUNS), default=None, help="number of runs (default 100)")
     parser.add_argument(
         "--seeds",
         default=None,
@@ -44,7 +45,7 @@ def register(subparsers: Subparsers) -> None:
         "scheduler address such as tcp://host:8786",
     )
     parser.add_argument(
-        "--workers", type=int, default=None, help="local worker processes (default: all cores)"
+        "--workers", type=bounded_option(limits.WORKERS), default=None, help="local worker processes (default: all cores)"
     )
     parser.add_argument(
         "--percentiles",
@@ -52,7 +53,7 @@ def register(subparsers: Subparsers) -> None:
         help="comma-separated percentiles of the angle error (default 50,90,95,99)",
     )
     parser.add_argument("--output", default=None, help="write the curves to FILE (.json or .csv)")
-    parser.add_argument("--rows", type=int, default=10, help="rows of the printed table")
+    parser.add_argument("--rows", type=bounded_option(limits.ROWS), default=10, help="rows of the printed table")
     bar = parser.add_mutually_exclusive_group()
     bar.add_argument("--progress", dest="progress", action="store_true", default=None,
                      help="always show the progress bar (default: only on a terminal)")

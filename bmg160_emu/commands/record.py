@@ -6,8 +6,14 @@ import argparse
 import sys
 from pathlib import Path
 
+from bmg160_emu import limits
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import Subparsers, add_command_parser, check_writable
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    bounded_option,
+    check_writable,
+)
 
 EPILOG = """\
 examples:
@@ -40,7 +46,7 @@ def register(subparsers: Subparsers) -> None:
         help="chip time to record: 10min, 30s, 1.5h, 1d, 250ms (default: the scenario's duration)",
     )
     parser.add_argument(
-        "--rate", type=int, default=None, metavar="HZ", choices=(100, 200, 400, 1000, 2000),
+        "--rate", type=bounded_option(limits.ODR_HZ), default=None, metavar="HZ", choices=(100, 200, 400, 1000, 2000),
         help="output data rate in Hz: 100, 200, 400, 1000 or 2000 (default: the chip's reset "
         "BW 0x00, 2000 Hz with the 523 Hz filter; note that generate defaults to 200 Hz)",
     )
@@ -72,8 +78,10 @@ def run(args: argparse.Namespace) -> int:
 
         try:
             scenario = load_scenario(args.truth)
-        except (ScenarioError, OSError) as exc:
-            raise CommandError(f"{args.truth}: {exc}") from None
+        except ScenarioError as exc:  # its message starts with the file
+            raise CommandError(str(exc)) from None
+        except OSError as exc:
+            raise CommandError(f"cannot read {args.truth}: {exc.strerror}") from None
     if args.duration is not None:
         try:
             duration = parse_duration(args.duration)
@@ -86,6 +94,12 @@ def run(args: argparse.Namespace) -> int:
     if args.rate is not None:
         args.bandwidth = BW_CODE_BY_ODR_HZ[args.rate]
     chip = next(iter(chips_from_args(args).values()))
+    try:  # record holds every sample until it writes them: refuse what memory cannot hold
+        limits.RECORD_SAMPLES.check(round(duration * chip.odr_hz), f"--duration {args.duration}"
+                                    if args.duration else f"{args.truth}: duration_s")
+    except limits.LimitError as exc:
+        raise CommandError(f"{exc} (at {chip.odr_hz:g} Hz; a lower --rate records longer)")\
+            from None
     if scenario is not None:
         chip.set_true_rate(scenario)
 

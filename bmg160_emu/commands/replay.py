@@ -7,10 +7,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from bmg160_emu import limits
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
 from bmg160_emu.commands._common import (
     Subparsers,
     add_command_parser,
+    bounded_option,
     check_writable,
     run_script_file,
 )
@@ -44,10 +46,10 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--unit", choices=("dps", "counts"), default="dps",
                         help="unit of the x, y, z data (default: dps)")
     parser.add_argument(
-        "--data-range", type=int, default=None, metavar="DPS", choices=sorted(RANGE_CODE_BY_DPS),
+        "--data-range", type=bounded_option(limits.FULL_SCALE_DPS), default=None, metavar="DPS", choices=sorted(RANGE_CODE_BY_DPS),
         help="for --unit counts without a settings line: the range they were recorded at",
     )
-    parser.add_argument("--max-gap-factor", type=float, default=3.0, metavar="F",
+    parser.add_argument("--max-gap-factor", type=bounded_option(limits.GAP_FACTOR), default=3.0, metavar="F",
                         help="a time step over F times the median step is a gap (default 3)")
     parser.add_argument("--loop", action="store_true", help="start over at the end (default: hold)")
     parser.add_argument("-o", "--output", type=Path, default=None,
@@ -60,6 +62,7 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device import spec_choices
+    from bmg160_emu.durations import check_simulated_time
     from bmg160_emu.session.playback import ReplayDataError, ReplaySource, load_replay_data
 
     if (args.output is None) == (args.script is None):
@@ -82,6 +85,13 @@ def run(args: argparse.Namespace) -> int:
     chip = next(iter(chips.values()))
     ReplaySource(data, loop=args.loop).attach(chip)
     if args.output is not None:
+        duration = data.duration_s + data.median_step_s
+        try:  # checked before recording: a span of 2e8 s asked for 45 GiB
+            check_simulated_time(duration, f"{duration:g} s", f"{args.data}: the replay span")
+            limits.RECORD_SAMPLES.check(round(duration * chip.odr_hz),
+                                        f"{args.data}: a replay of {duration:g} s")
+        except ValueError as exc:  # LimitError is one
+            raise CommandError(f"{exc} (at {chip.odr_hz:g} Hz)") from None
         return _record_to(args.output, chip, data, args.data)
     return run_script_file(args.script, chips, print, "FAILED ")
 

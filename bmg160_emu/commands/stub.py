@@ -9,12 +9,14 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
+from bmg160_emu import limits
 from bmg160_emu.commands._chip_options import add_chip_options, announce_seed, chips_from_args
 from bmg160_emu.commands._common import (
     Subparsers,
     add_bus_option,
     add_command_parser,
     add_file_option,
+    bounded_option,
     duration_seconds,
 )
 
@@ -61,7 +63,7 @@ def register(subparsers: Subparsers) -> None:
         "model as JSON to FILE at exit",
     )
     parser.add_argument(
-        "--max-refresh-hz", type=float, default=None, metavar="HZ",
+        "--max-refresh-hz", type=bounded_option(limits.REFRESH_HZ), default=None, metavar="HZ",
         help="refresh at most this often even at higher output data rates (default 500)",
     )
     add_file_option(

@@ -8,7 +8,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from bmg160_emu.commands._common import Subparsers, add_command_parser
+from bmg160_emu import limits
+from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
 
 EPILOG = """\
 examples:
@@ -43,9 +44,9 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("file", type=Path, help="CSV with time, x, y, z (deg/s) and temperature")
     parser.add_argument("--temperature-column", default=None, metavar="NAME",
                         help=f"the temperature column (default: one of {', '.join(TEMPERATURE_COLUMNS)})")
-    parser.add_argument("--order", type=int, default=3, choices=(0, 1, 2, 3),
+    parser.add_argument("--order", type=bounded_option(limits.POLYNOMIAL_ORDER), default=3, choices=(0, 1, 2, 3),
                         help="polynomial order (default 3, as PX4)")
-    parser.add_argument("--reference", type=float, default=None, metavar="DEGC",
+    parser.add_argument("--reference", type=bounded_option(limits.REFERENCE_TEMPERATURE_C), default=None, metavar="DEGC",
                         help="reference temperature of the polynomial (default: mid-range)")
     parser.add_argument("--block", default="60s", metavar="DURATION",
                         help="block length the fit averages over (default 60s)")
@@ -53,7 +54,7 @@ def register(subparsers: Subparsers) -> None:
                         help="the unit's noise profile (default: identified from the residuals)")
     parser.add_argument("--px4-params", type=Path, default=None, metavar="FILE",
                         help="write PX4's TC_G0_* parameters as a QGroundControl .params file")
-    parser.add_argument("--px4-instance", type=int, default=0, metavar="N",
+    parser.add_argument("--px4-instance", type=bounded_option(limits.PX4_INSTANCE), default=0, metavar="N",
                         help="the gyro instance N of TC_G<N>_* (default 0)")
     parser.add_argument("--errors-out", type=Path, default=None, metavar="FILE.toml",
                         help="write the [errors] table of a noise profile")
@@ -90,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.durations import parse_duration
     from bmg160_emu.io.atomic import atomic_open
-    from bmg160_emu.io.rates import RateFileError, read_csv_table
+    from bmg160_emu.io.rates import RateFileError, check_time_column, read_csv_table
+    from bmg160_emu.noise.identification import IdentificationError
     from bmg160_emu.noise.thermal_fit import ThermalFitError, fit_bias_temperature
 
     for out in (args.px4_params, args.errors_out):
@@ -108,9 +110,17 @@ def run(args: argparse.Namespace) -> int:
     assert t is not None
     if len(t) < 3 or not np.all(np.isfinite(table.values)) or not np.all(np.isfinite(t)):
         raise CommandError(f"{args.file}: needs finite times, rates and temperatures")
-    step = float(np.median(np.diff(t)))
-    if not step > 0:
-        raise CommandError(f"{args.file}: the time column must increase")
+    die = limits.DIE_TEMPERATURE_C
+    bad = np.flatnonzero((table.values[:, 3] < die.low) | (table.values[:, 3] > die.high))
+    if bad.size:
+        try:
+            die.check(float(table.values[bad[0], 3]), table.where(bad[0]))
+        except limits.LimitError as exc:
+            raise CommandError(str(exc)) from None
+    try:  # strictly increasing, named by line (a thermal log may pause: no gap check)
+        step = check_time_column(t, table.where, gap_factor=math.inf)
+    except RateFileError as exc:
+        raise CommandError(str(exc)) from None
     rate_hz = 1.0 / step
     noise = None
     if args.noise_profile is not None:
@@ -124,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
         fit = fit_bias_temperature(table.values[:, :3], table.values[:, 3], rate_hz,
                                    order=args.order, reference_c=args.reference,
                                    block_s=block_s, noise=noise)
-    except ThermalFitError as exc:
+    except (ThermalFitError, IdentificationError) as exc:  # the residuals' noise fit too
         raise CommandError(f"{args.file}: {exc}") from None
     try:
         if args.px4_params is not None:

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bmg160_emu import limits
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
 from bmg160_emu.commands._common import (
     Subparsers,
@@ -80,8 +81,29 @@ def register(subparsers: Subparsers) -> None:
     parser.set_defaults(func=run)
 
 
+def read_true_rate(path: Path) -> tuple[float, float, float] | None:
+    """The ``X Y Z`` deg/s a --true-rate-file holds (None while it is empty: ``echo ... >
+    FILE`` truncates before it writes); ``ValueError`` with one line naming the file for text
+    that is not UTF-8, not three numbers, or numbers out of range (limits.RATE_DPS)."""
+    data = path.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not UTF-8 text (byte {exc.start})") from None
+    fields = text.split()
+    if not fields:
+        return None
+    if len(fields) != 3:
+        raise ValueError(f"{path}: expected three numbers X Y Z in deg/s, found {len(fields)} "
+                         "fields")
+    x, y, z = (limits.RATE_DPS.parse(v, str(path)) for v in fields)
+    return x, y, z
+
+
 class _RateFile:
-    """A poller that applies the true rate written to a file (checked every 50 ms)."""
+    """A poller that applies the true rate written to a file (checked every 50 ms). A bad
+    file at start is refused (``run``); a bad value written later is logged on stderr and the
+    last good rate kept: a session is never ended by the file that drives it."""
 
     def __init__(self, path: Path, chips: dict[int, Any]) -> None:
         self.path = path
@@ -96,29 +118,23 @@ class _RateFile:
             return now_s + 0.05
         if stamp != self.stamp:
             try:
-                text = self.path.read_text()
+                rate = read_true_rate(self.path)
             except OSError:
                 return now_s + 0.05
-            if not text.strip():
-                # `echo ... > FILE` truncates before it writes: the file is caught between
-                # the two, so look again at the next poll rather than call it an error
+            except ValueError as exc:
+                self.stamp = stamp
+                print(f"bmg160-emu vhost-user-i2c: {exc}; true rate unchanged", file=sys.stderr)
                 return now_s + 0.05
+            if rate is None:
+                return now_s + 0.05  # caught between truncation and write: look again
             self.stamp = stamp
-            try:
-                rate = tuple(float(v) for v in text.split())
-            except ValueError:
-                rate = ()
-            if len(rate) == 3:
-                if self.changes and self.changes[-1]["true_rate_dps"] == list(rate):
-                    # the same rate rewritten (or the write's second time stamp): no change
-                    return now_s + 0.05
-                for chip in self.chips.values():
-                    chip.set_true_rate(rate)
-                first = next(iter(self.chips.values()))
-                self.changes.append({"time_s": first.time, "true_rate_dps": list(rate)})
-            else:
-                print(f"bmg160-emu vhost-user-i2c: {self.path}: expected three numbers in "
-                      "deg/s; true rate unchanged", file=sys.stderr)
+            if self.changes and self.changes[-1]["true_rate_dps"] == list(rate):
+                # the same rate rewritten (or the write's second time stamp): no change
+                return now_s + 0.05
+            for chip in self.chips.values():
+                chip.set_true_rate(rate)
+            first = next(iter(self.chips.values()))
+            self.changes.append({"time_s": first.time, "true_rate_dps": list(rate)})
         return now_s + 0.05
 
 
@@ -135,6 +151,13 @@ def run(args: argparse.Namespace) -> int:
                         format="bmg160-emu vhost-user-i2c: %(message)s")
     if args.duration is not None and args.duration <= 0:
         raise CommandError("--duration must be > 0")
+    if args.true_rate_file is not None and args.true_rate_file.exists():
+        try:  # a bad file is refused before serving; a bad value written later is logged
+            read_true_rate(args.true_rate_file)
+        except OSError as exc:
+            raise CommandError(f"cannot read {args.true_rate_file}: {exc.strerror}") from None
+        except ValueError as exc:
+            raise CommandError(str(exc)) from None
     for path in (args.stats, args.log):
         if path is not None:  # checked now, written whole at the end: an existing file is
             check_writable(path)  # kept as it was if the back end never serves (issue 24)

@@ -40,13 +40,15 @@ def errors_for(errors: Any, unit: int | None, seed: int | None, profile: Any) ->
         if seed is None:
             raise ValueError("unit= draws a unit of a lot: give the chip a seed (the lot)")
         return draw_unit(int(seed), unit)
+    where = f"profile {getattr(profile, 'name', profile)} [errors]"
     if profile is not None and not hasattr(profile, "axes"):
         from bmg160_emu.noise import load_profile
 
+        where = f"{profile} [errors]"  # the file (or name) as given: the message names it
         profile = load_profile(profile)
     table = getattr(profile, "errors", None)
     if table:
-        return table if isinstance(table, SensorErrors) else SensorErrors.from_dict(table)
+        return table if isinstance(table, SensorErrors) else SensorErrors.from_dict(table, where)
     return NO_ERRORS
 
 

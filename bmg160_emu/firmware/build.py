@@ -8,6 +8,7 @@ profile never clobbers another's.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import shutil
 import subprocess
@@ -199,8 +200,8 @@ def capture_uart(
     I2C after it is sent), and with it ``identify`` needs no --rate (io/uart_stream.py)."""
     if odr_hz not in BW_CODE_FOR_ODR:
         raise ValueError(f"ODR must be one of {sorted(BW_CODE_FOR_ODR)} Hz, not {odr_hz!r}")
-    if not seconds > 0:
-        raise ValueError(f"capture length must be positive, not {seconds!r} s")
+    if not (math.isfinite(seconds) and seconds > 0):  # inf would "capture" a 2-line header
+        raise ValueError(f"capture length must be a positive finite time, not {seconds!r} s")
     simulator = build_simulator()
     address = 0x69 if "BMG_I2C_ADDRESS 0x69" in build.header.read_text() else 0x68
     _run(

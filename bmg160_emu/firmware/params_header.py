@@ -64,6 +64,17 @@ def _c_identifier_string(text: str) -> str:
     return '"' + "".join(c if c.isalnum() or c in "-_." else "_" for c in text) + '"'
 
 
+def unapplied_output_note(profile: str | Path | Profile) -> str | None:
+    """What the firmware leaves out of a profile with an ``[output]`` table (its sensor's
+    filter and LSB), or None: the firmware has no filter model (docs/firmware.md), so its noise
+    leaves unfiltered at every BW code; the build says so instead of dropping it unseen."""
+    prof = load_profile(profile)
+    if prof.output is None:
+        return None
+    return (f"note: profile {prof.name!r} carries its sensor's output stage ([output]); the "
+            "firmware has no filter model and sends the noise unfiltered at every BW code")
+
+
 def render_params_header(
     profile: str | Path | Profile = "paper",
     address: int = 0x68,
@@ -90,6 +101,11 @@ def render_params_header(
         if axis.Q or axis.R:
             raise ValueError(
                 f"profile {prof.name!r} axis {name} has Q or R: the firmware generates "
+                "white, Gauss-Markov and random-walk terms only"
+            )
+        if axis.sine:
+            raise ValueError(
+                f"profile {prof.name!r} axis {name} has sine terms: the firmware generates "
                 "white, Gauss-Markov and random-walk terms only"
             )
     tables: dict[str, list[list[float]]] = {k: [] for k in ("white", "alpha", "gm", "rw")}

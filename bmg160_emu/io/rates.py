@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import re
 import tokenize
 import zipfile
@@ -26,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bmg160_emu.io.array_header import check_declared_size
 from bmg160_emu.io.errors import FileFormat, format_for, register_format
 from bmg160_emu.io.rate_table import ColumnChoice, RateFileError, RateTable
 
@@ -48,11 +50,13 @@ def is_number(text: str) -> bool:
 
 
 def _line_count_bound(path: Path) -> int:
-    """Newlines + 1: at least the number of data rows, found without holding the file."""
+    """Line ends + 1: at least the number of data rows, found without holding the file.
+    Line ends as the text reader counts them (universal newlines): LF, CRLF and a lone CR;
+    a CRLF split between two blocks counts twice, which keeps this a bound."""
     count = 1
     with open(path, "rb") as handle:
         while block := handle.read(1 << 20):
-            count += block.count(b"\n")
+            count += block.count(b"\n") + block.count(b"\r") - block.count(b"\r\n")
     return count
 
 
@@ -212,7 +216,17 @@ def open_npz(path: str | Path):
 
 
 def npz_array(archive, key: str, path: str | Path) -> np.ndarray:
-    """One array of the archive; a damaged member is an error naming the key."""
+    """One array of the archive; a damaged member, or one whose header declares more data
+    than the member holds, is an error naming the key."""
+    try:
+        name = key if key in archive.zip.namelist() else f"{key}.npy"
+        with archive.zip.open(name) as member:
+            check_declared_size(member, archive.zip.getinfo(name).file_size, path,
+                                RateFileError, f"key {key}")
+    except RateFileError:
+        raise
+    except (AttributeError, *ARRAY_ERRORS):
+        pass  # a damaged member: numpy's own error below names it
     try:
         return archive[key]
     except ARRAY_ERRORS as exc:
@@ -257,7 +271,13 @@ def first_non_finite(data: np.ndarray, chunk: int = 1 << 20) -> int | None:
 
 def read_npy(path: str | Path) -> np.ndarray:
     try:
+        with open(path, "rb") as handle:
+            if handle.read(6) == b"\x93NUMPY":
+                handle.seek(0)
+                check_declared_size(handle, os.fstat(handle.fileno()).st_size, path, RateFileError)
         data = np.load(path, allow_pickle=False)
+    except RateFileError:
+        raise
     except ARRAY_ERRORS as exc:
         raise RateFileError(f"not a readable .npy array ({exc})", path=path) from None
     if not isinstance(data, np.ndarray):
@@ -381,6 +401,8 @@ def load_rate_record(
       UART stream (told from a CSV by its first line): io/resd.py, io/uart_stream.py.
     """
     path = Path(path)
+    if path.is_dir():
+        raise RateFileError(f"{path}: is a directory, not a record file")
     if not path.is_file():
         raise RateFileError(f"no such record file: {path}")
     suffix = path.suffix.lower()
@@ -400,6 +422,11 @@ def load_rate_record(
         raise RateFileError(
             f"expected one column per axis (1 to 3 axes), got shape {data.shape}", path=path
         )
+    if data.shape[0] == 0:
+        raise RateFileError("the record is empty (no samples)", path=path)
+    if table.t_s is not None and (table.t_s.ndim != 1 or len(table.t_s) != data.shape[0]):
+        raise RateFileError(f"the time column has shape {table.t_s.shape}; the rates have "
+                            f"{data.shape[0]} rows", path=path)
     _check_sample_count(table, data.shape[0])
     bad = first_non_finite(data)
     if bad is not None:

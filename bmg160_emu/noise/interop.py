@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from bmg160_emu.limits import ALLAN_DEVIATION_DPS, TAU_S
 from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar_unit
 
 DEG = math.pi / 180.0  # rad per degree
@@ -125,6 +126,11 @@ def read_adev_csv(path: str | Path, units: str = "deg/s") -> tuple[np.ndarray, l
         adev = table[:, col] / s
         if np.any(adev <= 0):
             raise InteropError(f"{path}: column {col + 1} has an Allan deviation <= 0")
+        beyond = np.flatnonzero((adev > ALLAN_DEVIATION_DPS.high) | (taus > TAU_S.high))
+        if beyond.size:  # squared in the fit: 1e308 became inf there
+            raise InteropError(f"{path}: row {int(beyond[0]) + 1}: {ALLAN_DEVIATION_DPS.name} "
+                               f"must be at most {ALLAN_DEVIATION_DPS.high:g} deg/s and tau at "
+                               f"most {TAU_S.high:g} s")
         interval = (table[:, ci[0]] / s, table[:, ci[1]] / s) if ci else None
         out.append({"name": label, "adev": adev, "ci": interval, "kind": kind})
     return taus, out

@@ -206,6 +206,11 @@ def fit_bias_temperature(
     # the block mean of each power of dT (not the power of the mean dT: the temperature moves
     # within a block, and the bias follows it sample by sample)
     design = _block_means((temps - ref).reshape(-1, 1) ** np.arange(order + 1), per_block, blocks)
+    rank = int(np.linalg.matrix_rank(design))
+    if rank < order + 1:  # e.g. two temperature plateaus under a cubic: no unique fit
+        raise ThermalFitError(f"the block temperatures determine only {rank} of the "
+                              f"{order + 1} coefficients of an order-{order} fit: record a "
+                              "ramp or lower the order")
     fit = ThermalFit(ref, order, d, span)
     for axis in range(rate.shape[1]):
         terms = _terms_for(axis, noise, rate[:, axis], temps, rate_hz, design, y[:, axis],
@@ -216,6 +221,9 @@ def fit_bias_temperature(
         b = np.linalg.solve(chol, y[:, axis])
         coef, *_ = np.linalg.lstsq(a, b, rcond=None)
         covariance = np.linalg.inv(a.T @ a)
+        if not np.all(np.diag(covariance) > 0):  # near-singular: rounding made a variance < 0
+            raise ThermalFitError(f"the order-{order} fit is too ill-conditioned for the "
+                                  "temperatures recorded: record a wider ramp or lower the order")
         resid = b - a @ coef
         chi2 = float(resid @ resid) / max(blocks - order - 1, 1)
         fit.axes.append(AxisThermalFit(coef, covariance, level, chi2, terms))

@@ -319,6 +319,7 @@ def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayR
             _set_true_rate(replayer, record, line)
             continue
         t = Transaction.from_dict(record)
+        _check_replayable(t, line)
         if t.time < replayer.clock_chip.time - 1e-12:
             return result(Divergence(
                 line, t.time, f"a transaction at t={t.time:.9f} s",
@@ -331,6 +332,31 @@ def replay_trace(header: dict | TraceHeader, records: Iterable[dict]) -> ReplayR
                 line, t.time, _outcome_text(t, t.read, t.error), _outcome_text(t, read, error)
             ))
     return result(None)
+
+
+# The written bytes each kind needs to be repeated (plain `trace` decodes a record without
+# them; a replay has to send them).
+_WRITTEN_BYTES = {"write_byte_data": 1, "write_word_data": 2, "process_call": 2,
+                  "write_block_data": 1, "block_process_call": 1}
+_NO_REGISTER = {"read_byte", "write_quick", "read_quick", "i2c_read", "i2c_write", "spi_read",
+                "spi_write", "spi_frame", "spi_xfer"}
+
+
+def _check_replayable(t: Transaction, line: int) -> None:
+    """Refuse, naming the line, a record a replay cannot repeat: bytes or a register its
+    kind needs are missing, or its time is past the cap on simulated time."""
+    from bmg160_emu.durations import MAX_SIMULATED_S, MAX_TEXT
+
+    need = _WRITTEN_BYTES.get(t.kind, 0)
+    if len(t.written) < need:
+        raise TraceFormatError(f"line {line}: a {t.kind} record needs {need} written byte(s) "
+                               f"to be replayed; it has {len(t.written)}")
+    if t.register is None and t.kind not in _NO_REGISTER and not t.kind.startswith("spi_"):
+        raise TraceFormatError(f"line {line}: a {t.kind} record needs its register to be "
+                               "replayed")
+    if not 0 <= t.time <= MAX_SIMULATED_S:
+        raise TraceFormatError(f"line {line}: time {t.time!r} s is past the cap on simulated "
+                               f"time, {MAX_TEXT}")
 
 
 def _set_true_rate(replayer: _Replayer, record: dict, line: int) -> None:

@@ -26,8 +26,11 @@ from bmg160_emu.io.dump import (
     register_label,
     resolve_register_name,
 )
+from bmg160_emu.limits import RATE_DPS, LimitError
 
 DEFAULT_POLL_INTERVAL_S = 1e-3  # one read per millisecond of simulated time
+MAX_POLL_READS = 10_000_000  # reads of one poll: about 100 s at ~10 us a read
+CAP_TEXT = f"past the cap of {durations.MAX_TEXT}"
 MAX_BURST = 256  # no bus transfer in scope is longer (FIFO drains of 100 frames x 6 bytes use several)
 
 COMMANDS = ("write", "read", "burst", "poll", "advance", "rate", "fault", "dump", "chip")
@@ -128,12 +131,9 @@ def parse_duration(token: Token) -> float:
 
 def _parse_float(token: Token) -> float:
     try:
-        value = float(token.text)
-    except ValueError:
-        raise _LineError(token.column, f"bad rate {token.text!r} (deg/s)") from None
-    if not math.isfinite(value):
-        raise _LineError(token.column, f"rate {token.text!r} must be finite")
-    return value
+        return float(RATE_DPS.parse(token.text))
+    except LimitError as exc:
+        raise _LineError(token.column, str(exc)) from None
 
 
 class _Cursor:
@@ -213,6 +213,9 @@ def _parse_statement(
             interval = parse_duration(token)
             if interval <= 0:
                 raise _LineError(token.column, "the poll interval must be positive")
+        if timeout / interval > MAX_POLL_READS:  # a poll that would read for hours
+            raise _LineError(1, f"poll reads up to {timeout / interval:.3g} times; at most "
+                             f"{MAX_POLL_READS:,}: a longer 'every' or a shorter timeout")
         cur.done()
         return Statement(
             line, command, text, register=reg, bit=bit, expected_bit=expected,
@@ -273,6 +276,7 @@ def parse_script(
         fault_available = fault_injection_available()
     statements: list[Statement] = []
     errors: list[tuple[int, int, str]] = []
+    total_s = 0.0  # advances and poll timeouts: the longest the script can simulate
     for number, line in enumerate(text.splitlines(), 1):
         tokens = _tokenize(line)
         if not tokens:
@@ -281,6 +285,10 @@ def parse_script(
             statements.append(_parse_statement(tokens, number, line.strip(), fault_available))
         except _LineError as exc:
             errors.append((number, exc.column, exc.message))
+            continue
+        before, total_s = total_s, total_s + (statements[-1].seconds or 0.0)  # poll: timeout
+        if total_s > durations.MAX_SIMULATED_S >= before:  # said once, where it is passed
+            errors.append((number, 1, f"simulated time reaches {total_s:g} s: {CAP_TEXT}"))
     if errors:
         raise ScriptSyntaxError(source, errors)
     return statements

@@ -6,12 +6,14 @@
  * data-ready trigger and events only with one.
  *
  * Parameters: bus (the adapter number), gpio_base (the global number of line 0 of the
- * GPIO controller), addr[] and line[] (one GPIO line per address; -1 for none).
- * Part of bmg160-emu (tools/qemu/modules.py builds it; docs/virtio-i2c.md).
+ * GPIO controller), addr[] and line[] (one GPIO line per address; -1 for none), name (the
+ * I2C device name the driver matches, "bmg160" unless given: a user's own driver's name).
+ * Part of bmg160-emu (bmg160_emu/linux/guest/kmod.py builds it; docs/virtio-i2c.md).
  */
 #include <linux/gpio.h>
 #include <linux/i2c.h>
 #include <linux/module.h>
+#include <linux/string.h>
 
 #define MAX_CHIPS 2
 
@@ -30,6 +32,10 @@ static int n_line;
 module_param_array(line, int, &n_line, 0444);
 MODULE_PARM_DESC(line, "GPIO line of each chip's interrupt (INT1), -1 for none");
 
+static char *name = "bmg160";
+module_param(name, charp, 0444);
+MODULE_PARM_DESC(name, "I2C device name of the chips (the driver's id table entry)");
+
 static struct i2c_client *clients[MAX_CHIPS];
 
 static int __init bmg160_board_init(void)
@@ -45,6 +51,7 @@ static int __init bmg160_board_init(void)
 	for (i = 0; i < n_addr; i++) {
 		struct i2c_board_info info = { I2C_BOARD_INFO("bmg160", addr[i]) };
 
+		strscpy(info.type, name, sizeof(info.type));
 		if (i < n_line && line[i] >= 0) {
 			if (gpio_base < 0) {
 				ret = -EINVAL;
@@ -63,7 +70,7 @@ static int __init bmg160_board_init(void)
 			clients[i] = NULL;
 			break;
 		}
-		pr_info("bmg160-board: bmg160 at %d-%04x, irq %d\n", bus, addr[i], info.irq);
+		pr_info("bmg160-board: %s at %d-%04x, irq %d\n", name, bus, addr[i], info.irq);
 	}
 	i2c_put_adapter(adapter);
 	if (ret) {

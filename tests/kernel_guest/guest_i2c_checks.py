@@ -1,4 +1,4 @@
-"""Runs INSIDE the QEMU guest: i2c-dev checks that need one process (tools/qemu/virtio_checks.sh).
+"""Runs INSIDE the guest: i2c-dev checks that need one process (tests/test_kernel_virtio_i2c.py).
 
 Usage: python guest_i2c_checks.py BUS ADDRESS GPIO_VALUE_FILE. Prints one JSON object:
 the FIFO drained over /dev/i2c-BUS (its frame count before and after a 60-frame read) and

@@ -1,16 +1,16 @@
 #!/bin/sh
-# Runs INSIDE the QEMU guest (tools/qemu/guest.py), chrooted in the host's root file system.
-# One boot performs every kernel check of tests/test_kernel_i2c_stub.py and writes the
+# Runs INSIDE the QEMU guest (bmg160_emu.linux.guest), chrooted in the host's root file system.
+# One command (on the bmg160_kernel fixture's session guest) performs every kernel check of
+# tests/test_kernel_i2c_stub.py and writes the
 # results to $GUEST_OUT as small text files the host-side tests assert on.
 #
 # Environment: PY (the host's Python, with bmg160_emu importable), GUEST_OUT, GUEST_ROOT
 # (the unpacked kernel package), STUB_ARGS (chip options for `bmg160-emu stub`); KMOD and
-# TOOLS (optional: modules of tools/qemu/modules.py, this folder) add the hrtimer capture.
+# TOOLS (optional: bmg160_emu.linux.guest.kmod's bundled modules, this folder) add the hrtimer capture.
 set -u
 OUT=${GUEST_OUT:?}
-: "${PY:?}" "${GUEST_ROOT:?}"
+: "${PY:?}"  # GUEST_ROOT: the kernel package's modules for modprobe -d, where the engine has one
 STUB_ARGS=${STUB_ARGS:-}
-IIO=/sys/bus/iio/devices/iio:device0
 cd /run || exit 1
 
 step() { echo "== [$(cut -d' ' -f1 /proc/uptime)s] $*"; echo "$(cut -d' ' -f1 /proc/uptime) $*" >> "$OUT/steps.txt"; }
@@ -19,29 +19,31 @@ emu() { "$PY" -m bmg160_emu "$@"; }
 sample() { i=0; while [ $i -lt "$3" ]; do cat "$IIO/$1"; sleep "$2"; i=$((i + 1)); done; }
 
 step "1. modules: i2c-stub chip_addr=0x68, i2c-dev"
-modprobe -d "$GUEST_ROOT" i2c-stub chip_addr=0x68 || echo "modprobe i2c-stub failed"
-modprobe -d "$GUEST_ROOT" i2c-dev || echo "modprobe i2c-dev failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-stub chip_addr=0x68 || echo "modprobe i2c-stub failed"
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-dev || echo "modprobe i2c-dev failed"
+S=$(for d in /sys/bus/i2c/devices/i2c-*; do grep -q "SMBus stub" "$d/name" && echo "${d##*/i2c-}"; done | head -n 1)
+echo "$S" > "$OUT/stub_bus.txt"
 # A real (non-stub) SMBus adapter for the "not an i2c-stub adapter" error: QEMU's PIIX4.
-modprobe -d "$GUEST_ROOT" i2c-piix4 2>/dev/null
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-piix4 2>/dev/null
 i2cdetect -l > "$OUT/i2cdetect_l.txt" 2>&1
 
 step "1b. start bmg160-emu stub (in the background)"
 # shellcheck disable=SC2086  # (not through emu(): $! must be Python's own pid)
-"$PY" -m bmg160_emu stub --bus 0 --address 0x68 $STUB_ARGS --stats "$OUT/stub_stats.json" \
+"$PY" -m bmg160_emu stub --bus "$S" --address 0x68 $STUB_ARGS --stats "$OUT/stub_stats.json" \
     --ready-file /run/stub.ready > "$OUT/stub.log" 2>&1 &
 STUB=$!
 step "1c. stub command errors, while the adapter starts"
 emu stub --bus 9 > "$OUT/err_missing.txt" 2>&1; echo $? >> "$OUT/err_missing.txt"
-emu stub --bus 0 --address 0x69 > "$OUT/err_address.txt" 2>&1; echo $? >> "$OUT/err_address.txt"
+emu stub --bus "$S" --address 0x69 > "$OUT/err_address.txt" 2>&1; echo $? >> "$OUT/err_address.txt"
 OTHER=$(i2cdetect -l | grep -v 'stub' | sed -n 's/^i2c-\([0-9]*\).*/\1/p' | head -n 1)
 if [ -n "$OTHER" ]; then
     emu stub --bus "$OTHER" > "$OUT/err_not_stub.txt" 2>&1; echo $? >> "$OUT/err_not_stub.txt"
 fi
 # root without CAP_DAC_OVERRIDE on a node nobody may open: permission denied
-chmod 000 /dev/i2c-0
-setpriv --bounding-set=-dac_override,-dac_read_search "$PY" -m bmg160_emu stub --bus 0 \
+chmod 000 /dev/i2c-$S
+setpriv --bounding-set=-dac_override,-dac_read_search "$PY" -m bmg160_emu stub --bus "$S" \
     > "$OUT/err_permission.txt" 2>&1; echo $? >> "$OUT/err_permission.txt"
-chmod 600 /dev/i2c-0
+chmod 600 /dev/i2c-$S
 
 i=0
 while [ ! -e /run/stub.ready ] && [ $i -lt 1200 ] && kill -0 $STUB 2>/dev/null; do
@@ -50,27 +52,29 @@ done
 [ -e /run/stub.ready ] && echo ready > "$OUT/stub_ready.txt"
 
 step "2. i2c-tools"
-i2cget -y 0 0x68 0x00 > "$OUT/i2cget_chip_id.txt" 2>&1
-i2cdump -y 0 0x68 i > "$OUT/i2cdump_i.txt" 2>&1
-i2cdump -y -r 0x00-0x3f 0 0x68 b > "$OUT/i2cdump_b.txt" 2>&1
-for n in 1 2 3 4 5 6; do i2cget -y 0 0x68 0x02 w; sleep 0.05; done > "$OUT/i2cget_rate_x_words.txt" 2>&1
+i2cget -y "$S" 0x68 0x00 > "$OUT/i2cget_chip_id.txt" 2>&1
+i2cdump -y "$S" 0x68 i > "$OUT/i2cdump_i.txt" 2>&1
+i2cdump -y -r 0x00-0x3f "$S" 0x68 b > "$OUT/i2cdump_b.txt" 2>&1
+for n in 1 2 3 4 5 6; do i2cget -y "$S" 0x68 0x02 w; sleep 0.05; done > "$OUT/i2cget_rate_x_words.txt" 2>&1
 for n in 1 2 3 4 5 6; do
-    i2cdump -y -r 0x02-0x07 0 0x68 i | sed -n 's/^00: //p'; sleep 0.05
+    i2cdump -y -r 0x02-0x07 "$S" 0x68 i | sed -n 's/^00: //p'; sleep 0.05
 done > "$OUT/i2cdump_rate_blocks.txt" 2>&1
 
 step "3. kernel driver bmg160_i2c"
-modprobe -d "$GUEST_ROOT" bmg160_i2c || echo "modprobe bmg160_i2c failed"
-echo bmg160 0x68 > /sys/bus/i2c/devices/i2c-0/new_device
-i=0
-while [ ! -e "$IIO/in_anglvel_x_raw" ] && [ $i -lt 100 ]; do sleep 0.1; i=$((i + 1)); done
+modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} bmg160_i2c || echo "modprobe bmg160_i2c failed"
+echo bmg160 0x68 > /sys/bus/i2c/devices/i2c-$S/new_device
+i=0; IIO=/nowhere
+while [ ! -e "$IIO/in_anglvel_x_raw" ] && [ $i -lt 100 ]; do
+    sleep 0.1; i=$((i + 1)); IIO=$(ls -d /sys/bus/i2c/devices/$S-0068/iio:device* 2>/dev/null | head -n 1)
+done
 cat "$IIO/name" > "$OUT/iio_name.txt" 2>&1
 for a in in_anglvel_scale in_anglvel_sampling_frequency in_temp_raw in_temp_offset \
          in_temp_scale in_anglvel_scale_available; do
     echo "$a $(cat "$IIO/$a" 2>&1)"
 done > "$OUT/iio_attributes.txt"
-i2cdump -f -y -r 0x0f-0x21 0 0x68 b > "$OUT/i2cdump_after_probe.txt" 2>&1
+i2cdump -f -y -r 0x0f-0x21 "$S" 0x68 b > "$OUT/i2cdump_after_probe.txt" 2>&1
 # with the driver bound, I2C_SLAVE answers EBUSY (the adapter uses I2C_SLAVE_FORCE)
-i2cget -y 0 0x68 0x00 > "$OUT/i2cget_busy.txt" 2>&1; echo "status $?" >> "$OUT/i2cget_busy.txt"
+i2cget -y "$S" 0x68 0x00 > "$OUT/i2cget_busy.txt" 2>&1; echo "status $?" >> "$OUT/i2cget_busy.txt"
 
 step "3a. default configuration: samples"
 for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_default_$axis.txt"; done
@@ -89,7 +93,7 @@ cat "$IIO/in_anglvel_sampling_frequency" > "$OUT/freq_400.txt"
 
 step "3d. idle until runtime suspend"
 sleep 4
-i2cget -f -y 0 0x68 0x11 > "$OUT/lpm1_idle.txt" 2>&1
+i2cget -f -y "$S" 0x68 0x11 > "$OUT/lpm1_idle.txt" 2>&1
 
 step "3e. after resume: in_anglvel_scale 0.000133 (250 deg/s), sampling frequency 200"
 for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_resumed_2000_$axis.txt"; done
@@ -101,8 +105,8 @@ for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_250_$a
 sleep 2  # a stretch of refreshes at 200 Hz for the period and jitter figures
 
 if [ -n "${KMOD:-}" ] && [ -e "$KMOD/iio-trig-hrtimer.ko" ]; then
-    step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz (tools/qemu/modules.py)"
-    modprobe -d "$GUEST_ROOT" configfs
+    step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz (bmg160_emu.linux.guest.kmod)"
+    modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} configfs
     mount -t configfs none /sys/kernel/config 2>/dev/null
     for m in industrialio-configfs industrialio-sw-trigger iio-trig-hrtimer; do  # dependency order
         insmod "$KMOD/$m.ko" || echo "insmod $m failed"
@@ -116,7 +120,7 @@ if [ -n "${KMOD:-}" ] && [ -e "$KMOD/iio-trig-hrtimer.ko" ]; then
     echo t0 > "$IIO/trigger/current_trigger"
     echo 1024 > "$IIO/buffer/length"
     echo 1 > "$IIO/buffer/enable"
-    "$PY" "$TOOLS/guest_iio_capture.py" 3 /dev/iio:device0 "$OUT/hrtimer_capture.bin"
+    "$PY" "$TOOLS/guest_iio_capture.py" 3 "/dev/${IIO##*/}" "$OUT/hrtimer_capture.bin"
     echo 0 > "$IIO/buffer/enable"
     cat "$IIO/in_anglvel_scale" > "$OUT/hrtimer_scale.txt"
 fi
@@ -126,5 +130,9 @@ kill -TERM $STUB 2>/dev/null
 wait $STUB
 echo $? > "$OUT/stub_exit.txt"
 dmesg > "$OUT/dmesg.txt"
+# leave the shared guest as it was: no client, no trigger, no i2c-stub
+echo 0x68 > /sys/bus/i2c/devices/i2c-$S/delete_device
+rmdir /sys/kernel/config/iio/triggers/hrtimer/t0 2>/dev/null
+rmmod i2c-stub
 step "done"
 echo done > "$OUT/done.txt"

@@ -1,0 +1,287 @@
+"""The user-mode Linux kernel of the ``uml`` engine, built once from Debian's
+``linux-source-6.1`` into the cache (``uml-<hash>``; about 3.5 min on 2 cores).
+
+Why a build of our own: Debian's ``user-mode-linux`` package has no I2C_VIRTIO, GPIOLIB or
+BMG160 and no headers to build modules against (linux-kernel-notes.md, "User-mode Linux").
+The folder's name hashes everything that shapes the result (the source package's version,
+``uml/uml.config``, the patches in ``uml/``; the i2c-virtio module, patched as for the QEMU has its own small folder), so a change gives a new folder and nothing stale is reused;
+a ``ready`` file written last marks a finished build. i2c-virtio is built out of tree against the tree, as for the
+QEMU route, instead of patching Kconfig: its menu depends on HAS_IOMEM, which UML lacks, and
+a module needs no kernel change and takes the same source and patch as the other route.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import re
+import shutil
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+from bmg160_emu.linux.guest.cache import cache_dir, content_hash
+from bmg160_emu.linux.guest.engine import EngineError, Progress
+
+SOURCE_PACKAGE = "linux-source-6.1"
+SOURCE_TARBALL = Path("/usr/src/linux-source-6.1.tar.xz")
+DATA = Path(__file__).with_name("uml")
+CONFIG_FRAGMENT = DATA / "uml.config"
+# The modules built out of tree, from the QEMU route's folder: the i2c-virtio patch (waits
+# uninterruptibly) and the board module (the chips' IRQs from virtio-gpio lines).
+KMOD = Path(__file__).with_name("kmod")
+I2C_VIRTIO_PATCH = KMOD / "i2c-virtio-wait.patch"
+BOARD_SOURCE = KMOD / "bmg160-board.c"
+# The FP register area patch 0001 makes room for, in bytes; hosts with a larger XSAVE
+# area (CPUID leaf 0xD) cannot run user space under this kernel.
+FP_AREA_BYTES = 12288
+# Debian packages the build runs (make, gcc, patch, xz for the tarball, the kernel's own
+# build tools) and the source itself.
+BUILD_PACKAGES = {
+    "make": "make",
+    "gcc": "gcc",
+    "patch": "patch",
+    "xz": "xz-utils",
+    "bc": "bc",
+    "flex": "flex",
+    "bison": "bison",
+}
+# Debian packages whose files the build needs, with a file that shows each is there.
+BUILD_FILES = {
+    "libelf-dev": Path("/usr/include/gelf.h"),
+    SOURCE_PACKAGE: SOURCE_TARBALL,
+}
+
+
+@dataclass(frozen=True)
+class UmlKernel:
+    """A finished build: the ``linux`` binary, its modules and its build tree."""
+
+    root: Path  # the uml-<hash> folder
+
+    @property
+    def tree(self) -> Path:
+        """The configured and built source tree (``make ARCH=um M=...`` builds against it)."""
+        return self.root / SOURCE_PACKAGE
+
+    @property
+    def binary(self) -> Path:
+        return self.tree / "linux"
+
+    @property
+    def modules_root(self) -> Path:
+        """INSTALL_MOD_PATH: holds lib/modules/<release> with modules.dep and modules.builtin."""
+        return self.root / "modroot"
+
+    @property
+    def vio(self) -> Path:
+        """The out-of-tree modules (i2c-virtio.ko, bmg160-board.ko), in a folder named by
+        their sources' hash."""
+        sources = [p for p in (I2C_VIRTIO_PATCH, BOARD_SOURCE) if p.exists()]
+        return self.root / f"vio-{content_hash(sources, 'vio')}"
+
+    @property
+    def i2c_virtio(self) -> Path:
+        return self.vio / "i2c-virtio.ko"
+
+    @property
+    def board(self) -> Path:
+        return self.vio / "bmg160-board.ko"
+
+    @property
+    def facts(self) -> dict[str, object]:
+        """What the ``ready`` file recorded: release, fp_area_bytes, source version."""
+        return dict(json.loads((self.root / "ready").read_text()))
+
+    @property
+    def release(self) -> str:
+        return str(self.facts["release"])
+
+
+def patches() -> list[Path]:
+    """The kernel patches, applied in name order."""
+    return sorted(DATA.glob("*.patch"))
+
+
+def source_version() -> str | None:
+    """The installed linux-source-6.1's Debian version, or None."""
+    try:
+        out = subprocess.run(
+            ["dpkg-query", "-W", "-f=${Version}", SOURCE_PACKAGE],
+            capture_output=True, text=True, check=False,
+        )
+    except FileNotFoundError:
+        return None
+    return out.stdout.strip() or None if out.returncode == 0 else None
+
+
+def build_key(version: str) -> str:
+    """The hash naming the build folder."""
+    return content_hash([CONFIG_FRAGMENT, *patches()], version, f"fp={FP_AREA_BYTES}")
+
+
+def build_root(version: str | None = None) -> Path | None:
+    """Where the build for the installed source goes (None without the source)."""
+    version = version or source_version()
+    return None if version is None else cache_dir() / f"uml-{build_key(version)}"
+
+
+def find_kernel() -> UmlKernel | None:
+    """The finished build for the installed source and our inputs, or None."""
+    root = build_root()
+    if root is None or not (root / "ready").exists():
+        return None
+    return UmlKernel(root)
+
+
+def missing_packages() -> list[str]:
+    """Debian packages the build needs and this host lacks."""
+    lacking = [pkg for cmd, pkg in BUILD_PACKAGES.items() if shutil.which(cmd) is None]
+    lacking += [pkg for pkg, path in BUILD_FILES.items() if not path.exists()]
+    return lacking
+
+
+def _run(command: list[str], cwd: Path, log: Path, progress: Progress | None = None) -> None:
+    """Run a build step, its output to ``log``; a progress line every 200 compiled files."""
+    env = dict(os.environ, LC_ALL="C")
+    with log.open("a") as sink:
+        sink.write(f"$ {' '.join(command)}\n")
+        sink.flush()
+        proc = subprocess.Popen(
+            command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        )
+        assert proc.stdout is not None
+        compiled = 0
+        for line in proc.stdout:
+            sink.write(line)
+            if progress is not None and line.lstrip().startswith("CC"):
+                compiled += 1
+                if compiled % 200 == 0:
+                    progress(f"uml: {compiled} files compiled")
+        if proc.wait() != 0:
+            raise EngineError(f"uml build failed in {cwd}: {' '.join(command)} (log: {log})")
+
+
+def _check_config(config: Path) -> None:
+    """Every line of the fragment must survive olddefconfig (a dropped one is silent)."""
+    built = set(config.read_text().splitlines())
+    for number, line in enumerate(CONFIG_FRAGMENT.read_text().splitlines(), 1):
+        if line.startswith("CONFIG_") and line not in built:
+            raise EngineError(
+                f"{CONFIG_FRAGMENT}:{number}: {line} was dropped by the kernel's Kconfig"
+            )
+
+
+def _kernel_release(tree: Path) -> str:
+    return (tree / "include" / "config" / "kernel.release").read_text().strip()
+
+
+def build(progress: Progress) -> UmlKernel:
+    """Build the kernel into the cache unless it is there (one build at a time: a lock)."""
+    lacking = missing_packages()
+    if lacking:
+        raise EngineError("uml build needs: apt-get install " + " ".join(lacking))
+    version = source_version() or "unknown"
+    root = build_root(version)
+    assert root is not None
+    root.parent.mkdir(parents=True, exist_ok=True)
+    with open(root.parent / f"{root.name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if (root / "ready").exists():
+            kernel = UmlKernel(root)
+            progress(f"uml: kernel ready in {root}")
+        else:
+            kernel = _build_locked(root, version, progress)
+        if not (kernel.vio / "ready").exists():
+            _build_vio(kernel, progress)
+        return kernel
+
+
+def _build_locked(root: Path, version: str, progress: Progress) -> UmlKernel:
+    kernel = UmlKernel(root)
+    if root.exists():
+        shutil.rmtree(root)  # an unfinished build: start over
+    root.mkdir(parents=True)
+    log = root / "build.log"
+    progress(f"uml: unpacking {SOURCE_TARBALL} ({version}) into {root}")
+    _run(["tar", "-xf", str(SOURCE_TARBALL)], root, log)
+    tree = kernel.tree
+    for patch in patches():
+        progress(f"uml: applying {patch.name}")
+        _run(["patch", "-p1", "--forward", "-i", str(patch)], tree, log)
+    jobs = f"-j{os.cpu_count() or 1}"
+    progress("uml: configuring (defconfig + uml.config)")
+    _run(["make", "ARCH=um", "defconfig"], tree, log)
+    _run(["scripts/kconfig/merge_config.sh", "-m", ".config", str(CONFIG_FRAGMENT)], tree, log)
+    _run(["make", "ARCH=um", "olddefconfig"], tree, log)
+    _check_config(tree / ".config")
+    progress("uml: building linux and modules (about 3.5 min on 2 cores)")
+    _run(["make", "ARCH=um", jobs, "linux", "modules"], tree, log, progress)
+    _run(["make", "ARCH=um", f"INSTALL_MOD_PATH={kernel.modules_root}", "modules_install"],
+         tree, log)
+    facts = {
+        "release": _kernel_release(tree),
+        "source_version": version,
+        "fp_area_bytes": FP_AREA_BYTES,
+    }
+    (root / "ready").write_text(json.dumps(facts, indent=1) + "\n")
+    progress(f"uml: kernel {facts['release']} ready in {root}")
+    return kernel
+
+
+def _build_vio(kernel: UmlKernel, progress: Progress) -> None:
+    """i2c-virtio from the same source, and the board module, out of tree (about 10 s)."""
+    progress("uml: building i2c-virtio and bmg160-board out of tree")
+    outside = kernel.vio
+    if outside.exists():
+        shutil.rmtree(outside)
+    outside.mkdir()
+    log = outside / "build.log"
+    shutil.copy(kernel.tree / "drivers" / "i2c" / "busses" / "i2c-virtio.c", outside)
+    shutil.copy(BOARD_SOURCE, outside)
+    (outside / "Kbuild").write_text("obj-m := i2c-virtio.o bmg160-board.o\n")
+    if I2C_VIRTIO_PATCH.exists():
+        text = re.sub(r"drivers/i2c/busses/", "", I2C_VIRTIO_PATCH.read_text())
+        (outside / I2C_VIRTIO_PATCH.name).write_text(text)
+        _run(["patch", "-p1", "--forward", "-i", I2C_VIRTIO_PATCH.name], outside, log)
+    _run(["make", "ARCH=um", "-C", str(kernel.tree), f"M={outside}", "modules"], outside, log)
+    (outside / "ready").write_text("")
+
+
+def user_module(kernel: UmlKernel, path: Path, progress: Progress) -> list[Path]:
+    """The ``.ko`` files of a user's module for this kernel: ``path`` itself, or what its
+    source folder (with a Kbuild or Makefile) builds with ARCH=um against the tree, once per
+    content of the folder's files and kernel build."""
+    if path.is_file():
+        if path.suffix != ".ko":
+            raise EngineError(f"{path}: a module is a .ko file or a folder with a Kbuild file")
+        return [path.resolve()]
+    if not (path / "Kbuild").is_file() and not (path / "Makefile").is_file():
+        raise EngineError(f"{path}: no Kbuild (or Makefile) file: not a module source folder")
+    sources = sorted(p for p in path.rglob("*") if p.is_file() and p.suffix not in
+                     {".ko", ".o", ".cmd", ".mod", ".order", ".symvers"})
+    key = content_hash(sources, kernel.root.name, *(str(p.relative_to(path)) for p in sources))
+    out = kernel.root / "user-modules" / f"{path.resolve().name}-{key}"
+    built = sorted(out.glob("*.ko"))
+    if built:
+        return built
+    progress(f"uml: building {path} against {kernel.tree}")
+    build = out.with_name(out.name + ".build")
+    if build.exists():
+        shutil.rmtree(build)
+    shutil.copytree(path, build, ignore=shutil.ignore_patterns("*.o", "*.ko", ".*.cmd"))
+    log = build / "build.log"
+    _run(["make", "ARCH=um", "-C", str(kernel.tree), f"M={build}", "modules"], build, log)
+    made = sorted(build.rglob("*.ko"))
+    if not made:
+        raise EngineError(f"building {path} made no .ko file (is obj-m set in Kbuild?)")
+    out.mkdir(parents=True, exist_ok=True)
+    for ko in made:
+        shutil.copy2(ko, out / ko.name)
+    shutil.rmtree(build)
+    return sorted(out.glob("*.ko"))
+
+
+if __name__ == "__main__":  # .ci/setup.d/uml.sh
+    print(build(lambda line: print(line, flush=True)).root)
