@@ -93,6 +93,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not getattr(args, "func", None):
             parser.print_help()
             return 2
+        if _AS_COMMAND:
+            # numpy turns an exception raised inside its C-extension import (the
+            # KeyboardInterrupt of a ^C) into an ImportError traceback, exit 1: imported while
+            # a signal still means "nothing written, exit now" (tests/_fuzz_signals.py,
+            # record-npz seed 0, SIGTERM at 0.114 s); every writing command needs it anyway
+            import numpy  # noqa: F401
         try:
             # from here a signal stops the command, which keeps what it can
             if signal.SIGINT in previous:
