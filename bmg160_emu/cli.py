@@ -17,10 +17,38 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
+from typing import Any
 
 from bmg160_emu import __version__, commands
 from bmg160_emu.commands._common import CommandError  # the commands raise it; old name here
 from bmg160_emu.commands._extras import missing_message
+
+
+def _stopped_while_starting(number: int, frame: object) -> None:
+    """SIGINT or SIGTERM before a command runs: one line and the signal's exit status, never
+    a KeyboardInterrupt traceback from the middle of an import (issue 24)."""
+    name = signal.Signals(number).name
+    sys.stderr.write(f"bmg160-emu: interrupted by {name} while starting; nothing written\n")
+    if _AS_COMMAND:  # nothing to clean up yet, and no finaliser can swallow it (__init__.py)
+        sys.stderr.flush()
+        os._exit(128 + number)
+    raise SystemExit(128 + number)
+
+
+def _stopped_while_exiting(number: int, frame: object) -> None:
+    """A signal after the command returned: its outputs are finished; exit now, as it says."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(128 + number)
+
+
+# Run as the command (the console script, python -m bmg160_emu), the process exits with the
+# command; bmg160_emu/__init__.py has held the signals since the package's first line.
+# Imported by a program (tests call main() in-process), the handlers are restored at the end.
+_AS_COMMAND = sys.argv[0].endswith(("bmg160-emu", "bmg160_emu/__main__.py"))
 
 __all__ = ["CommandError", "build_parser", "main"]
 
@@ -52,18 +80,39 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 2
-    previous = None
-    if threading.current_thread() is threading.main_thread():
-        previous = signal.signal(signal.SIGTERM, _terminate)  # commands may install their own
+    in_main_thread = threading.current_thread() is threading.main_thread()
+    previous = {}
+    if in_main_thread:  # restored at the end unless this process is the command
+        previous = {n: signal.signal(n, _stopped_while_starting)
+                    for n in (signal.SIGINT, signal.SIGTERM)
+                    if signal.getsignal(n) is not signal.SIG_IGN}
+    command = "?"
     try:
-        return int(args.func(args) or 0)
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        command = args.command
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return 2
+        if _AS_COMMAND:
+            # numpy turns an exception raised inside its C-extension import (the
+            # KeyboardInterrupt of a ^C) into an ImportError traceback, exit 1: imported while
+            # a signal still means "nothing written, exit now" (tests/_fuzz_signals.py,
+            # record-npz seed 0, SIGTERM at 0.114 s); every writing command needs it anyway
+            import numpy  # noqa: F401
+        try:
+            # from here a signal stops the command, which keeps what it can
+            if signal.SIGINT in previous:
+                signal.signal(signal.SIGINT, signal.default_int_handler)
+            if signal.SIGTERM in previous:  # commands may install their own
+                signal.signal(signal.SIGTERM, _terminate)
+            return int(args.func(args) or 0)
+        finally:
+            for number in previous:
+                signal.signal(number, _stopped_while_exiting if _AS_COMMAND
+                              else _restorable(previous[number]))
     except CommandError as exc:
-        print(f"bmg160-emu {args.command}: error: {exc}", file=sys.stderr)
+        print(f"bmg160-emu {command}: error: {exc}", file=sys.stderr)
         return 2
     except ModuleNotFoundError as exc:  # an optional package: the extra that brings it
         message = missing_message(args.command, exc.name or "")
@@ -72,18 +121,23 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"bmg160-emu {args.command}: error: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
-        terminated = isinstance(exc, Terminated)
-        print(f"bmg160-emu {args.command}: interrupted by "
-              f"{'SIGTERM' if terminated else 'SIGINT'}", file=sys.stderr)
-        return 143 if terminated else 130
+        name = getattr(exc, "signal_name", "SIGINT")
+        kept = getattr(exc, "kept", None) or "unfinished outputs removed (docs/outputs.md)"
+        print(f"bmg160-emu {command}: interrupted by {name}; {kept}", file=sys.stderr)
+        return 143 if name == "SIGTERM" else 130
     except BrokenPipeError:
         # The reader of our output went away (`bmg160-emu dump | head`): stop quietly, as
         # Unix tools do, and keep Python from complaining again when it flushes stdout at exit.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        if not _AS_COMMAND:
+            for number, handler in previous.items():
+                signal.signal(number, _restorable(handler))
+
+
+def _restorable(handler: Any) -> Any:
+    return signal.SIG_DFL if handler is None else handler
 
 
 if __name__ == "__main__":

@@ -29,7 +29,8 @@ def test_a_log_sink_writes_one_json_line_per_transaction_after_a_header(tmp_path
         for transaction in _session():
             log.append(transaction)
     lines = path.read_text().splitlines()
-    assert len(lines) == 4
+    assert len(lines) == 5  # header, three transactions, the end line of a complete session
+    assert json.loads(lines[-1]) == {"end": "bmg160-emu trace", "transactions": 3}
     assert json.loads(lines[0]) == {
         "format": "bmg160-emu trace", "version": 1, "seed": 7,
         "chips": [{"settings": {"profile": "paper", "address": 0x68},
@@ -40,6 +41,35 @@ def test_a_log_sink_writes_one_json_line_per_transaction_after_a_header(tmp_path
     back = [Transaction.from_dict(r) for r in records]
     assert back == _session()
     assert [r["_line"] for r in records] == [2, 3, 4]
+    assert header["_partial"] is None
+
+
+def test_a_session_cut_short_leaves_a_trace_without_its_end_line_that_reads_as_partial(tmp_path):
+    path = tmp_path / "cut.jsonl"
+    with pytest.raises(KeyboardInterrupt), TraceWriter(path, TraceHeader(seed=7)) as writer:
+        for transaction in _session()[:2]:
+            writer(transaction)
+        raise KeyboardInterrupt
+    header, records = read_trace(path)
+    assert len(records) == 2 and "cut short" in header["_partial"]
+    # a cut session with no transaction leaves no file (a header alone looked like a result)
+    empty = tmp_path / "empty.jsonl"
+    with pytest.raises(KeyboardInterrupt), TraceWriter(empty, TraceHeader(seed=7)):
+        raise KeyboardInterrupt
+    assert not empty.exists() and list(tmp_path.glob(".empty*")) == []
+
+
+def test_an_end_line_that_miscounts_or_is_followed_by_more_is_refused(tmp_path):
+    path = tmp_path / "s.jsonl"
+    with TraceWriter(path, TraceHeader(seed=7)) as writer:
+        writer.write_all(_session())
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(lines[:2] + lines[-1:]) + "\n")  # two lines lost before the end
+    with pytest.raises(TraceFormatError, match="end line says 3 transactions, the trace holds 1"):
+        read_trace(path)
+    path.write_text("\n".join(lines + lines[1:2]) + "\n")
+    with pytest.raises(TraceFormatError, match="after the end line"):
+        read_trace(path)
 
 
 def test_reading_reports_the_line_of_a_broken_record(tmp_path):

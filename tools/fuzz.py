@@ -3,6 +3,7 @@
     python tools/fuzz.py --examples 2000            # 2000 mutated files per format
     python tools/fuzz.py --examples 500 --format trace --save failures/
     python tools/fuzz.py --cli --examples 200      # the command line (tests/_fuzz_cli.py)
+    python tools/fuzz.py --signals --trials 50      # signals at random moments (issue 24)
 
 Each example is a valid file (made by the project's own CLI) with 1-3 random mutations (bit
 flips, truncation, deleted/duplicated spans and lines, numbers replaced by huge, non-finite or
@@ -28,6 +29,8 @@ from _fuzz_formats import FORMATS, mutate, try_load
 
 
 def main() -> int:
+    if "--signals" in sys.argv[1:]:
+        return signals_main(sys.argv[1:])
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--examples", type=int, default=1000, help="mutated files per format")
     parser.add_argument("--cli", action="store_true",
@@ -63,6 +66,35 @@ def main() -> int:
     total = args.examples * len(formats)
     print(f"{total} examples in {time.monotonic() - started:.0f} s; {failures} broke the invariant")
     return 1 if failures else 0
+
+
+def signals_main(argv: list[str]) -> int:
+    """``--signals``: SIGINT/SIGTERM at seeded random moments for every command that writes
+    (tests/_fuzz_signals.py); counts per command, each failure with its seed."""
+    from _fuzz_signals import COMMANDS, campaign
+
+    parser = argparse.ArgumentParser(prog="fuzz.py --signals")
+    parser.add_argument("--signals", action="store_true", required=True)
+    parser.add_argument("--trials", type=int, default=50, help="signalled runs per command")
+    parser.add_argument("--command", action="append", choices=[c.name for c in COMMANDS],
+                        help="only this command line (repeatable; default all)")
+    parser.add_argument("--first-seed", type=int, default=0, help="seed of the first trial")
+    args = parser.parse_args(argv)
+    failed: list[str] = []
+
+    def report(line: str) -> None:
+        print(line, flush=True)
+        if line.startswith("  "):
+            failed.append(line)
+
+    started = time.monotonic()
+    with tempfile.TemporaryDirectory() as tmp:
+        counts = campaign(args.command or [c.name for c in COMMANDS], args.trials,
+                          args.first_seed, Path(tmp), report)
+    total = sum(c.get("ok", 0) + c.get("failed", 0) + c.get("start-up", 0)
+                for c in counts.values())
+    print(f"{total} signalled runs in {time.monotonic() - started:.0f} s; {len(failed)} failed")
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import signal
 import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
@@ -80,7 +81,9 @@ class MonteCarloResult:
 
     def write(self, path: str | Path) -> None:
         """JSON with the percentile curves, or CSV (time and one column per percentile); the
-        file appears whole or not at all (bmg160_emu.io.atomic)."""
+        file appears whole or not at all (bmg160_emu.io.atomic). The curves of an interrupted
+        run say so in the file: JSON ``"interrupted": true``, CSV a last line ``# partial: ...``
+        (docs/outputs.md)."""
         from bmg160_emu.io.atomic import atomic_path
 
         path = Path(path)
@@ -90,6 +93,10 @@ class MonteCarloResult:
                 table = np.column_stack([self.times_s, *self.percentiles.values()])
                 np.savetxt(partial, table, delimiter=",", header=",".join(["time_s", *names]),
                            comments="", fmt="%.9g")
+                if self.interrupted:  # in the file: the curves of fewer runs than asked for
+                    with partial.open("a", encoding="utf-8") as handle:
+                        handle.write(f"# partial: {self.runs} of {self.planned_runs} runs "
+                                     f"(interrupted by {self.stopped_by or 'a signal'})\n")
             else:
                 partial.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
 
@@ -152,7 +159,12 @@ def _progress(total: int, enabled: bool | None):
         return contextlib.nullcontext(SimpleNamespace(update=lambda n: None))
     from tqdm import tqdm
 
-    return tqdm(total=total, unit="run", desc="monte carlo")
+    from bmg160_emu.io.atomic import held_signals
+
+    # held: a signal inside tqdm's constructor left a half-built bar whose __del__ printed
+    # an AttributeError traceback (found by tests/_fuzz_signals.py)
+    with held_signals():
+        return tqdm(total=total, unit="run", desc="monte carlo")
 
 
 class Interrupted(KeyboardInterrupt):
@@ -162,6 +174,7 @@ class Interrupted(KeyboardInterrupt):
         super().__init__()
         self.results = results
         self.signal_name = getattr(cause, "signal_name", "SIGINT")
+        self.kept: str | None = None  # what cli's one line says was kept
 
 
 def _run_sync(run: RunFunction, seeds: Sequence[int], progress: bool | None) -> list[RunResult]:
@@ -184,16 +197,26 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
         raise RuntimeError(
             "Dask is not installed: pip install 'bmg160-emu[montecarlo]', or use scheduler='sync'"
         ) from None
+    from bmg160_emu.io.atomic import held_signals
+
     cluster = None
     if address is None:
-        cluster = LocalCluster(
-            n_workers=workers or os.cpu_count() or 1,
-            threads_per_worker=1,  # the runs are CPU-bound Python: one process per core
-            processes=True,
-            # None still binds :8787 (distributed 2026.8): a busy port gave a warning on stderr
-            dashboard_address=":0",
-        )
-        client = Client(cluster)
+        with held_signals() as arrived:  # a ^C while the workers start is acted on once they
+            cluster = LocalCluster(      # have (Dask's start-up printed a traceback, issue 24)
+                n_workers=workers or os.cpu_count() or 1,
+                threads_per_worker=1,  # the runs are CPU-bound Python: one process per core
+                processes=True,
+                # None still binds :8787 (distributed 2026.8): a busy port gave a warning
+                dashboard_address=":0",
+            )
+            client = Client(cluster)
+            if arrived:  # stopped before any run: the cluster goes down before the signal acts
+                client.close()
+                cluster.close()
+        if arrived:  # held_signals delivered it; should a handler have let it pass (seen once
+            cause = KeyboardInterrupt()  # in campaign 3: client.map on the closed client)
+            cause.signal_name = signal.Signals(arrived[0]).name  # type: ignore[attr-defined]
+            raise Interrupted([], cause)
     else:
         try:
             client = Client(address, timeout="10s")
@@ -214,9 +237,10 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
                 raise Interrupted([by_seed[s] for s in seeds if s in by_seed], exc) from None
         return [by_seed[s] for s in seeds]
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        with held_signals():  # a second ^C must not cut the cluster's shut-down
+            client.close()
+            if cluster is not None:
+                cluster.close()
 
 
 def run_montecarlo(
@@ -250,6 +274,7 @@ def run_montecarlo(
         results = map_runs(run, seeds, scheduler=scheduler, workers=workers, progress=progress)
     except Interrupted as stop:
         if not stop.results:
+            stop.kept = "no run had finished: nothing to summarise or write"
             raise
         # the finished runs are kept: summarised (in seed order) and marked as interrupted
         partial = reduce_runs(scenario.name, stop.results, percentiles)

@@ -103,10 +103,13 @@ def run(args: argparse.Namespace) -> int:
                           + table)
     text = "\n".join(blocks)
     if args.output is not None:
-        try:
-            args.output.write_text(text, encoding="utf-8")
+        from bmg160_emu.io.atomic import atomic_open
+
+        try:  # whole or not at all: a full disk keeps the old file (io.atomic)
+            with atomic_open(args.output, "w", encoding="utf-8") as handle:
+                handle.write(text)
         except OSError as exc:
-            raise CommandError(f"cannot write {args.output}: {exc.strerror}") from None
+            raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     else:
         sys.stdout.write(text)
     return 0

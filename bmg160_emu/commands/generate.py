@@ -100,7 +100,14 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device.datapath import ProfileNoise, profile_noise
-    from bmg160_emu.io.atomic import OutputError, atomic_path, check_free_space, check_writable
+    from bmg160_emu.io.atomic import (
+        OutputError,
+        atomic_path,
+        check_free_space,
+        check_writable,
+        held_signals,
+    )
+    from bmg160_emu.io.partial import clear_sidecar, write_sidecar
     from bmg160_emu.io.rate_stream import RateStreamWriter
 
     suffix = args.output.suffix.lower()
@@ -165,8 +172,13 @@ def run(args: argparse.Namespace) -> int:
                         for _, block in _chunks(gen, total, bar):
                             resd.write_dps(block)
                     except KeyboardInterrupt as exc:
+                        if resd.written == 0:  # no sample: no file (it would look valid)
+                            exc.kept = f"no sample generated; {args.output} not written"  # type: ignore[attr-defined]
+                            raise
                         stopped = exc
                         resd.end_short()
+                        write_sidecar(args.output, f"interrupted after {resd.written} of "
+                                      f"{total} samples")
                     resd.close()
                 except ResdFormatError as exc:
                     raise CommandError(f"{args.output}: {exc}") from None
@@ -177,9 +189,16 @@ def run(args: argparse.Namespace) -> int:
                     for start, block in _chunks(gen, total, bar):
                         writer.write(start, block)
                 except KeyboardInterrupt as exc:
+                    if writer.samples == 0:  # no sample: no file (it would look valid)
+                        exc.kept = f"no sample generated; {args.output} not written"  # type: ignore[attr-defined]
+                        raise
                     stopped = exc
-                    writer.end_short(f"interrupted after {writer.samples} of {total} samples")
+                    with held_signals():  # a second signal must not cut the honest file
+                        writer.end_short(f"interrupted after {writer.samples} of {total} "
+                                         "samples")
                 written = writer.samples
+            if stopped is None:
+                clear_sidecar(args.output)  # an earlier cut run's mark
     except OSError as exc:
         raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     finally:
@@ -188,8 +207,8 @@ def run(args: argparse.Namespace) -> int:
     if stopped is not None:
         name = getattr(stopped, "signal_name", "SIGINT")
         print(f"bmg160-emu generate: interrupted by {name} after {written:,} of "
-              f"{total:,} samples; {args.output} holds those {written:,} "
-              f"(its header says so)", file=sys.stderr)
+              f"{total:,} samples; {args.output} holds those {written:,}, marked partial",
+              file=sys.stderr)
         return 143 if name == "SIGTERM" else 130
     print(f"wrote {args.output}: {written:,} samples x 3 axes, deg/s, at {gen.rate_hz:g} Hz "
           f"({total / gen.rate_hz:g} s); profile {gen.profile.name}, {gen.mode} mode, seed "

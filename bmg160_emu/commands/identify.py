@@ -314,6 +314,11 @@ def _identify_record(args: argparse.Namespace, options: dict):
 
     columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
     record = load_rate_record(args.file, args.rate, columns)
+    from bmg160_emu.io.partial import partial_note
+
+    cut = partial_note(args.file)
+    if cut:  # read all the same: what it holds is true, but shorter than was asked for
+        print(f"bmg160-emu identify: warning: {args.file} is partial ({cut})", file=sys.stderr)
     bar = _progress(record.rate_dps.shape[1] * STAGES_PER_AXIS)
     try:
         result = identify(

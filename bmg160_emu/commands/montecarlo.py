@@ -106,14 +106,26 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(message) from None
     except (FaultError, RuntimeError) as exc:
         raise CommandError(str(exc)) from None
-    print(result.summary(rows=max(2, args.rows)))
-    if args.output:
-        try:
-            result.write(args.output)
-        except OSError as exc:
-            raise CommandError(f"cannot write {args.output}: {exc.strerror or exc} (the "
-                               "table above holds the results)") from None
-        print(f"curves written to {args.output}")
+    from bmg160_emu.io.atomic import held_signals
+
+    stopped = None
+    try:
+        with held_signals():  # a signal now waits until the summary and the file are out
+            print(result.summary(rows=max(2, args.rows)))
+            if args.output:
+                try:
+                    result.write(args.output)
+                except OSError as exc:
+                    raise CommandError(f"cannot write {args.output}: {exc.strerror or exc} "
+                                       "(the table above holds the results)") from None
+                print(f"curves written to {args.output}")
+    except KeyboardInterrupt as exc:  # held while writing: the file is whole
+        stopped = getattr(exc, "signal_name", "SIGINT")
+    if stopped is not None and not result.interrupted:
+        print(f"bmg160-emu montecarlo: interrupted by {stopped} after all {result.runs} runs; "
+              "the summary above" + (f" and {args.output} are complete" if args.output
+                                     else " is complete"), file=sys.stderr)
+        return 143 if stopped == "SIGTERM" else 130
     if result.interrupted:
         print(f"bmg160-emu montecarlo: interrupted by {result.stopped_by} after {result.runs} of "
               f"{result.planned_runs} runs; the finished runs are summarised above"

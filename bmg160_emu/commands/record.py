@@ -62,13 +62,8 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.io.atomic import atomic_path
-    from bmg160_emu.session.record import (
-        BW_CODE_BY_ODR_HZ,
-        RecordingInterrupted,
-        record,
-        write_recording,
-    )
+    from bmg160_emu.io.atomic import held_signals
+    from bmg160_emu.session.record import BW_CODE_BY_ODR_HZ, RecordingInterrupted, record
 
     if args.output.suffix.lower() not in (".csv", ".npz", ".resd"):
         raise CommandError(f"output must end in .csv, .npz or .resd, not {args.output.name!r}")
@@ -121,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
                 bar.n = done
                 bar.refresh()
 
-    stopped = None
+    stopped: KeyboardInterrupt | None = None
     try:
         rec = record(chip, duration, progress)
     except (ValueError, RuntimeError) as exc:
@@ -130,29 +125,56 @@ def run(args: argparse.Namespace) -> int:
         stopped, rec = exc, exc.recording
     if scenario is not None:
         rec.metadata["truth"] = str(args.truth)
+    if stopped is not None and len(rec) == 0:  # a file of no sample would look like a result
+        stopped.kept = f"no sample recorded; {args.output} not written"  # type: ignore[attr-defined]
+        raise stopped
     try:
-        if args.output.suffix.lower() == ".resd":  # Renode: 0 the output, 1 the truth
-            from bmg160_emu.io.resd import ResdFormatError, write_resd
-
-            channels = {0: rec.rate_dps}
-            if rec.true_rate_dps is not None:
-                channels[1] = rec.true_rate_dps
-            try:
-                write_resd(args.output, rec.t_s, channels)  # written atomically by io.resd
-            except ResdFormatError as exc:
-                raise CommandError(f"{args.output}: {exc}") from None
-        else:
-            with atomic_path(args.output) as partial:
-                write_recording(rec, partial)
+        with held_signals():  # a signal now waits: the samples are written out first
+            _write(args.output, rec)
+    except KeyboardInterrupt as exc:  # the held signal, delivered once the file is whole
+        if stopped is None:
+            stopped = exc
     except OSError as exc:
         raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
     if stopped is not None:
-        print(f"bmg160-emu record: interrupted by {stopped.signal_name} after {len(rec):,} of "
-              f"{rec.metadata['samples_planned']:,} samples; {args.output} holds those (its "
-              "settings say interrupted)", file=sys.stderr)
-        return 143 if stopped.signal_name == "SIGTERM" else 130
+        name = getattr(stopped, "signal_name", "SIGINT")
+        whole = "interrupted" not in rec.metadata
+        said = ("all of them (complete)" if whole
+                else f"those {len(rec):,} (its settings say interrupted)")
+        print(f"bmg160-emu record: interrupted by {name} after {len(rec):,} of "
+              f"{rec.metadata.get('samples_planned', len(rec)):,} samples; {args.output} holds "
+              f"{said}", file=sys.stderr)
+        return 143 if name == "SIGTERM" else 130
     print(
         f"recorded {len(rec)} samples at {rec.odr_hz:g} Hz ({duration:g} s of chip time, "
         f"+-{rec.metadata['range_dps']} deg/s, {rec.lsb_per_dps:g} LSB/(deg/s)) to {args.output}"
     )
     return 0
+
+
+def _write(path: Path, rec) -> None:
+    """The recording as CSV, NPZ or RESD (Renode: channel 0 the output, 1 the truth), whole or
+    not at all (io.atomic)."""
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.io.atomic import atomic_path
+    from bmg160_emu.session.record import write_recording
+
+    if path.suffix.lower() == ".resd":
+        from bmg160_emu.io.partial import clear_sidecar, write_sidecar
+        from bmg160_emu.io.resd import ResdFormatError, write_resd
+
+        channels = {0: rec.rate_dps}
+        if rec.true_rate_dps is not None:
+            channels[1] = rec.true_rate_dps
+        if rec.metadata.get("interrupted"):  # RESD has no field for it: said beside the file
+            write_sidecar(path, f"interrupted after {len(rec)} of "
+                          f"{rec.metadata.get('samples_planned')} samples")
+        try:
+            write_resd(path, rec.t_s, channels)  # written atomically by io.resd
+        except ResdFormatError as exc:
+            raise CommandError(f"{path}: {exc}") from None
+        if not rec.metadata.get("interrupted"):
+            clear_sidecar(path)  # an earlier cut run's mark
+    else:
+        with atomic_path(path) as partial:
+            write_recording(rec, partial)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
+from typing import Any
 
 from bmg160_emu import limits
 from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_options, chips_from_args
@@ -62,7 +64,6 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.device import spec_choices
     from bmg160_emu.durations import check_simulated_time
     from bmg160_emu.session.playback import ReplayDataError, ReplaySource, load_replay_data
-    from bmg160_emu.session.record import record, write_recording
 
     if (args.output is None) == (args.script is None):
         raise CommandError("give -o OUT (record the chip's output) or --script FILE, one of them")
@@ -91,14 +92,42 @@ def run(args: argparse.Namespace) -> int:
                                         f"{args.data}: a replay of {duration:g} s")
         except ValueError as exc:  # LimitError is one
             raise CommandError(f"{exc} (at {chip.odr_hz:g} Hz)") from None
-        rec = record(chip, duration)
-        rec.metadata["replayed"] = str(args.data)
-        rec.true_rate_dps = None  # the truth behind real data is unknown
-        try:
-            write_recording(rec, args.output)
-        except OSError as exc:
-            raise CommandError(f"cannot write {args.output}: {exc.strerror}") from None
-        print(f"replayed {len(data.t_s)} samples of {args.data}; recorded {len(rec)} at "
-              f"{rec.odr_hz:g} Hz to {args.output}")
-        return 0
+        return _record_to(args.output, chip, data, args.data)
     return run_script_file(args.script, chips, print, "FAILED ")
+
+
+def _record_to(path: Path, chip: Any, data: Any, source: Path) -> int:
+    """The chip's output during the replay, recorded to ``path``: whole, or (a signal) the
+    samples so far marked interrupted, or nothing before the first sample; written under a
+    temporary name with the signals held (io.atomic), so a full disk or a ^C keeps the old
+    file (it used to leave a truncated one under the target's name)."""
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.io.atomic import atomic_path, held_signals
+    from bmg160_emu.session.record import RecordingInterrupted, record, write_recording
+
+    stopped: KeyboardInterrupt | None = None
+    try:
+        rec = record(chip, data.duration_s + data.median_step_s)
+    except RecordingInterrupted as exc:
+        stopped, rec = exc, exc.recording
+        if len(rec) == 0:
+            exc.kept = f"no sample recorded; {path} not written"  # type: ignore[attr-defined]
+            raise
+    rec.metadata["replayed"] = str(source)
+    rec.true_rate_dps = None  # the truth behind real data is unknown
+    try:
+        with held_signals(), atomic_path(path) as partial:
+            write_recording(rec, partial)
+    except KeyboardInterrupt as exc:  # held while writing: the file is whole
+        stopped = stopped or exc
+    except OSError as exc:
+        raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None
+    if stopped is not None:
+        name = getattr(stopped, "signal_name", "SIGINT")
+        what = ("marked interrupted" if rec.metadata.get("interrupted") else "complete")
+        print(f"bmg160-emu replay: interrupted by {name}; {path} holds {len(rec):,} samples "
+              f"({what})", file=sys.stderr)
+        return 143 if name == "SIGTERM" else 130
+    print(f"replayed {len(data.t_s)} samples of {source}; recorded {len(rec)} at "
+          f"{rec.odr_hz:g} Hz to {path}")
+    return 0

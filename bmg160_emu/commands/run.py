@@ -74,7 +74,9 @@ def _is_static(path: str) -> bool:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._common import CommandError, check_writable
+    from bmg160_emu.commands.trace import close_trace
+    from bmg160_emu.io.atomic import atomic_open
     from bmg160_emu.linux.umockdev import (
         RequestClock,
         UMockdevUnavailable,
@@ -115,12 +117,8 @@ def run(args: argparse.Namespace) -> int:
     except UMockdevUnavailable as exc:
         raise CommandError(f"{exc}; `bmg160-emu doctor umockdev` prints the install lines for "
                            "this system") from None
-    log_file = None
-    if args.log is not None:
-        try:  # opened now: a bad path is an error before the program runs, not after
-            log_file = args.log.open("w", encoding="utf-8")
-        except OSError as exc:
-            raise CommandError(f"cannot write {args.log}: {exc.strerror}") from None
+    if args.log is not None:  # checked now: a bad path is an error before the program runs
+        check_writable(args.log)
     writer = _trace_writer(args, buses)
     try:
         with devices, contextlib.ExitStack() as watching:
@@ -136,15 +134,17 @@ def run(args: argparse.Namespace) -> int:
             for error in devices.handler_errors():
                 print(f"bmg160-emu run: internal error answered as EIO: {error}", file=sys.stderr)
     finally:
-        if log_file is not None:
-            with log_file:
-                for bus in buses:
-                    log_file.write(str(bus.log) + os.linesep)
-        if writer is not None:
-            try:
-                writer.close()  # the transactions so far, also when stopped
-            except OSError as exc:
-                raise CommandError(f"cannot write {args.trace}: {exc.strerror or exc}") from None
+        try:
+            if writer is not None:
+                close_trace(writer, args.trace)  # the transactions so far, also when stopped
+        finally:
+            if args.log is not None:  # whole or not at all; an existing log kept until then
+                try:
+                    with atomic_open(args.log, "w", encoding="utf-8") as log_file:
+                        for bus in buses:
+                            log_file.write(str(bus.log) + os.linesep)
+                except OSError as exc:
+                    raise CommandError(f"cannot write {args.log}: {exc.strerror or exc}") from None
     return 128 - status if status < 0 else status
 
 

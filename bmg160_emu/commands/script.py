@@ -65,7 +65,7 @@ def register(subparsers: Subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.commands.trace import trace_writer_from_args
+    from bmg160_emu.commands.trace import close_trace, trace_writer_from_args
     from bmg160_emu.session.script import (
         ScriptFailure,
         ScriptRunner,
@@ -128,10 +128,7 @@ def run(args: argparse.Namespace) -> int:
         return 1
     finally:
         if writer is not None:
-            try:
-                writer.close()  # the transactions so far, also when stopped
-            except OSError as exc:
-                raise CommandError(f"cannot write {args.trace}: {exc.strerror or exc}") from None
+            close_trace(writer, args.trace)  # the transactions so far, also when stopped
     if not args.quiet:
         print(f"ok: {len(statements)} statements, t = {chip.time:.6f} s")
     return 0

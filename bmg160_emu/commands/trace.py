@@ -53,6 +53,11 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"cannot read {args.file}: {exc.strerror}") from None
     except (TraceFormatError, UnicodeDecodeError) as exc:
         raise CommandError(str(exc)) from None
+    partial = header.get("_partial")
+    if partial:  # replayed or decoded all the same, and said (docs/outputs.md)
+        print(f"bmg160-emu trace: warning: {args.file} is partial ({partial}); "
+              f"{'replaying' if args.replay else 'decoding'} the {len(records)} transactions "
+              "it holds", file=sys.stderr)
     if not args.replay:
         try:
             configs = TraceHeader.from_dict(header).configs()
@@ -88,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
         for text in result.faults_skipped:
             print(f"  {args.file}:{text}", file=sys.stderr)
     if result.ok:
-        print(f"no divergence: {result.transactions} transactions replayed{faults}")
+        cut = " (a partial trace: the session's end is missing)" if partial else ""
+        print(f"no divergence: {result.transactions} transactions replayed{faults}{cut}")
         return 0
     print(f"divergence at {args.file}:{result.divergence}", file=sys.stderr)
     return 1
@@ -113,3 +119,21 @@ def trace_writer_from_args(args: Any) -> TraceWriter:
         return TraceWriter(args.trace, header_from_chip_args(args))
     except OSError as exc:
         raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
+
+
+def close_trace(writer: TraceWriter, path: Any) -> None:
+    """Close a session's trace: complete (its end line) when the session ended by itself,
+    marked partial (no end line) when an exception (a signal, an error) is on its way out;
+    a write error (a full disk) is the command's one-line error, and no temporary file is
+    left. On a signal the exception carries what the file keeps, for cli's one line."""
+    from bmg160_emu.commands._common import CommandError
+
+    stopping = sys.exc_info()[1]
+    try:
+        writer.close(complete=stopping is None)
+    except OSError as exc:
+        raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None
+    if isinstance(stopping, KeyboardInterrupt) and not getattr(stopping, "kept", None):
+        stopping.kept = (  # type: ignore[attr-defined]
+            f"{path} holds the {writer.count} transactions so far, marked partial (no end line)"
+            if writer.count else f"no transaction recorded; {path} not written")

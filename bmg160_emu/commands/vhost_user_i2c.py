@@ -140,7 +140,9 @@ class _RateFile:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError, check_writable
+    from bmg160_emu.commands.trace import close_trace
+    from bmg160_emu.io.atomic import held_signals
     from bmg160_emu.linux.vhost_user_server import Server, SocketPathError
     from bmg160_emu.linux.virtio_gpio import VirtioGPIODevice
     from bmg160_emu.linux.virtio_i2c import VirtioI2CDevice
@@ -156,14 +158,9 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f"cannot read {args.true_rate_file}: {exc.strerror}") from None
         except ValueError as exc:
             raise CommandError(str(exc)) from None
-    outputs = {}
-    for flag in ("stats", "log"):
-        path = getattr(args, flag)
-        if path is not None:
-            try:  # opened now: a bad path is an error before serving, not at the end
-                outputs[flag] = path.open("w", encoding="utf-8")
-            except OSError as exc:
-                raise CommandError(f"cannot write {path}: {exc.strerror}") from None
+    for path in (args.stats, args.log):
+        if path is not None:  # checked now, written whole at the end: an existing file is
+            check_writable(path)  # kept as it was if the back end never serves (issue 24)
     args.realtime = True  # a guest kernel lives in real time
     clock = None
     if args.pace == "guest" and args.gpio_socket is not None:  # pacing needs the interrupts
@@ -223,11 +220,24 @@ def run(args: argparse.Namespace) -> int:
         server.close()
         if writer is not None:
             write_pending()
-            writer.close()
-    if "log" in outputs:
-        with outputs["log"] as handle:
-            handle.write(str(bus.log) + os.linesep)
-    if "stats" in outputs:
+            close_trace(writer, args.trace)  # complete after a stop by signal or --duration
+    with held_signals():  # a second signal waits until the log and the stats are whole
+        _write_outputs(args, bus, i2c, gpio, clock, rate_file, chips, elapsed)
+    print(f"bmg160-emu vhost-user-i2c: {i2c.stats.requests} requests in "
+          f"{i2c.stats.transfers} transfers", file=sys.stderr)
+    return 0
+
+
+def _write_outputs(args: argparse.Namespace, bus: Any, i2c: Any, gpio: Any, clock: Any,
+                   rate_file: Any, chips: Any, elapsed: float) -> None:
+    """--log and --stats, each whole or not at all (io.atomic); a write error is one line."""
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.io.atomic import atomic_open
+
+    texts = {}
+    if args.log is not None:
+        texts[args.log] = str(bus.log) + os.linesep
+    if args.stats is not None:
         report = {"elapsed_s": round(elapsed, 3), "i2c": i2c.stats.as_dict(),
                   "gpio": gpio.line_summary() if gpio is not None else [],
                   "stale_data_ready_edges": gpio.stale_edges if gpio is not None else 0,
@@ -240,8 +250,10 @@ def run(args: argparse.Namespace) -> int:
                   "final": {f"0x{a:02x}": {"odr_hz": c.odr_hz, "power_mode": c.power_mode,
                                            "registers": c.dump().hex()}
                             for a, c in chips.items()}}
-        with outputs["stats"] as handle:
-            handle.write(json.dumps(report, indent=1) + "\n")
-    print(f"bmg160-emu vhost-user-i2c: {i2c.stats.requests} requests in "
-          f"{i2c.stats.transfers} transfers", file=sys.stderr)
-    return 0
+        texts[args.stats] = json.dumps(report, indent=1) + "\n"
+    for path, text in texts.items():
+        try:
+            with atomic_open(path, "w", encoding="utf-8") as handle:
+                handle.write(text)
+        except OSError as exc:
+            raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None

@@ -19,14 +19,17 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
+import signal
 import stat
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
 __all__ = [
     "AtomicFile", "OutputError", "atomic_open", "atomic_path", "check_free_space", "check_writable",
+    "held_signals",
 ]
 
 
@@ -84,6 +87,29 @@ def _size(n: int) -> str:
             return f"{n:,} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
         n /= 1000  # type: ignore[assignment]
     raise AssertionError  # pragma: no cover
+
+
+@contextlib.contextmanager
+def held_signals() -> Iterator[list[int]]:
+    """SIGINT and SIGTERM held while an output is being finished: a signal that arrives in the
+    block is noted (the yielded list) and delivered again, to the handler it would have
+    reached, when the block ends. Why: a ^C while a recording is written out used to remove
+    the half-written file and with it every sample recorded (issue 24); held, the file is
+    finished first and the command then stops as the signal says. Only the main thread can
+    hold signals; elsewhere the block runs unchanged."""
+    if threading.current_thread() is not threading.main_thread():
+        yield []
+        return
+    arrived: list[int] = []
+    numbers = (signal.SIGINT, signal.SIGTERM)
+    previous = {n: signal.signal(n, lambda number, frame: arrived.append(number)) for n in numbers}
+    try:
+        yield arrived
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, signal.SIG_DFL if handler is None else handler)
+        if arrived:
+            signal.raise_signal(arrived[0])  # the restored handler acts on it
 
 
 def _mode_for_new_file() -> int:

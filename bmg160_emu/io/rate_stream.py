@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from bmg160_emu.io.errors import FormatError
+from bmg160_emu.io.partial import npy_trailer
 
 
 class RateStreamWriter:
@@ -64,7 +65,8 @@ class RateStreamWriter:
     def end_short(self, note: str) -> None:
         """Make the file an honest shorter record after an interruption: cut it after the
         last complete sample, say ``samples`` (the .npy shape; the CSV header's
-        ``samples=``) and, in a CSV, add ``note`` as a last comment line."""
+        ``samples=``) and add ``note``: in a CSV as a last comment line, in a .npy as a
+        trailer after the array (io.partial reads both)."""
         handle = self.handle
         handle.flush()
         handle.truncate(self._end)
@@ -77,6 +79,8 @@ class RateStreamWriter:
             handle.seek(0)
             handle.write(head + (old_length - len(head) - 2).to_bytes(2, "little")
                          + body + b" " * pad + b"\n")
+            handle.seek(0, 2)
+            handle.write(npy_trailer(note))  # after the array: np.load reads past it
         else:
             handle.seek(0)
             first = handle.readline()

@@ -34,6 +34,8 @@ TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
 FAULT_KIND_PREFIX = "fault:"  # entries bmg160_emu.faults adds at a fault's onset
 TRUE_RATE_KIND = "true_rate"  # the session changed a chip's true rate (a script's `rate`)
+END_KEY = "end"  # the last line of a complete trace: {"end": TRACE_FORMAT_TAG, "transactions": n}
+CUT_SHORT = "no end line: the session was cut short (docs/outputs.md)"
 
 
 class TraceFormatError(FormatError):
@@ -194,8 +196,14 @@ class TraceWriter:
         else:
             self._file = path_or_file
             self._owns = False
-        self._file.write(json.dumps((header or TraceHeader()).to_dict()) + "\n")
+        try:
+            self._file.write(json.dumps((header or TraceHeader()).to_dict()) + "\n")
+        except BaseException:  # a full disk at the first line: no hidden .part file left
+            if self._atomic is not None:
+                self._atomic.discard()
+            raise
         self.count = 0
+        self._closed = False
 
     def __call__(self, transaction: Any) -> None:
         if self._error is not None:
@@ -215,10 +223,23 @@ class TraceWriter:
         for transaction in transactions:
             self(transaction)
 
-    def close(self) -> None:
+    def close(self, complete: bool = True) -> None:
         """Finish the file: every transaction written so far, renamed into place (a write
-        error, such as a full disk, is raised here)."""
+        error, such as a full disk, is raised here). ``complete``: the session ended by itself
+        and the end line is written; a session cut short (a signal, an error) has none, so
+        every reader can tell (docs/outputs.md)."""
+        if complete and self._error is None and not self._closed:
+            try:
+                end = {END_KEY: TRACE_FORMAT_TAG, "transactions": self.count}
+                self._file.write(json.dumps(end) + "\n")
+                self._file.flush()
+            except OSError as exc:
+                self._error = exc
+        self._closed = True
         if self._atomic is not None:
+            if not complete and self.count == 0 and self._error is None:
+                self._atomic.discard()  # a cut session with no transaction: no file at all
+                return
             if self._error is not None:
                 self._atomic.discard()
                 raise self._error
@@ -231,15 +252,19 @@ class TraceWriter:
     def __enter__(self):  # returns self (subclasses too)
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __exit__(self, kind: object, *exc: object) -> None:
+        self.close(complete=kind is None)
 
 
 def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
     """Read a trace file: (header, transaction dictionaries), every field checked against the
-    schema of docs/trace-format.md, errors naming the line (never another exception)."""
+    schema of docs/trace-format.md, errors naming the line (never another exception).
+
+    ``header["_partial"]`` is None for a complete trace (its end line present, counting the
+    transactions before it), else why it is partial; a bare log has no header to say."""
     header: dict | None = None
     records: list[dict] = []
+    end: dict | None = None
     text = read_text(path, TraceFormatError)
     for lineno, line in enumerate(text.splitlines(), 1):
         if not line.strip():
@@ -248,6 +273,11 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
         obj = loads_json(line, TraceFormatError, where)
         if not isinstance(obj, dict):
             raise TraceFormatError(f"{where}: each line must be a JSON object")
+        if end is not None:
+            raise TraceFormatError(f"{where}: a line after the end line")
+        if header is not None and END_KEY in obj and "kind" not in obj:
+            end = _check_end(obj, len(records), where)
+            continue
         if header is None and "format" not in obj and "kind" in obj:
             header = {}  # a bare log (Transaction.to_dict() lines): decodable, not replayable
         if header is None:
@@ -263,7 +293,16 @@ def read_trace(path: str | Path) -> tuple[dict, list[dict]]:
         records.append(obj)
     if header is None:
         raise TraceFormatError(f"{path}: empty trace")
+    if "format" in header:
+        header["_partial"] = None if end is not None else CUT_SHORT
     return header, records
+
+
+def _check_end(obj: dict, count: int, where: str) -> dict:
+    if obj.get(END_KEY) != TRACE_FORMAT_TAG or obj.get("transactions") != count:
+        raise TraceFormatError(f"{where}: the end line says {obj.get('transactions')!r} "
+                               f"transactions, the trace holds {count}")
+    return obj
 
 
 # every kind a front end logs: the I2C kinds of I2CBus, the SPI frames, the annotations
