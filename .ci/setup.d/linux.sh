@@ -15,16 +15,8 @@ packages=(
     util-linux                                      # B: setpriv for the permission check
     make patch xz-utils                             # C: out-of-tree guest modules (virtio)
 )
-missing=()
-for package in "${packages[@]}"; do
-    dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" \
-        || missing+=("$package")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-    echo "installing: ${missing[*]}"
-    apt-get install -y -qq "${missing[@]}" >/dev/null \
-        || { apt-get update -qq && apt-get install -y -qq "${missing[@]}" >/dev/null; }
-fi
+. .ci/apt-missing.sh
+apt_install_missing "${packages[@]}"
 
 # Debian's python3-gi serves Debian's /usr/bin/python3 only; a venv builds its own.
 if ! python3 -c "import gi" 2>/dev/null; then

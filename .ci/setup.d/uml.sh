@@ -7,15 +7,7 @@ cd "$(dirname "$0")/../.."
 export DEBIAN_FRONTEND=noninteractive
 
 packages=(linux-source-6.1 bc flex bison libelf-dev make gcc patch xz-utils busybox-static)
-missing=()
-for package in "${packages[@]}"; do
-    dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" \
-        || missing+=("$package")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-    echo "installing: ${missing[*]}"
-    apt-get install -y -qq "${missing[@]}" >/dev/null \
-        || { apt-get update -qq && apt-get install -y -qq "${missing[@]}" >/dev/null; }
-fi
+. .ci/apt-missing.sh
+apt_install_missing "${packages[@]}"
 
 python3 -m bmg160_emu.linux.guest.uml_build

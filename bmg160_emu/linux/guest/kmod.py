@@ -124,22 +124,33 @@ def build_bundled(cache: Path | None = None, progress: Progress = lambda _: None
     return out
 
 
-def user_module(path: Path, cache: Path | None = None,
-                progress: Progress = lambda _: None) -> list[Path]:
-    """The ``.ko`` files of a user's module: ``path`` itself, or what its source folder
-    builds (once per content of the folder's files and kernel version)."""
+BUILD_PRODUCTS = {".ko", ".o", ".cmd", ".mod", ".order", ".symvers"}  # what kbuild leaves
+
+
+def module_sources(path: Path) -> list[Path]:
+    """A user's module as given (``--module``): [the file] for a ``.ko``, else the source files
+    of its folder (which must hold a Kbuild or Makefile), build products left out: what a
+    build is cached by. EngineError for anything else, in one line naming the path."""
     if path.is_file():
         if path.suffix != ".ko":
             raise EngineError(f"{path}: a module is a .ko file or a folder with a Kbuild file")
         return [path.resolve()]
     if not (path / "Kbuild").is_file() and not (path / "Makefile").is_file():
         raise EngineError(f"{path}: no Kbuild (or Makefile) file: not a module source folder")
+    return sorted(p for p in path.rglob("*") if p.is_file() and p.suffix not in BUILD_PRODUCTS)
+
+
+def user_module(path: Path, cache: Path | None = None,
+                progress: Progress = lambda _: None) -> list[Path]:
+    """The ``.ko`` files of a user's module: ``path`` itself, or what its source folder
+    builds (once per content of the folder's files and kernel version)."""
+    sources = module_sources(path)
+    if path.is_file():
+        return sources
     missing = tools_missing()
     if missing:
         raise EngineError("; ".join(missing))
     kernel = prepare_kernel(cache, progress)
-    sources = sorted(p for p in path.rglob("*") if p.is_file() and p.suffix not in
-                     {".ko", ".o", ".cmd", ".mod", ".order", ".symvers"})
     key = content_hash(sources, kernel.version, *(str(p.relative_to(path)) for p in sources))
     out = (cache or cache_dir()) / "user-modules" / f"{path.resolve().name}-{key}"
     built = sorted(out.glob("*.ko"))

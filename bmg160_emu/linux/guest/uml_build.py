@@ -23,6 +23,7 @@ from pathlib import Path
 
 from bmg160_emu.linux.guest.cache import cache_dir, content_hash
 from bmg160_emu.linux.guest.engine import EngineError, Progress
+from bmg160_emu.linux.guest.kmod import module_sources
 
 SOURCE_PACKAGE = "linux-source-6.1"
 SOURCE_TARBALL = Path("/usr/src/linux-source-6.1.tar.xz")
@@ -253,14 +254,9 @@ def user_module(kernel: UmlKernel, path: Path, progress: Progress) -> list[Path]
     """The ``.ko`` files of a user's module for this kernel: ``path`` itself, or what its
     source folder (with a Kbuild or Makefile) builds with ARCH=um against the tree, once per
     content of the folder's files and kernel build."""
+    sources = module_sources(path)
     if path.is_file():
-        if path.suffix != ".ko":
-            raise EngineError(f"{path}: a module is a .ko file or a folder with a Kbuild file")
-        return [path.resolve()]
-    if not (path / "Kbuild").is_file() and not (path / "Makefile").is_file():
-        raise EngineError(f"{path}: no Kbuild (or Makefile) file: not a module source folder")
-    sources = sorted(p for p in path.rglob("*") if p.is_file() and p.suffix not in
-                     {".ko", ".o", ".cmd", ".mod", ".order", ".symvers"})
+        return sources
     key = content_hash(sources, kernel.root.name, *(str(p.relative_to(path)) for p in sources))
     out = kernel.root / "user-modules" / f"{path.resolve().name}-{key}"
     built = sorted(out.glob("*.ko"))
