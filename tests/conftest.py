@@ -157,7 +157,7 @@ def _say_what_a_long_test_does(request: pytest.FixtureRequest) -> None:
     if reporter is None:
         return
     marker = {"slow": "a long test", "docs": "a page's examples as written",
-              "kernel": "a Linux guest under QEMU",
+              "kernel": "a Linux guest (user-mode Linux or QEMU)",
               "firmware": "the AVR firmware in simavr", "umockdev": "a umockdev session"}[name]
     capture = request.config.pluginmanager.get_plugin("capturemanager")
     # out of the test's capture: the line must reach the terminal before the long part
