@@ -566,8 +566,10 @@ def test_run_trace_records_the_session_for_bmg160_emu_trace(tmp_path: Path):
     )
     result = run_emulated([*CHIP_OPTIONS, "--trace", str(trace), "--", sys.executable, str(client)])
     assert result.returncode == 0, result.stderr
-    header, *lines = [json.loads(line) for line in trace.read_text().splitlines()]
+    header, *lines, end = [json.loads(line) for line in trace.read_text().splitlines()]
     assert header["format"] == "bmg160-emu trace" and header["seed"] == 3
+    # a complete session ends with its end line (docs/trace-format.md)
+    assert end == {"end": "bmg160-emu trace", "transactions": 4}
     assert header["chips"][0]["true_rate_dps"] == list(TRUE_RATE_DPS)
     assert [(r["kind"], r["address"], r["error"]) for r in lines] == [
         ("read_byte_data", 0x68, None),
@@ -595,8 +597,9 @@ def test_run_trace_without_seed_records_the_seed_it_chose(tmp_path: Path):
     trace = tmp_path / "session.jsonl"
     result = run_emulated(["--trace", str(trace), "--", "sh", "-c", "exit 0"])
     assert result.returncode == 0, result.stderr
-    (header,) = [json.loads(line) for line in trace.read_text().splitlines()]
+    header, end = [json.loads(line) for line in trace.read_text().splitlines()]
     assert isinstance(header["seed"], int)  # a replay can rebuild the same chips
+    assert end == {"end": "bmg160-emu trace", "transactions": 0}  # complete, with none
 
 
 def test_run_trace_to_an_unwritable_path_is_a_clear_error(tmp_path: Path):
