@@ -75,7 +75,7 @@ def test_the_default_run_leaves_the_long_markers_out_and_says_so(suite):
 def test_all_runs_everything_and_says_what_each_long_test_runs(suite):
     passed, out = _pytest(suite, "--all")
     assert passed == {"plain", "slow", "kernel", "firmware", "umockdev"}
-    assert "[kernel] test_markers.py::test_kernel: running a Linux guest under QEMU..." in out
+    assert "[kernel] test_markers.py::test_kernel: running a Linux guest (user-mode Linux or QEMU)..." in out
     assert "left out" not in out.split("short test summary")[-1]
 
 
