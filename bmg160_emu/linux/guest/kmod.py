@@ -162,10 +162,16 @@ def user_module(path: Path, cache: Path | None = None,
         build = Path(tmp) / path.resolve().name
         shutil.copytree(path, build, ignore=shutil.ignore_patterns("*.o", "*.ko", ".*.cmd"))
         _make(kernel, tree, build)
-        made = sorted(build.rglob("*.ko"))
-        if not made:
-            raise EngineError(f"building {path} made no .ko file (is obj-m set in Kbuild?)")
-        out.mkdir(parents=True, exist_ok=True)
-        for ko in made:
-            shutil.copy2(ko, out / ko.name)
+        return keep_modules(build, out, path)
+
+
+def keep_modules(build: Path, out: Path, path: Path) -> list[Path]:
+    """The ``.ko`` files a build of ``path`` made in ``build``, copied into the cache folder
+    ``out`` (what later calls find); EngineError when it made none."""
+    made = sorted(build.rglob("*.ko"))
+    if not made:
+        raise EngineError(f"building {path} made no .ko file (is obj-m set in Kbuild?)")
+    out.mkdir(parents=True, exist_ok=True)
+    for ko in made:
+        shutil.copy2(ko, out / ko.name)
     return sorted(out.glob("*.ko"))

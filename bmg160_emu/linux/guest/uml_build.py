@@ -23,7 +23,7 @@ from pathlib import Path
 
 from bmg160_emu.linux.guest.cache import cache_dir, content_hash
 from bmg160_emu.linux.guest.engine import EngineError, Progress
-from bmg160_emu.linux.guest.kmod import module_sources
+from bmg160_emu.linux.guest.kmod import keep_modules, module_sources
 
 SOURCE_PACKAGE = "linux-source-6.1"
 SOURCE_TARBALL = Path("/usr/src/linux-source-6.1.tar.xz")
@@ -269,14 +269,9 @@ def user_module(kernel: UmlKernel, path: Path, progress: Progress) -> list[Path]
     shutil.copytree(path, build, ignore=shutil.ignore_patterns("*.o", "*.ko", ".*.cmd"))
     log = build / "build.log"
     _run(["make", "ARCH=um", "-C", str(kernel.tree), f"M={build}", "modules"], build, log)
-    made = sorted(build.rglob("*.ko"))
-    if not made:
-        raise EngineError(f"building {path} made no .ko file (is obj-m set in Kbuild?)")
-    out.mkdir(parents=True, exist_ok=True)
-    for ko in made:
-        shutil.copy2(ko, out / ko.name)
+    kept = keep_modules(build, out, path)
     shutil.rmtree(build)
-    return sorted(out.glob("*.ko"))
+    return kept
 
 
 if __name__ == "__main__":  # .ci/setup.d/uml.sh
