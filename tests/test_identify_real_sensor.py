@@ -8,9 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from bmg160_emu.device.lowpass import LowPass
 from bmg160_emu.noise import NoiseGenerator
 from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.lowpass import LowPass
 from bmg160_emu.noise.profile import AxisNoise, Profile
 
 RATE = 100.0

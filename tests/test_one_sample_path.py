@@ -10,13 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.device import datapath, lowpass, spec_choices
-
-BW_CODES = sorted(spec_choices.BANDWIDTHS)
+from bmg160_emu.device import datapath
+from bmg160_emu.noise import lowpass
+from bmg160_emu.noise.bandwidths import BANDWIDTHS, BW_CODES
 
 
 def _filter(code: int, rng: np.random.Generator) -> lowpass.LowPass:
-    odr, bandwidth = spec_choices.BANDWIDTHS[code]
+    odr, bandwidth = BANDWIDTHS[code]
     f = lowpass.LowPass(odr, bandwidth)
     f.restart(rng.normal(0.0, 100.0, 3))
     f.state = rng.normal(0.0, 5.0, f.state.shape)

@@ -288,7 +288,7 @@ def run(args: argparse.Namespace) -> int:
 def _output_stage_line(result) -> str:
     """The output stage the profile carries, with the BW code of the chip family that has
     the same filter at the record's rate (register spec 5.3), if one does."""
-    from bmg160_emu.device.spec_choices import BANDWIDTHS, LOWPASS_ORDER
+    from bmg160_emu.noise.bandwidths import BANDWIDTHS, LOWPASS_ORDER
 
     stage = result.output_stage()
     if stage is None:
@@ -429,7 +429,7 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
         elif axis.output_filter is not None:
             # GMWM's white term knows no filter: the scales where the filter takes less than
             # 1 % off white noise's Allan variance (it falls as 1 / tau, from 60 % at tau = dt)
-            from bmg160_emu.noise.output_filter import white_avar_unit
+            from bmg160_emu.noise.butterworth import white_avar_unit
 
             deficit = np.abs(white_avar_unit(wv.taus_s, record.rate_hz,
                                              axis.output_filter.design) * wv.taus_s - 1.0)
@@ -528,9 +528,9 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
         "psd": plots.psd_figure(result.axes, record.rate_hz),
     }
     if args.compare:
-        from bmg160_emu.device.datapath import profile_noise
         from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
         from bmg160_emu.noise.identification import identify_axis
+        from bmg160_emu.noise.sensor_noise import profile_noise
 
         chip_rate = min(SUPPORTED_RATES_HZ, key=lambda r: abs(r / record.rate_hz - 1))
         if abs(chip_rate / record.rate_hz - 1) > 0.01:

@@ -27,9 +27,9 @@ from bmg160_emu.device.emission import catch_up
 from bmg160_emu.device.engines import NEVER
 from bmg160_emu.device.part_spec import BMG160_PART, Part
 from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of
-from bmg160_emu.device.sensor_errors import SensorErrors
 from bmg160_emu.device.state import ChipState
 from bmg160_emu.device.true_rate import QueuedRates, streamed_rate, true_rate_source
+from bmg160_emu.noise.sensor_errors import SensorErrors
 
 NORMAL, DEEP_SUSPEND, SUSPEND, FAST_POWER_UP, POWER_SAVE = engines.MODES  # names as before
 power_mode = engines.power_mode  # importable from here as before (linux.i2c_stub)
@@ -131,7 +131,7 @@ class BMG160:
 
     @property
     def sensor_errors(self) -> SensorErrors:
-        """The unit's deterministic errors (bmg160_emu.device.sensor_errors)."""
+        """The unit's deterministic errors (bmg160_emu.noise.sensor_errors)."""
         return self.state.budget.errors
 
     @property

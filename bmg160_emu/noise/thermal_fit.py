@@ -121,7 +121,7 @@ class ThermalFit:
         return np.column_stack([powers @ a.coefficients for a in self.axes])
 
     def to_errors(self) -> dict[str, Any]:
-        """A profile's ``errors`` table (bmg160_emu.device.sensor_errors.SensorErrors)."""
+        """A profile's ``errors`` table (bmg160_emu.noise.sensor_errors.SensorErrors)."""
         c = np.zeros((3, 4))
         for i, a in enumerate(self.axes[:3]):
             c[i, : self.order + 1] = a.coefficients
