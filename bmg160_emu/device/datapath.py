@@ -230,16 +230,16 @@ class DataPath:
         self._errors_seen: Any = None  # the budget's SensorErrors when last asked if active
         self._errors_active = False
 
-    def set_filter(self, odr_hz: int, bandwidth_hz: float, used_end: int) -> None:
-        """Filter for a BW code; the noise from sample ``used_end`` on is redrawn at the new
-        ODR and through the new filter, and the true rate gets a filter of the same design
-        (one call into the noise layer: SensorNoise.configure)."""
-        self.odr_hz = odr_hz
-        self.filter = self.noise.configure(odr_hz, bandwidth_hz, used_end)
+    def set_filter(self, code: int, used_end: int) -> None:
+        """ODR and filter of BW code ``code`` (0..7); the noise from sample ``used_end`` on is
+        redrawn at the new ODR and through the new filter, and the true rate gets a filter of
+        the same design: one call into the noise layer (SensorNoise.configure_code), which
+        holds the code's figures (noise.bandwidths)."""
+        self.odr_hz, self.filter = self.noise.configure_code(code, used_end)
 
-    def change_bandwidth(self, odr_hz: int, bandwidth_hz: float, used_end: int) -> None:
+    def change_bandwidth(self, code: int, used_end: int) -> None:
         """A new BW code while running: the new filter continues from the last output."""
-        self.set_filter(odr_hz, bandwidth_hz, used_end)
+        self.set_filter(code, used_end)
         if self.last_y is not None and not self.restart_filter:
             assert self.filter is not None
             self.filter.restart(self.last_y)

@@ -274,10 +274,12 @@ class ChipState:
     # ------------------------------------------------------------------ data path
 
     def set_filter(self, *, running: bool = False) -> None:
-        """ODR and filter from BW; the noise realisation carries on (a running filter too)."""
-        odr, bandwidth = choice.bandwidth(self.regs[_BW])
+        """ODR and filter from BW's code (codes 8..15 as code & 7); the noise realisation
+        carries on (a running filter too)."""
         set_filter = self.path.change_bandwidth if running else self.path.set_filter
-        set_filter(odr, bandwidth, used_end=self.k + 1)
+        set_filter(choice.bw_code(self.regs[_BW]), used_end=self.k + 1)
+        odr = self.path.odr_hz
+        assert odr is not None  # set by set_filter
         self.odr, self.period_ns = odr, NS_PER_S // odr
 
     def invalidate(self) -> None:

@@ -98,6 +98,14 @@ class SensorNoise:
             self._note_filter(odr_hz, bandwidth_hz, order)
         return rate_filter
 
+    def configure_code(self, code: int, used_end: int) -> tuple[int, LowPass]:
+        """The chip's BW ``code`` (0..7, bandwidths.py) from sample ``used_end`` on: its ODR
+        and its filter for the noise (``configure``). Returns (ODR Hz, the true rate's filter)."""
+        odr_hz, bandwidth_hz = BANDWIDTHS[code]
+        rate_filter = self.configure(odr_hz, bandwidth_hz, used_end)
+        assert rate_filter is not None  # every BW code has a filter
+        return odr_hz, rate_filter
+
     def take(self, k0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
         """(unfiltered, filtered) noise of samples k0 .. k0 + n - 1, deg/s; samples before
         k0 are forgotten."""
