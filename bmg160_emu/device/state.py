@@ -1,8 +1,8 @@
 """The chip's state and its sample schedule, under public names: what the chip's parts act on.
 
 ``BMG160`` (chip.py) keeps the lock, the primitives, the hook lists and the reset entry points.
-Everything a register hook (``regmap``), a bus transaction (``access``) or the sample emission
-(``emission``) reads or changes lives in one ``ChipState`` per chip, and those modules take
+Everything a register hook (``regmap``), a bus transaction (``register_access``) or the
+output samples (``output_samples``) read or change lives in one ``ChipState`` per chip, and those modules take
 that object, never the chip: they see the chip only through it (docs/architecture.md, "The
 chip's state"). It also holds the few operations of the schedule they call: ``invalidate``
 (the configuration changed), ``start_sampling`` and ``stop_sampling`` (power modes, 6.7),
