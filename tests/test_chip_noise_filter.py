@@ -13,7 +13,7 @@ import pytest
 from bmg160_emu.device.parts import PART_NAMES, make_chip
 from bmg160_emu.noise.bandwidths import BANDWIDTHS, LOWPASS_ORDER
 from bmg160_emu.noise.butterworth import Butterworth
-from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.identify import identify
 
 SAMPLES = 40_000  # per axis; three independent axes are pooled
 _BW, _RATE_HBW, _FIFO_CONFIG_1 = 0x10, 0x13, 0x3E

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from bmg160_emu.noise.allan import overlapping_adev
-from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.identify import identify
 from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile
 from bmg160_emu.noise.sensor_noise import profile_noise
 

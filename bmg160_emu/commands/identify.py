@@ -222,7 +222,7 @@ def _options(args: argparse.Namespace) -> dict:
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.io.rates import RateFileError
-    from bmg160_emu.noise.identification import IdentificationError
+    from bmg160_emu.noise.identify import IdentificationError
     from bmg160_emu.noise.interop import InteropError
 
     for path in (args.plot,):
@@ -310,7 +310,7 @@ def _output_stage_line(result) -> str:
 
 def _identify_record(args: argparse.Namespace, options: dict):
     from bmg160_emu.io.rates import load_rate_record
-    from bmg160_emu.noise.identification import STAGES_PER_AXIS, identify
+    from bmg160_emu.noise.identify import STAGES_PER_AXIS, identify
 
     columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
     record = load_rate_record(args.file, args.rate, columns)
@@ -338,7 +338,7 @@ def _identify_record(args: argparse.Namespace, options: dict):
 def _identify_curve(args: argparse.Namespace, options: dict):
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.noise.identification import Identification, identify_curve
+    from bmg160_emu.noise.identify import Identification, identify_curve
     from bmg160_emu.noise.interop import read_adev_csv
 
     if args.rate is None:
@@ -416,7 +416,7 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
 
     from bmg160_emu.noise import gmwm
     from bmg160_emu.noise.fit import Term
-    from bmg160_emu.noise.identification import Estimate, IdentificationError
+    from bmg160_emu.noise.identify import Estimate, IdentificationError
     from bmg160_emu.noise.wavelet import MIN_COEFFS_FRACTION, haar_wv
 
     model = ["WN", "GM", "RW"] + ["QN"] * args.with_q + ["DR"] * args.with_r
@@ -529,7 +529,7 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
     }
     if args.compare:
         from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
-        from bmg160_emu.noise.identification import identify_axis
+        from bmg160_emu.noise.identify import identify_axis
         from bmg160_emu.noise.sensor_noise import profile_noise
 
         chip_rate = min(SUPPORTED_RATES_HZ, key=lambda r: abs(r / record.rate_hz - 1))

@@ -235,7 +235,7 @@ def _terms_for(axis, noise, rate, temps, rate_hz, design, y, ref, order, per_blo
         item = noise[axis]
         return item if isinstance(item, NoiseTerms) else NoiseTerms.from_axis(item)
     # two-step: an ordinary fit, then the noise identified from what it leaves
-    from bmg160_emu.noise.identification import identify_axis
+    from bmg160_emu.noise.identify import identify_axis
 
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     powers = (temps - ref).reshape(-1, 1) ** np.arange(order + 1)
