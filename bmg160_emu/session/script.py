@@ -472,7 +472,7 @@ class ScriptRunner:
             self._poll(s)
         elif s.command == "advance":
             chip.advance(s.seconds)
-            self._say(s, f"advance {_seconds_text(s.seconds)}")
+            self._say(s, f"advance {durations.exact_duration_text(s.seconds)}")
         elif s.command == "rate":
             chip.set_true_rate(s.rate_dps)
             self._log_true_rate(s.rate_dps)
@@ -552,7 +552,7 @@ class ScriptRunner:
                 self._say(
                     s,
                     f"poll {register_label(s.register)} bit {s.bit} == {s.expected_bit}: after "
-                    f"{_seconds_text(chip.time - start)} ({_reads(reads)}, last 0x{value:02x})",
+                    f"{durations.exact_duration_text(chip.time - start)} ({_reads(reads)}, last 0x{value:02x})",
                 )
                 return
             if chip.time - start + s.interval_s > s.seconds + 1e-12:
@@ -560,21 +560,13 @@ class ScriptRunner:
                     self.source,
                     s.line,
                     f"{register_label(s.register)} bit {s.bit} still {1 - s.expected_bit} after "
-                    f"{_seconds_text(s.seconds)} ({_reads(reads)}, last 0x{value:02x})",
+                    f"{durations.exact_duration_text(s.seconds)} ({_reads(reads)}, last 0x{value:02x})",
                 )
             chip.advance(s.interval_s)
 
 
 def _reads(count: int) -> str:
     return "1 read" if count == 1 else f"{count} reads"
-
-
-def _seconds_text(seconds: float) -> str:
-    if seconds >= 1 or seconds == 0:
-        return f"{seconds:g} s"
-    if seconds >= 1e-3:
-        return f"{seconds * 1e3:g} ms"
-    return f"{seconds * 1e6:g} us"
 
 
 def describe_write(register: int, data: bytes) -> str:
