@@ -17,15 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu import durations
-from bmg160_emu.io.dump import (
-    DUMP_FORMATS,
-    REGISTER_COUNT,
-    RegisterDump,
+from bmg160_emu.device.fields import (
     describe_value_difference,
-    format_dump,
     register_label,
     resolve_register_name,
 )
+from bmg160_emu.device.registers import REGISTER_COUNT
+from bmg160_emu.io.dump import DUMP_FORMATS, RegisterDump, format_dump
 from bmg160_emu.limits import RATE_DPS, LimitError
 
 DEFAULT_POLL_INTERVAL_S = 1e-3  # one read per millisecond of simulated time
