@@ -90,7 +90,6 @@ def parse_fault_entry(written: bytes | str) -> tuple[str, dict[str, Any] | None]
 # --------------------------------------------------------------------------- JSON Lines
 
 
-
 @dataclass
 class TraceHeader:
     """What replay needs to rebuild the chips: master seed and, per chip, its constructor
