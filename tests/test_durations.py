@@ -67,7 +67,7 @@ def test_a_non_text_argument_is_a_type_error():
 
 def test_every_front_end_uses_the_same_parser():
     from bmg160_emu.commands import generate
-    from bmg160_emu.session.script import parse_script
+    from bmg160_emu.session.script_language import parse_script
 
     assert generate.parse_duration is parse_duration
     script = parse_script("advance 1d\nadvance 250ms\nadvance 0s\n")

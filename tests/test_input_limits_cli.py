@@ -132,7 +132,7 @@ def test_a_scenario_path_is_named_once(tmp_path, capsys):
     ("rate 1 nan 3\n", "1:8: angular rate must be a number"),
 ])
 def test_a_script_that_would_run_for_ever_is_refused_before_it_runs(tmp_path, body, message):
-    from bmg160_emu.session.script import ScriptSyntaxError, parse_script
+    from bmg160_emu.session.script_language import ScriptSyntaxError, parse_script
 
     with pytest.raises(ScriptSyntaxError, match=re.escape(message)):
         parse_script(body, source="s.script")

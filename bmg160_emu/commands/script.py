@@ -67,9 +67,9 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._chip_options import close_trace, trace_writer_from_args
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device.contract import RateSensor
-    from bmg160_emu.session.script import (
+    from bmg160_emu.session.script import ScriptRunner
+    from bmg160_emu.session.script_language import (
         ScriptFailure,
-        ScriptRunner,
         ScriptSyntaxError,
         parse_script,
         read_script,
