@@ -8,8 +8,6 @@ hooks get the chip itself (``s.chip``), their documented first argument."""
 
 from __future__ import annotations
 
-import numpy as np
-
 from bmg160_emu.clock import NS_PER_S
 from bmg160_emu.device import datapath, regmap
 from bmg160_emu.device.registers import address_of, field_of
@@ -92,7 +90,7 @@ def emit_one(s: ChipState, due: int = 1) -> None:
     chip = s.chip
     if chip.truth_hooks:
         for hook in list(chip.truth_hooks):
-            hook(chip, t_s, np.array(b.body[i], dtype=float))
+            hook(chip, t_s, b.body[i].copy())  # (a float array's row: np.array's result)
     dps_pre = None
     irq = s.irq
     if chip.sample_hooks:  # the hooks' rate replaces the block's counts (not computed then)
