@@ -64,23 +64,26 @@ static void apply_levels(void)
 	for (int i = 0; i < wire_count; i++) {
 		struct wire *w = &wires[i];
 		int level = (int)(levels >> w->line & 1u);
-		int rc;
+		gpio_flags_t flags = 0;
 
 		if (w->applied == level) {
 			continue;
 		}
-		rc = gpio_emul_input_set(w->port, w->pin, level);
-		if (rc == -EINVAL && !w->refused) {
+		(void)gpio_emul_flags_get(w->port, w->pin, &flags);
+		if (!(flags & GPIO_INPUT)) {
 			/* gpio_emul takes input levels on input pins only: a driver that
 			 * configures its interrupt pin without GPIO_INPUT never sees it
 			 */
-			w->refused = true;
-			LOG_WRN("%s: %s pin %u is not configured as an input; its level "
-				"is not delivered (the driver's gpio_pin_configure flags)",
-				w->what, w->port->name, w->pin);
-		} else if (rc == 0) {
+			if (flags != 0 && !w->refused) {
+				w->refused = true;
+				LOG_WRN("%s: %s pin %u is configured without GPIO_INPUT (flags "
+					"0x%x): its INT level is not delivered", w->what,
+					w->port->name, w->pin, flags);
+			}
+			continue;
+		}
+		if (gpio_emul_input_set(w->port, w->pin, level) == 0) {
 			w->applied = (int8_t)level;
-			w->refused = false;
 		}
 	}
 }
