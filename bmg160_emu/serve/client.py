@@ -160,6 +160,21 @@ class ServeClient:
     def bye(self, time_ns: int) -> Result:
         return self.request(p.BYE, time_ns)
 
+    def wait_event(self, timeout_s: float) -> Result | None:
+        """The next line change a real-time server pushes (None: none within timeout_s)."""
+        if self.events:
+            return self.events.pop(0)
+        self.sock.settimeout(timeout_s)
+        try:
+            header, payload = self.receive()
+        except TimeoutError:
+            return None
+        finally:
+            self.sock.settimeout(self.timeout_s)
+        if header.type != p.EVENT:
+            raise ServeError(f"message {header.type:#x} while waiting for an EVENT")
+        return _result(header, payload)
+
     def close(self) -> None:
         self.sock.close()
 

@@ -37,6 +37,27 @@ RECV_SIZE = 1 << 16
 MAX_CLIENTS = 16  # default cap on simultaneous clients; one more is refused with ERROR
 
 
+class _Refused:
+    """A client over the limit: told why, closed when it speaks or goes."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self.sock = sock
+
+
+def _drain(sock: socket.socket) -> None:
+    """Read what the peer already sent (and drop it), so that closing does not reset."""
+    try:
+        sock.shutdown(socket.SHUT_WR)
+    except OSError:
+        pass
+    sock.setblocking(False)
+    try:
+        while sock.recv(RECV_SIZE):
+            pass
+    except OSError:
+        pass
+
+
 class Connection:
     """One client socket: what it sent so far, what is still to send, its session."""
 
@@ -140,6 +161,10 @@ class ServeServer:
                         pass
                 elif id(target) in listeners:
                     self._accept(target)
+                elif isinstance(target, _Refused):
+                    self.selector.unregister(target.sock)
+                    _drain(target.sock)
+                    target.sock.close()
                 elif isinstance(target, Connection) and target.sock.fileno() in self.connections:
                     if events & selectors.EVENT_READ:
                         self._readable(target)
@@ -155,14 +180,19 @@ class ServeServer:
             return
         if len(self.connections) >= self.max_clients:
             self.refused += 1
-            message = f"{self.max_clients} clients already connected (--max-clients)"
+            message = f"{self.max_clients} clients already connected"
             log.warning("a client refused: %s", message)
             try:
                 sock.sendall(p.pack(p.ERROR, 0, 0, p.RESULT.pack(-errno.EBUSY, 0, 0, 0)[:8]
                                     + message.encode()))
+                sock.shutdown(socket.SHUT_WR)
             except OSError:
-                pass
-            sock.close()
+                sock.close()
+                return
+            # closed once it has spoken or gone: closing on its unread HELLO would reset
+            # the connection before it reads why
+            sock.setblocking(False)
+            self.selector.register(sock, selectors.EVENT_READ, _Refused(sock))
             return
         sock.setblocking(False)
         number = len(self.sessions) + 1
@@ -264,6 +294,8 @@ class ServeServer:
         if self.connections.pop(fileno, None) is None:
             return
         self.selector.unregister(connection.sock)
+        if why and connection.session.stats.protocol_error:
+            _drain(connection.sock)  # (unread input would reset the ERROR away)
         connection.sock.close()
         if why:
             log.warning("%s: %s; connection closed", connection.name, why)
@@ -302,6 +334,10 @@ class ServeServer:
         """End every session (traces closed whole), stop listening, remove the sockets."""
         for connection in list(self.connections.values()):
             self._end(connection, None)
+        for key in list(self.selector.get_map().values()):
+            if isinstance(key.data, _Refused):
+                self.selector.unregister(key.fileobj)
+                key.data.sock.close()
         for sock, path in self.listeners:
             self.selector.unregister(sock)
             sock.close()

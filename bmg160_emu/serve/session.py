@@ -83,9 +83,10 @@ class Session:
         self.chips: list[Any] = list(dict.fromkeys(
             [board.chips[a] for a in sorted(board.chips)]
             + [board.spi[c] for c in sorted(board.spi)]))
-        self.pins = [(chip, pin) for chip in self.chips if hasattr(chip, "int_pin_level")
-                     for pin in (1, 2)]
-        self.stats = SessionStats(edges=[0] * len(self.pins))
+        # (bit of ``levels``, chip, pin): INT1 of chip i is bit 2i, INT2 bit 2i + 1
+        self.pins = [(2 * i + pin - 1, chip, pin) for i, chip in enumerate(self.chips)
+                     if hasattr(chip, "int_pin_level") for pin in (1, 2)]
+        self.stats = SessionStats(edges=[0] * 2 * len(self.chips))
         self.greeted = False
         self.client_name = ""
         self.last_stamp_ns = 0
@@ -97,12 +98,12 @@ class Session:
     def levels(self) -> int:
         """The electrical level of every line: bit 2i INT1, 2i+1 INT2 of chip i."""
         value = 0
-        for bit, (chip, pin) in enumerate(self.pins):
+        for bit, chip, pin in self.pins:
             if chip.int_pin_level(pin):
                 value |= 1 << bit
         if self.last_levels is not None and value != self.last_levels:
             changed = value ^ self.last_levels
-            for bit in range(len(self.pins)):
+            for bit, _, _ in self.pins:
                 if changed >> bit & 1:
                     self.stats.edges[bit] += 1
         self.last_levels = value
@@ -284,11 +285,13 @@ class Session:
         dev.lsbfirst = bool(mode & p.SPI_LSB_FIRST)
         dev.threewire = bool(mode & p.SPI_3WIRE)
         dev.loop = bool(mode & p.SPI_LOOP)
-        dev.no_cs = bool(mode & p.SPI_KEEP_CS)  # the frame goes on into the next transfer
-        if length == 0:
-            return self.result(0)  # chip select rises: the frame (if any) ended above
+        # chip select held (spidev's NO_CS) during the transfer, so a frame held low by the
+        # last one goes on; released after it unless KEEP_CS: then the frame ends
+        dev.no_cs = True
         try:
-            if mode & p.SPI_NO_TX:
+            if length == 0:
+                rx = b""
+            elif mode & p.SPI_NO_TX:
                 rx = bytes(dev.readbytes(length))
             elif dev.threewire:
                 dev.writebytes(list(tx))
@@ -296,7 +299,10 @@ class Session:
             else:
                 rx = bytes(dev.xfer2(list(tx)))
         except OSError as exc:
+            dev.no_cs = False
             return self.result(-(exc.errno or errno.EIO)) + bytes(length)
+        if not mode & p.SPI_KEEP_CS:
+            dev.no_cs = False
         return self.result(0, length) + rx
 
     def _set_rate(self, payload: bytes) -> bytes:
