@@ -76,7 +76,7 @@ def trace_path(path: Path, number: int) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.clock import RealTimeClock, VirtualClock
-    from bmg160_emu.commands._chip_options import session_seed
+    from bmg160_emu.commands._chip_options import announce_seed, session_seed
     from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.commands.trace import header_from_chip_args
     from bmg160_emu.io.atomic import held_signals
@@ -95,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     configs = configs_from_args(args)
     if any(c.bus not in (None, 0) for c in configs):
         raise CommandError("serve has one I2C bus: drop the :BUS of --device")
-    seed = session_seed(args)
+    seed = session_seed(args, announce=False)  # told once the socket listens
     realtime = bool(getattr(args, "realtime", False))
 
     def make_board(_number: int) -> Board:
@@ -145,6 +145,7 @@ def run(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise CommandError(f"cannot listen on {args.socket}: {exc.strerror}") from None
         signal.signal(signal.SIGTERM, lambda *_: server.stop())
+        announce_seed(args)
         if args.ready_file is not None:
             args.ready_file.write_text("ready\n")
         try:
