@@ -102,11 +102,26 @@ static int send_all(struct bmg_emu_link *link, const uint8_t *data, size_t size)
 	return 0;
 }
 
+/* Reads through the link's inbox: one recv() usually brings a whole reply. */
 static int recv_all(struct bmg_emu_link *link, uint8_t *data, size_t size)
 {
 	while (size > 0) {
-		ssize_t got = recv(link->fd, data, size, 0);
+		uint32_t ready = link->inbox_end - link->inbox_at;
+		ssize_t got;
 
+		if (ready > 0) {
+			uint32_t take = ready < size ? ready : (uint32_t)size;
+
+			if (data != NULL) {
+				memcpy(data, link->inbox + link->inbox_at, take);
+				data += take;
+			}
+			link->inbox_at += take;
+			size -= take;
+			continue;
+		}
+		link->inbox_at = link->inbox_end = 0;
+		got = recv(link->fd, link->inbox, sizeof(link->inbox), 0);
 		if (got < 0 && errno == EINTR) {
 			continue;
 		}
@@ -114,8 +129,7 @@ static int recv_all(struct bmg_emu_link *link, uint8_t *data, size_t size)
 			return broken(link, "bmg160-emu: the server closed the connection%s%s",
 				      got < 0 ? ": " : "", got < 0 ? strerror(errno) : "");
 		}
-		data += got;
-		size -= (size_t)got;
+		link->inbox_end = (uint32_t)got;
 	}
 	return 0;
 }
@@ -144,22 +158,28 @@ static int transact(struct bmg_emu_link *link, uint8_t type, uint64_t time_ns,
 	uint8_t result[RESULT_SIZE];
 	int rc;
 
+	static uint8_t message[HEADER_SIZE + 4 + 8 * MAX_I2C_MESSAGES + 8192];
+
 	if (link->fd < 0) {
 		return BMG_EMU_LINK_BROKEN;
 	}
+	if ((size_t)size + tail_size > sizeof(message) - HEADER_SIZE) {
+		return -EINVAL;
+	}
 	link->seq++;
-	put32(header, size + tail_size);
-	put16(header + 4, type);
-	put16(header + 6, 0);
-	put32(header + 8, link->seq);
-	put64(header + 12, time_ns);
-	rc = send_all(link, header, sizeof(header));
-	if (rc == 0 && size > 0) {
-		rc = send_all(link, payload, size);
+	/* one send for the whole message: the server answers it in one wake-up */
+	put32(message, size + tail_size);
+	put16(message + 4, type);
+	put16(message + 6, 0);
+	put32(message + 8, link->seq);
+	put64(message + 12, time_ns);
+	if (size > 0) {
+		memcpy(message + HEADER_SIZE, payload, size);
 	}
-	if (rc == 0 && tail_size > 0) {
-		rc = send_all(link, tail, tail_size);
+	if (tail_size > 0) {
+		memcpy(message + HEADER_SIZE + size, tail, tail_size);
 	}
+	rc = send_all(link, message, HEADER_SIZE + size + tail_size);
 	if (rc) {
 		return rc;
 	}

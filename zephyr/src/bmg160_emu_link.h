@@ -73,6 +73,9 @@ struct bmg_emu_link {
 	uint32_t detail;         /* the last reply's detail (I2C: messages done) */
 	uint32_t events;         /* EVENT messages received (real-time servers) */
 	char error[200];         /* why the link failed, one line */
+	uint8_t inbox[4096];     /* what the server sent and is not read yet */
+	uint32_t inbox_at;
+	uint32_t inbox_end;
 };
 
 /* The link, on the host side. Each returns 0, a negative errno the server
