@@ -113,6 +113,17 @@ int bmg_emu_bottom_spi(uint8_t cs, uint16_t mode, const struct bmg_emu_buf *tx, 
 	return rc;
 }
 
+int bmg_emu_bottom_set_rate(uint8_t chip, double x_dps, double y_dps, double z_dps)
+{
+	int rc = bmg_emu_link_set_rate(&link, now_ns(), chip, x_dps, y_dps, z_dps);
+
+	if (rc == BMG_EMU_LINK_BROKEN) {
+		fail();
+	}
+	follow_lines();
+	return rc;
+}
+
 uint64_t bmg_emu_bottom_levels(void)
 {
 	return link.levels;

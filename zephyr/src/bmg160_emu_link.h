@@ -147,6 +147,7 @@ int bmg_emu_bottom_open(const char *path, const char *fallback, unsigned int irq
 int bmg_emu_bottom_i2c(struct bmg_emu_i2c_msg *msgs, int count);
 int bmg_emu_bottom_spi(uint8_t cs, uint16_t mode, const struct bmg_emu_buf *tx, int ntx,
 		       const struct bmg_emu_buf *rx, int nrx);
+int bmg_emu_bottom_set_rate(uint8_t chip, double x_dps, double y_dps, double z_dps);
 uint64_t bmg_emu_bottom_levels(void);
 const struct bmg_emu_link *bmg_emu_bottom_link(void);
 

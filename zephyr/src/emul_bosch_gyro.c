@@ -17,6 +17,7 @@
 
 #include <zephyr/device.h>
 #include <zephyr/drivers/emul.h>
+#include <zephyr/drivers/emul_sensor.h>
 #include <zephyr/drivers/gpio.h>
 #include <zephyr/drivers/i2c.h>
 #include <zephyr/drivers/i2c_emul.h>
@@ -44,7 +45,8 @@ struct gyro_emul_cfg {
 };
 
 struct gyro_emul_data {
-	int chip; /* index in the server's chip list */
+	int chip;          /* index in the server's chip list */
+	double rate_dps[3]; /* the true rate last set through the backend API */
 };
 
 static int zephyr_errno(int status)
@@ -124,6 +126,63 @@ static struct spi_emul_api gyro_emul_api_spi __maybe_unused = {
 	.io = gyro_emul_io_spi,
 };
 
+/* Zephyr's emulated-sensor backend: a test sets the true rate (rad/s) and the
+ * chip's noise, filter and counts do the rest (emul_sensor_backend_set_channel).
+ */
+#define RAD_TO_DEG 57.29577951308232
+#define FULL_SCALE_RAD_S 34.906585 /* 2000 deg/s */
+
+static int gyro_emul_set_channel(const struct emul *target, struct sensor_chan_spec ch,
+				 const q31_t *value, int8_t shift)
+{
+	struct gyro_emul_data *data = target->data;
+	double scale = (double)(1LL << (shift + 32)) / 4294967296.0 / 2147483648.0;
+	int first;
+	int count;
+
+	switch (ch.chan_type) {
+	case SENSOR_CHAN_GYRO_X:
+	case SENSOR_CHAN_GYRO_Y:
+	case SENSOR_CHAN_GYRO_Z:
+		first = ch.chan_type - SENSOR_CHAN_GYRO_X;
+		count = 1;
+		break;
+	case SENSOR_CHAN_GYRO_XYZ:
+		first = 0;
+		count = 3;
+		break;
+	default:
+		return -ENOTSUP;
+	}
+	if (shift < -31 || shift > 31) {
+		return -EINVAL;
+	}
+	for (int i = 0; i < count; i++) {
+		data->rate_dps[first + i] = (double)value[i] * scale * RAD_TO_DEG;
+	}
+	return zephyr_errno(bmg_emu_bottom_set_rate((uint8_t)data->chip, data->rate_dps[0],
+						    data->rate_dps[1], data->rate_dps[2]));
+}
+
+static int gyro_emul_get_sample_range(const struct emul *target, struct sensor_chan_spec ch,
+				      q31_t *lower, q31_t *upper, q31_t *epsilon, int8_t *shift)
+{
+	ARG_UNUSED(target);
+	if (ch.chan_type < SENSOR_CHAN_GYRO_X || ch.chan_type > SENSOR_CHAN_GYRO_XYZ) {
+		return -ENOTSUP;
+	}
+	*shift = 6; /* 2^6 rad/s > the widest range, 2000 deg/s */
+	*upper = (q31_t)(FULL_SCALE_RAD_S / 64.0 * 2147483647.0);
+	*lower = -*upper;
+	*epsilon = (q31_t)(FULL_SCALE_RAD_S / 32768.0 / 64.0 * 2147483647.0); /* one LSB */
+	return 0;
+}
+
+static const struct emul_sensor_driver_api gyro_emul_backend_api = {
+	.set_channel = gyro_emul_set_channel,
+	.get_sample_range = gyro_emul_get_sample_range,
+};
+
 /* bmg160-emu,int-wiring nodes: a sensor's INT1 and INT2 wired where its own
  * binding cannot say (Zephyr's bmg160 binding has one int-gpios)
  */
@@ -135,7 +194,14 @@ struct int_wiring {
 	struct gpio_dt_spec int2;
 };
 
-#define INT_WIRING(node_id)                                                                        	{                                                                                          		.name = DT_NODE_FULL_NAME(node_id),                                                		.reg = DT_REG_ADDR(DT_PHANDLE(node_id, sensor)),                                   		.on_spi = DT_ON_BUS(DT_PHANDLE(node_id, sensor), spi),                             		.int1 = GPIO_DT_SPEC_GET_OR(node_id, int1_gpios, {0}),                             		.int2 = GPIO_DT_SPEC_GET_OR(node_id, int2_gpios, {0}),                             	},
+#define INT_WIRING(node_id)                                                                        \
+	{                                                                                          \
+		.name = DT_NODE_FULL_NAME(node_id),                                                \
+		.reg = DT_REG_ADDR(DT_PHANDLE(node_id, sensor)),                                   \
+		.on_spi = DT_ON_BUS(DT_PHANDLE(node_id, sensor), spi),                             \
+		.int1 = GPIO_DT_SPEC_GET_OR(node_id, int1_gpios, {0}),                             \
+		.int2 = GPIO_DT_SPEC_GET_OR(node_id, int2_gpios, {0}),                             \
+	},
 
 static const struct int_wiring int_wirings[] = {
 	DT_FOREACH_STATUS_OKAY(bmg160_emu_int_wiring, INT_WIRING){0}};
@@ -177,10 +243,24 @@ static int gyro_emul_init(const struct emul *target, const struct device *parent
  */
 #define INT_PIN_FROM_MAP(map) (((map) & 0x01) || !((map) & 0x80) ? 1 : 2)
 
-#define GYRO_EMUL(node_id, pin)                                                                    	static struct gyro_emul_data _CONCAT(gyro_emul_data_, DT_DEP_ORD(node_id));               	static const struct gyro_emul_cfg _CONCAT(gyro_emul_cfg_, DT_DEP_ORD(node_id)) = {         		.name = DT_NODE_FULL_NAME(node_id),                                                		.reg = DT_REG_ADDR(node_id),                                                       		.on_spi = DT_ON_BUS(node_id, spi),                                                 		.int_gpio = GPIO_DT_SPEC_GET_OR(node_id, int_gpios, {0}),                          		.int_pin = (pin),                                                                  	};                                                                                         	EMUL_DT_DEFINE(node_id, gyro_emul_init, &_CONCAT(gyro_emul_data_, DT_DEP_ORD(node_id)),    		       &_CONCAT(gyro_emul_cfg_, DT_DEP_ORD(node_id)),                              		       COND_CODE_1(DT_ON_BUS(node_id, spi), (&gyro_emul_api_spi),                  				   (&gyro_emul_api_i2c)),                                          		       NULL);
+#define GYRO_EMUL(node_id, pin)                                                                    \
+	static struct gyro_emul_data _CONCAT(gyro_emul_data_, DT_DEP_ORD(node_id));               \
+	static const struct gyro_emul_cfg _CONCAT(gyro_emul_cfg_, DT_DEP_ORD(node_id)) = {         \
+		.name = DT_NODE_FULL_NAME(node_id),                                                \
+		.reg = DT_REG_ADDR(node_id),                                                       \
+		.on_spi = DT_ON_BUS(node_id, spi),                                                 \
+		.int_gpio = GPIO_DT_SPEC_GET_OR(node_id, int_gpios, {0}),                          \
+		.int_pin = (pin),                                                                  \
+	};                                                                                         \
+	EMUL_DT_DEFINE(node_id, gyro_emul_init, &_CONCAT(gyro_emul_data_, DT_DEP_ORD(node_id)),    \
+		       &_CONCAT(gyro_emul_cfg_, DT_DEP_ORD(node_id)),                              \
+		       COND_CODE_1(DT_ON_BUS(node_id, spi), (&gyro_emul_api_spi),                  \
+				   (&gyro_emul_api_i2c)),                                          \
+		       &gyro_emul_backend_api);
 
 #define BMG160_EMUL(node_id) GYRO_EMUL(node_id, 1)
-#define BMI08X_GYRO_EMUL(node_id)                                                                  	GYRO_EMUL(node_id, INT_PIN_FROM_MAP(DT_PROP_OR(node_id, int3_4_map_io, 1)))
+#define BMI08X_GYRO_EMUL(node_id)                                                                  \
+	GYRO_EMUL(node_id, INT_PIN_FROM_MAP(DT_PROP_OR(node_id, int3_4_map_io, 1)))
 #define BMI08X_ACCEL_EMUL(node_id) GYRO_EMUL(node_id, 1)
 
 DT_FOREACH_STATUS_OKAY(bosch_bmg160, BMG160_EMUL)
