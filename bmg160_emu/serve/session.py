@@ -26,10 +26,12 @@ from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
 from bmg160_emu.bus.spi import FakeSpiDev
 from bmg160_emu.bus.transactions import TransactionLog, errno_name
 from bmg160_emu.clock import NS_PER_S, VirtualClock
+from bmg160_emu.device.registers import address_of
 from bmg160_emu.durations import MAX_SIMULATED_S
 from bmg160_emu.serve import protocol as p
 
 MAX_TIME_NS = int(MAX_SIMULATED_S * NS_PER_S)  # the one cap on simulated time (durations)
+CHIP_ID = address_of("CHIP_ID")
 
 
 @dataclass
@@ -141,7 +143,7 @@ class Session:
             address = next((a for a, c in self.board.chips.items() if c is chip), None)
             cs = next((s for s, c in self.board.spi.items() if c is chip), None)
             records.append(p.ChipRecord(
-                _chip_name(chip), chip.peek(0x00), address, cs,
+                _chip_name(chip), _chip_id(chip), address, cs,
                 2 if hasattr(chip, "int_pin_level") else 0, self.board.bus_number).pack())
         head = p.HELLO_REPLY.pack(p.VERSION, p.MODE_REALTIME if self.realtime
                                   else p.MODE_SIMULATED, len(self.chips), 0,
@@ -332,6 +334,12 @@ def _never() -> None:
 
 def _or_never(value: int | None) -> int:
     return p.NO_TIME if value is None else value
+
+
+def _chip_id(chip: Any) -> int:
+    """The content of the chip's ID register (a stand-in declares where its is)."""
+    spec = getattr(chip, "spec", None)
+    return int(chip.peek(spec.chip_id_register if spec is not None else CHIP_ID))
 
 
 def _chip_name(chip: Any) -> str:
