@@ -5,6 +5,7 @@ the ones the Python client gets for the same wire traffic (issue 33)."""
 
 from __future__ import annotations
 
+import itertools
 import shutil
 import subprocess
 from pathlib import Path
@@ -146,3 +147,36 @@ def test_no_server_is_one_line_naming_the_socket(tmp_path, c_client):
     _, err, code = run_c(c_client, str(tmp_path / "none.sock"), [])
     assert code == 1 and err.count("\n") == 1
     assert f"cannot connect to {tmp_path / 'none.sock'}" in err and "bmg160-emu serve" in err
+
+
+def test_same_seed_same_counts_with_a_cpu_hog_beside_it(tmp_path, c_client):
+    # a polling driver's session: the line's times as the server names them, reads at
+    # each output period; stamps, not the host's speed, set what the chips produce
+    import sys
+
+    script = [f"zi2c 1000000 68 {WRITE}:{INT_MAP_1:02x} {WRITE | STOP}:01",
+              f"zi2c 2000000 68 {WRITE}:{INT_EN_0:02x} {WRITE | STOP}:80"]
+    script += [f"zi2c {(30 + 10 * k) * 1_000_000} 68 {WRITE}:{RATE_X_LSB:02x} "
+               f"{READ | RESTART | STOP}:6" for k in range(400)]
+    script.append("bye 5000000000")
+
+    def session(folder: Path) -> list[str]:
+        folder.mkdir()
+        with serving(folder, [gyro(setup_writes=[(BW, bytes([0x05]))])], seed=21) as (path, _):
+            lines, err, code = run_c(c_client, path, script)
+        assert code == 0, err
+        return lines
+
+    quiet = session(tmp_path / "quiet")
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    try:
+        loaded = session(tmp_path / "loaded")
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+    reads = [fields(a)["data"] for a in quiet[4:-1]]
+    # a new sample at each read (noise of about 1.5 LSB per axis at BW code 5): the
+    # session is not trivial
+    assert len(reads) == 400 and sum(a != b for a, b in itertools.pairwise(reads)) > 300
+    assert loaded == quiet
