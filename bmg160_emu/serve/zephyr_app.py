@@ -88,12 +88,16 @@ def _timed(argv: Sequence[str], log: Path, env: Mapping[str, str], what: str) ->
 
 
 def build_app(app: Path, build_dir: Path, base: Path, *, overlay: Path | None = None,
-              options: Mapping[str, str] | None = None) -> Build:
-    """Configure and build ``app`` for native_sim/native/64 with the module; ``overlay``
-    replaces the app's device tree overlay, ``options`` are -D settings (CONFIG_...)."""
+              options: Mapping[str, str] | None = None, board: str = BOARD) -> Build:
+    """Configure and build ``app`` for ``board`` (native_sim/native/64) with the module;
+    ``overlay`` replaces the app's device tree overlay, ``options`` are -D settings."""
     env = {**os.environ, "ZEPHYR_BASE": str(base), "ZEPHYR_TOOLCHAIN_VARIANT": "host"}
-    argv = ["cmake", "-GNinja", "-B", str(build_dir), "-S", str(app), f"-DBOARD={BOARD}",
-            f"-DZEPHYR_MODULES={MODULE_ROOT}"]
+    import sys
+
+    # Zephyr's scripts run in this Python (whose modules missing() checked), not in the
+    # first python3 on PATH
+    argv = ["cmake", "-GNinja", "-B", str(build_dir), "-S", str(app), f"-DBOARD={board}",
+            f"-DZEPHYR_MODULES={MODULE_ROOT}", f"-DPython3_EXECUTABLE={sys.executable}"]
     if overlay is not None:
         argv.append(f"-DDTC_OVERLAY_FILE={overlay}")
     argv += [f"-D{k}={v}" for k, v in (options or {}).items()]
