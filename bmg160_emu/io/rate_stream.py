@@ -28,7 +28,7 @@ class NpyRateStream(BlockWriter):
                  comments: Sequence[str] = ()) -> None:
         super().__init__(handle, total, rate_hz, comments)
         header = {"descr": "<f8", "fortran_order": False, "shape": (total, 3)}
-        np.lib.format.write_array_header_1_0(handle, header)  # type: ignore[no-untyped-call]
+        np.lib.format.write_array_header_1_0(handle, header)
         self._data_start = self._end = handle.tell()
 
     def write(self, start: int, block: np.ndarray) -> None:
