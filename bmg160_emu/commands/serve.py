@@ -76,9 +76,12 @@ def trace_path(path: Path, number: int) -> Path:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.clock import RealTimeClock, VirtualClock
-    from bmg160_emu.commands._chip_options import announce_seed, session_seed
+    from bmg160_emu.commands._chip_options import (
+        announce_seed,
+        header_from_chip_args,
+        session_seed,
+    )
     from bmg160_emu.commands._common import CommandError, check_writable
-    from bmg160_emu.commands.trace import header_from_chip_args
     from bmg160_emu.io.atomic import held_signals
     from bmg160_emu.io.trace import TraceWriter
     from bmg160_emu.linux.vhost_user_server import SocketPathError

@@ -1,21 +1,10 @@
-"""Real data as the chip's output: a user's recording played through the register interface.
+"""Recordings read for replay: a user's flight or lab data (a time column and x, y, z in
+deg/s or raw counts), checked line by line before anything plays.
 
-A recording (CSV or NPZ: a time column and x, y, z in deg/s or raw counts) is checked line
-by line, then attached to a chip as a sample hook, so every output sample the chip produces
-carries the recorded rate at that moment and a driver reads flight or lab data through the
-RATE registers, the FIFO and the interrupt engines. The method (``docs/replay.md``):
-
-* time: the first output sample after :meth:`ReplaySource.attach` is the recording's first
-  time stamp; later output samples keep the chip's own spacing (``1/ODR``), so a recording
-  plays at its own time stamps whatever its sample rate;
-* resampling to the chip's ODR: linear interpolation between the two recorded samples that
-  bracket each output time; when the recording is at least twice as fast as the ODR, the
-  mean of the recorded samples inside each output period instead (a boxcar decimator, so
-  fast data is not aliased by picking every n-th sample);
-* after the last recorded sample the last value is held (or, with ``loop=True``, the
-  recording starts over);
-* the recorded value replaces the chip's own sample after noise and offset (it already is
-  what a chip measured), and the chip scales it to counts with its current range.
+CSV (``#`` comment lines, then a header row naming a time column and x, y, z columns, or no
+header and exactly four numeric columns ``t, x, y, z``) and NPZ; the files ``bmg160-emu
+record`` writes are read as they are. The registry's kind ``replay`` names the formats
+(io/formats.py); session/rate_replay.py plays the data (``docs/replay.md``).
 """
 
 from __future__ import annotations
@@ -27,27 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
+from bmg160_emu.io.array_files import npz_array, npz_columns, numeric, open_npz
+from bmg160_emu.io.csv_table import read_csv_table
 from bmg160_emu.io.errors import loads_json
-from bmg160_emu.io.rates import (
-    RateFileError,
-    check_time_column,
-    npz_array,
-    npz_columns,
-    numeric,
-    open_npz,
-    read_csv_table,
-)
-from bmg160_emu.session.record import chip_odr_hz
+from bmg160_emu.io.formats import FileFormat, FileReader, format_for, register_format
+from bmg160_emu.io.rate_table import RateFileError
+from bmg160_emu.io.time_column import TIME_COLUMN_NAMES, check_time_column
 
 UNITS = ("dps", "counts")
-TIME_COLUMNS = ("t_s", "t", "time", "time_s", "timestamp")
 DEFAULT_MAX_GAP_FACTOR = 3.0  # a step over 3x the median step is a gap, not jitter
 MAX_RATE_DPS = 2000.0 * 1.05  # beyond the widest range (spec 5.1) with 5% margin
 INT16 = (-32768, 32767)
-TIME_RESOLUTION_S = 0.5e-9  # half the chip clock's 1 ns step (bmg160_emu.clock)
-
-
-ReplayDataError = RateFileError  # the one rate-file error; the old name stays
 
 
 @dataclass
@@ -87,9 +66,9 @@ def _split_unit(name: str) -> tuple[str, str | None]:
 def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, list[int]]:
     """Index of the time column and of the x, y, z columns for ``unit``."""
     names = [h.strip().lower() for h in header]
-    time_candidates = [i for i, n in enumerate(names) if n in TIME_COLUMNS]
+    time_candidates = [i for i, n in enumerate(names) if n in TIME_COLUMN_NAMES]
     if not time_candidates:
-        raise ReplayDataError(f"{where}: no time column (one of {', '.join(TIME_COLUMNS)})")
+        raise RateFileError(f"{where}: no time column (one of {', '.join(TIME_COLUMN_NAMES)})")
     axes = []
     for axis in "xyz":
         bases = {axis, f"g{axis}", f"rate_{axis}", f"gyro_{axis}", f"omega_{axis}"}
@@ -99,12 +78,12 @@ def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, list[i
             axes.append(chosen[0])
         elif candidates:
             i, found = candidates[0]
-            raise ReplayDataError(
+            raise RateFileError(
                 f"{where}: unit mismatch: column {header[i].strip()!r} holds {found}, "
                 f"but unit {unit} was given"
             )
         else:
-            raise ReplayDataError(f"{where}: no {axis} column among {', '.join(header)}")
+            raise RateFileError(f"{where}: no {axis} column among {', '.join(header)}")
     return time_candidates[0], axes
 
 
@@ -112,26 +91,26 @@ def _check_values(t: np.ndarray, xyz: np.ndarray, unit: str, where: Callable[[in
                   max_gap_factor: float) -> None:
     """Time must increase without gaps; values must fit the unit."""
     if len(t) < 2:
-        raise ReplayDataError(f"{where(0)}: a recording needs at least two samples")
+        raise RateFileError(f"{where(0)}: a recording needs at least two samples")
     check_time_column(t, where, max_gap_factor,
                       "fill the gap or raise the allowed gap (max_gap_factor)")
     if unit == "counts":
         frac = np.flatnonzero(np.any(xyz != np.round(xyz), axis=1))
         if frac.size:
             i = int(frac[0])
-            raise ReplayDataError(
+            raise RateFileError(
                 f"{where(i)}: raw counts must be whole numbers, found {xyz[i].tolist()}: "
                 "deg/s data? use unit dps"
             )
         out = np.flatnonzero(np.any((xyz < INT16[0]) | (xyz > INT16[1]), axis=1))
         if out.size:
             i = int(out[0])
-            raise ReplayDataError(f"{where(i)}: {xyz[i].tolist()} is outside the 16-bit range of raw counts")
+            raise RateFileError(f"{where(i)}: {xyz[i].tolist()} is outside the 16-bit range of raw counts")
     else:
         out = np.flatnonzero(np.any(np.abs(xyz) > MAX_RATE_DPS, axis=1))
         if out.size:
             i = int(out[0])
-            raise ReplayDataError(
+            raise RateFileError(
                 f"{where(i)}: {xyz[i].tolist()} deg/s is beyond the widest range (+-2000 deg/s): "
                 "raw counts? use unit counts"
             )
@@ -141,7 +120,7 @@ def _to_dps(xyz: np.ndarray, unit: str, lsb_per_dps: float | None, where: str) -
     if unit == "dps":
         return xyz.astype(float)
     if not lsb_per_dps:
-        raise ReplayDataError(
+        raise RateFileError(
             f"{where}: raw counts need the sensitivity they were recorded with (lsb_per_dps, "
             "or the range: 16.384 LSB/(deg/s) at +-2000 deg/s)"
         )
@@ -154,7 +133,7 @@ def load_replay_data(
     lsb_per_dps: float | None = None,
     max_gap_factor: float = DEFAULT_MAX_GAP_FACTOR,
 ) -> ReplayData:
-    """Read and check a CSV or NPZ recording; raise :class:`ReplayDataError` naming the line.
+    """Read and check a CSV or NPZ recording; raise :class:`RateFileError` naming the line.
 
     CSV: ``#`` comment lines, then either a header row naming a time column and x, y, z
     columns, or no header and exactly four numeric columns ``t, x, y, z``. The files written
@@ -165,21 +144,20 @@ def load_replay_data(
         raise ValueError(f"unit must be one of {UNITS}, not {unit!r}")
     path = Path(path)
     if not path.exists():
-        raise ReplayDataError(f"{path}: no such file")
-    if path.suffix.lower() == ".npz":
-        return _load_npz(path, unit, lsb_per_dps, max_gap_factor)
+        raise RateFileError(f"{path}: no such file")
     if path.suffix.lower() == ".npy":
-        raise ReplayDataError(f"{path}: a .npy array holds no time column: replay reads a "
-                              ".csv or .npz recording (t and x, y, z)")
-    return _load_csv(path, unit, lsb_per_dps, max_gap_factor)
+        raise RateFileError(f"{path}: a .npy array holds no time column: replay reads a "
+                            ".csv or .npz recording (t and x, y, z)")
+    fmt = format_for("replay", path, RateFileError, reading=True, what="replay data")
+    return fmt.read(path, unit, lsb_per_dps, max_gap_factor)
 
 
 def _lsb_from_settings(text: str) -> float | None:
     """``lsb_per_dps`` of a recording's JSON settings, or None when they hold none (a file of
     counts then needs --lsb-per-dps; _to_dps says so)."""
     try:
-        settings = loads_json(text, ReplayDataError, "settings")
-    except ReplayDataError:
+        settings = loads_json(text, RateFileError, "settings")
+    except RateFileError:
         return None
     value = settings.get("lsb_per_dps") if isinstance(settings, dict) else None
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -187,11 +165,34 @@ def _lsb_from_settings(text: str) -> float | None:
     return float(value)
 
 
+class CsvReplayData(FileReader):
+    """A CSV recording: a header naming the time and x, y, z columns (a unit suffix picks
+    ``*_dps`` or ``*_counts``), or four numeric columns t, x, y, z."""
+
+    noun = "recording"
+    error = RateFileError
+
+    def read(self, unit: str = "dps", lsb_per_dps: float | None = None,
+             max_gap_factor: float = DEFAULT_MAX_GAP_FACTOR) -> ReplayData:
+        return _load_csv(self.path, unit, lsb_per_dps, max_gap_factor)
+
+
+class NpzReplayData(FileReader):
+    """An NPZ recording: a time array and rate_dps/gyro_dps (or counts/raw, or x, y, z)."""
+
+    noun = "recording"
+    error = RateFileError
+
+    def read(self, unit: str = "dps", lsb_per_dps: float | None = None,
+             max_gap_factor: float = DEFAULT_MAX_GAP_FACTOR) -> ReplayData:
+        return _load_npz(self.path, unit, lsb_per_dps, max_gap_factor)
+
+
 def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
     def choose(header: list[str] | None, width: int, where: str) -> tuple[int, list[int]]:
         if header is None:
             if width != 4:
-                raise ReplayDataError(
+                raise RateFileError(
                     f"{where}: {width} columns without a header; expected 4 (t, x, y, z) "
                     "or a header row naming the columns"
                 )
@@ -209,7 +210,7 @@ def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
     finite = np.isfinite(t) & np.isfinite(xyz).all(axis=1)
     if not finite.all():
         row = int(np.argmin(finite))
-        raise ReplayDataError(
+        raise RateFileError(
             f"{table.where(row)}: empty or non-finite value in {table.line_text(row)!r}"
         )
     _check_values(t, xyz, unit, table.where, max_gap_factor)
@@ -219,9 +220,9 @@ def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
 def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
     with open_npz(path) as data:
         keys = set(data.files)
-        t_key = next((k for k in TIME_COLUMNS if k in keys), None)
+        t_key = next((k for k in TIME_COLUMN_NAMES if k in keys), None)
         if t_key is None:
-            raise ReplayDataError(f"{path}: no time array (one of {', '.join(TIME_COLUMNS)})")
+            raise RateFileError(f"{path}: no time array (one of {', '.join(TIME_COLUMN_NAMES)})")
         if "metadata" in keys and lsb_per_dps is None:
             lsb_per_dps = _lsb_from_settings(str(npz_array(data, "metadata", path)))
         wanted = {"dps": ("rate_dps", "gyro_dps"), "counts": ("counts", "raw")}[unit]
@@ -232,27 +233,27 @@ def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
                 xyz = npz_columns(data, list("xyz"), path)
             elif any(k in keys for k in other):
                 found = next(k for k in other if k in keys)
-                raise ReplayDataError(
+                raise RateFileError(
                     f"{path}: unit mismatch: the file holds {found!r} but unit {unit} was given"
                 )
             else:
-                raise ReplayDataError(
+                raise RateFileError(
                     f"{path}: no rate array ({', '.join(wanted)}, or x, y, z) among {sorted(keys)}"
                 )
         else:
             xyz = numeric(npz_array(data, key, path), path, f"key {key}")
         t = numeric(npz_array(data, t_key, path), path, f"key {t_key}").reshape(-1)
     if xyz.ndim != 2 or xyz.shape[1] != 3:
-        raise ReplayDataError(f"{path}: the rate array must have 3 columns (x, y, z), not shape {xyz.shape}")
+        raise RateFileError(f"{path}: the rate array must have 3 columns (x, y, z), not shape {xyz.shape}")
     if len(xyz) != len(t):
-        raise ReplayDataError(f"{path}: {len(t)} time stamps but {len(xyz)} rate rows")
+        raise RateFileError(f"{path}: {len(t)} time stamps but {len(xyz)} rate rows")
 
     def where(row: int) -> str:
         return f"{path}: row {row}"
 
     finite = np.isfinite(t) & np.isfinite(xyz).all(axis=1)
     if not finite.all():
-        raise ReplayDataError(f"{where(int(np.argmin(finite)))}: non-finite value")
+        raise RateFileError(f"{where(int(np.argmin(finite)))}: non-finite value")
     _check_values(t, xyz, unit, where, max_gap_factor)
     return ReplayData(t, _to_dps(xyz, unit, lsb_per_dps, str(path)), str(path))
 
@@ -260,59 +261,7 @@ def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
 # --------------------------------------------------------------------------- playing
 
 
-class ReplaySource:
-    """Plays :class:`ReplayData` as a chip's output samples (see the module docstring)."""
-
-    def __init__(self, data: ReplayData, loop: bool = False):
-        self.data = data
-        self.loop = loop
-        self._origin_chip_s: float | None = None
-        self.samples_played = 0
-
-    def recording_time(self, chip_time_s: float) -> float:
-        """The recording's time stamp that plays at chip time ``chip_time_s``."""
-        if self._origin_chip_s is None:
-            self._origin_chip_s = chip_time_s
-        tau = self.data.t_s[0] + (chip_time_s - self._origin_chip_s)
-        if self.loop and tau > self.data.t_s[-1]:
-            span = self.data.duration_s + self.data.median_step_s
-            tau = self.data.t_s[0] + (tau - self.data.t_s[0]) % span
-        return tau
-
-    def value_at(self, tau: float, period_s: float | None) -> np.ndarray:
-        """The recorded rate at recording time ``tau`` (deg/s), resampled as documented."""
-        t, rate = self.data.t_s, self.data.rate_dps
-        res = TIME_RESOLUTION_S
-        if period_s is not None and period_s + res >= 2 * self.data.median_step_s:
-            lo = np.searchsorted(t, tau - period_s + res, side="right")
-            hi = np.searchsorted(t, tau + res, side="right")
-            if hi > lo:
-                return rate[lo:hi].mean(axis=0)
-        if tau <= t[0]:
-            return rate[0].copy()
-        if tau >= t[-1]:
-            return rate[-1].copy()
-        i = int(np.searchsorted(t, tau, side="right"))
-        # A time stamp within clock resolution of a recorded one plays that sample exactly.
-        if tau - t[i - 1] <= TIME_RESOLUTION_S:
-            return rate[i - 1].copy()
-        if t[i] - tau <= TIME_RESOLUTION_S:
-            return rate[i].copy()
-        w = (tau - t[i - 1]) / (t[i] - t[i - 1])
-        return rate[i - 1] + w * (rate[i] - rate[i - 1])
-
-    def __call__(self, chip, t: float, rate_dps) -> np.ndarray:
-        """The sample hook: replace the chip's sample with the recorded one."""
-        tau = self.recording_time(float(t))
-        self.samples_played += 1
-        return self.value_at(tau, 1.0 / chip_odr_hz(chip))
-
-    def attach(self, chip) -> ReplaySource:
-        """Start playing on ``chip`` from its next output sample."""
-        self._origin_chip_s = None
-        chip.sample_hooks.append(self)
-        return self
-
-    def detach(self, chip) -> None:
-        if self in chip.sample_hooks:
-            chip.sample_hooks.remove(self)
+for _suffix in (".csv", ".txt", ".log"):
+    register_format(FileFormat("replay", _suffix, CsvReplayData, None,
+                               "header naming t and x, y, z, or 4 columns"))
+register_format(FileFormat("replay", ".npz", NpzReplayData, None, "a time array and the rates"))

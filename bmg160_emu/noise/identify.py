@@ -9,7 +9,7 @@ of the closed-form Allan variance of the generator's own model (fit.py: white no
 the output filter + Gauss-Markov terms + random walk + the lines, plus the quantization
 floor, ramp and a 1/f bank when asked). Fitting that model is what makes the numbers
 returned the numbers the generator takes (noise-model.md, "Two facts"); the IEEE read-offs
-are reported beside it, labelled (readoffs.py). identified.py holds the results.
+are reported beside it, labelled (readoffs.py). identification_result.py holds the results.
 
 Fit methods are looked up by name in FIT_METHODS ("wls", the default; other modules may
 register theirs, e.g. a GMWM fit, with fit.fit_curve's signature: the curve, rate, sample
@@ -25,15 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bmg160_emu.durations import duration_text
 from bmg160_emu.noise import diagnostics
 from bmg160_emu.noise.allan import AllanCurve, allan_confidence, noise_alpha_from_slope
-from bmg160_emu.noise.fit import CI_LEVEL, CurveFit, Estimate, FitError, Term, fit_curve
-from bmg160_emu.noise.identified import (
-    UNIT_SCALES,
-    AxisIdentification,
-    Identification,
-    duration_text,
-)
+from bmg160_emu.noise.fit import CurveFit, FitError, fit_curve
+from bmg160_emu.noise.identification_result import AxisIdentification, Identification
 from bmg160_emu.noise.output_stage import (
     FilterFit,
     Line,
@@ -46,11 +42,8 @@ from bmg160_emu.noise.profile import AXES
 from bmg160_emu.noise.readoffs import ieee_readoffs
 from bmg160_emu.noise.spectrum import one_sided_psd, white_density_from_psd, white_level_band
 
-__all__ = [
-    "CI_LEVEL", "FIT_METHODS", "UNIT_SCALES", "AxisIdentification", "Estimate",
-    "Identification", "IdentificationError", "Term", "identify", "identify_axis",
-    "identify_curve", "ieee_readoffs",
-]
+__all__ = ["FIT_METHODS", "IdentificationError", "check_record", "identify", "identify_axis",
+           "identify_curve"]
 
 STAGES_PER_AXIS = 3  # progress calls per axis: Allan deviation, fit, PSD
 MIN_SAMPLES = 1000  # enough octave taus (9) to fit the white level and see its slope
