@@ -187,14 +187,14 @@ def load_rate_file(path: Path) -> None:
 
 
 def load_replay(path: Path) -> None:
-    from bmg160_emu.session.rate_replay import load_replay_data
+    from bmg160_emu.io.replay_data import load_replay_data
 
     data = load_replay_data(path)
     _finite(data.rate_dps, "replay data")
 
 
 def load_recording(path: Path) -> None:
-    from bmg160_emu.session.record import read_recording
+    from bmg160_emu.io.recording import read_recording
 
     rec = read_recording(path)
     _finite(rec.counts, "recording")

@@ -34,7 +34,7 @@ LAYERS = {  # first name under bmg160_emu -> layer (a module may import its laye
     "commands": 7,
     "adcs": 6,
     "session": 5, "faults": 5, "firmware": 5, "watch": 5,
-    "linux": 4, "io": 4,
+    "linux": 4, "io": 4, "serve": 4,
     "bus": 3,
     "device": 2,
     "clock": 1, "durations": 1, "noise": 1,

@@ -81,7 +81,8 @@ def test_a_cr_only_csv_is_read_like_the_same_csv_with_lf(tmp_path):
 
 
 def test_an_npy_header_claiming_more_than_the_file_holds_is_refused_before_allocating(tmp_path):
-    from bmg160_emu.io.rates import RateFileError, read_npy
+    from bmg160_emu.io.array_files import read_npy
+    from bmg160_emu.io.rate_table import RateFileError
 
     header = "{'descr': '<f8', 'fortran_order': False, 'shape': (100000000000, 3), }"
     header += " " * (63 - (len(header) + 10) % 64) + "\n"

@@ -221,7 +221,7 @@ def _options(args: argparse.Namespace) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.io.rates import RateFileError
+    from bmg160_emu.io.rate_table import RateFileError
     from bmg160_emu.noise.identify import IdentificationError
     from bmg160_emu.noise.interop import InteropError
 

@@ -252,6 +252,12 @@ class BMG160:
         with self.lock:
             return regmap.pin_level(self.state, pin, self._now())
 
+    def next_pin_change_ns(self) -> int | None:
+        """The earliest time (ns on the chip's clock) INT1 or INT2 may change with no bus
+        access, or None when they hold until one (regmap.next_pin_change)."""
+        with self.lock:
+            return regmap.next_pin_change(self.state, self._now())
+
     def offsets_lsb(self) -> tuple[int, int, int]:
         """The three 12-bit offsets of OFC1..OFC4 and TRIM_GP0 (4.24)."""
         return offsets.offsets_from(self.state.regs)

@@ -22,13 +22,8 @@ from bmg160_emu.bus.i2c import KIND_FUNCS
 from bmg160_emu.bus.transactions import Transaction, bytes_from_json
 from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.io.atomic import AtomicFile
-from bmg160_emu.io.errors import (
-    FileFormat,
-    FormatError,
-    loads_json,
-    read_text,
-    register_format,
-)
+from bmg160_emu.io.errors import FormatError, loads_json, read_text
+from bmg160_emu.io.formats import FileFormat, register_format
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
