@@ -17,7 +17,6 @@ import errno
 import itertools
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from contextlib import ExitStack
 from typing import Any
 
 from bmg160_emu.bus.kernel_abi import (
@@ -468,9 +467,12 @@ class I2CBus:
             if message.length > I2C_RDWR_MAX_MSG_LEN or not 0 <= message.address <= 0x7F:
                 raise os_error(errno.EINVAL)
         chips = {id(c): c for m in messages if (c := self.devices.get(m.address)) is not None}
-        with ExitStack() as stack:  # one transfer: no other thread between its messages
-            for key in sorted(chips):
-                stack.enter_context(chips[key].lock)
+        # one transfer: no other thread between its messages (the chips' locks held, taken in
+        # one order; acquire and release, not an ExitStack: 2-3 us of a FIFO read)
+        locks = [chips[key].lock for key in sorted(chips)]
+        for lock in locks:
+            lock.acquire()
+        try:
             for message in messages:
                 if message.read:
                     chip = self._begin(message.address, "i2c_read")
@@ -483,6 +485,9 @@ class I2CBus:
                     if data:
                         chip.i2c_write(data)
                     self._record(chip, message.address, "i2c_write", register, data[1:])
+        finally:
+            for lock in reversed(locks):
+                lock.release()
         return list(messages)
 
     def i2c_write(self, address: int, data: bytes | Sequence[int]) -> None:
