@@ -160,10 +160,13 @@ def streamed_row(rate_dps: Any) -> tuple[float, float, float] | np.ndarray:
             if not (abs(x) <= MAX_RATE_DPS and abs(y) <= MAX_RATE_DPS and abs(z) <= MAX_RATE_DPS):
                 raise ValueError(f"true rate must be {_RANGE_TEXT}")
             return x, y, z
-    try:
-        arr = np.array(rate_dps, dtype=float)
-    except (TypeError, ValueError):
-        arr = np.empty(0)
+    if rate_dps.__class__ is np.ndarray and rate_dps.shape == (3,) and rate_dps.dtype == _F8:
+        arr = rate_dps.copy()  # (np.array's result for a float array's row)
+    else:
+        try:
+            arr = np.array(rate_dps, dtype=float)
+        except (TypeError, ValueError):
+            arr = np.empty(0)
     if arr.shape != (3,):
         raise ValueError(f"a streamed true rate must be 3 numbers in deg/s, not {rate_dps!r}")
     x, y, z = arr.tolist()
@@ -173,6 +176,7 @@ def streamed_row(rate_dps: Any) -> tuple[float, float, float] | np.ndarray:
 
 
 _PLAIN = (list, tuple)  # streamed_row's fast path: exactly these, holding exactly floats
+_F8 = np.dtype(np.float64)
 
 
 def true_rate_source(rate: Any, sample_rate_hz: float | None, *, first_k: int,
