@@ -377,8 +377,10 @@ class BMG160:
             b = s.block
             if b is None or k >= b.end:
                 b = s.block_for(k)
-            i = 6 * (k - b.k0)
-            s.cur = b.rate_bytes[i:i + 6]
+            samples = b.samples
+            if samples is None:
+                samples = b.cut_samples()
+            s.cur = samples[k - b.k0]
             s.k = k
             s.last_sample_ns = t
             s.next_ns = t + period

@@ -33,7 +33,7 @@ class Block:
     """The data path for samples k0 .. k0 + n - 1: (n, 3) arrays (``OneSample``: lists)."""
 
     __slots__ = ("body", "dps_f", "dps_u", "end", "high_bw", "k0", "n", "rate_bytes",
-                 "selected", "sensitivity", "unselected", "x", "y", "zi0")
+                 "samples", "selected", "sensitivity", "unselected", "x", "y", "zi0")
     k0: int
     n: int
     end: int
@@ -48,6 +48,13 @@ class Block:
     selected: Any  # the counts read (counts_u with high_bw, else counts_f)
     unselected: Any  # the other counts, computed when asked for (the interrupt engines)
     rate_bytes: bytes  # the selected counts, 6 bytes per sample
+    samples: list[bytes] | None  # rate_bytes sample by sample, once asked for (cut_samples)
+
+    def cut_samples(self) -> list[bytes]:
+        """``rate_bytes`` as one 6-byte string per sample, cut once (numpy's void view: 22 ns a
+        sample against a 60 ns slice at each of a polling driver's advances)."""
+        samples = self.samples = np.frombuffer(self.rate_bytes, dtype="V6").tolist()
+        return samples
 
     @property
     def counts_f(self) -> Any:
@@ -79,7 +86,7 @@ class OneSample(Block):
     __slots__ = ()
 
     def __init__(self, sensitivity: float, high_bw: bool) -> None:
-        self.sensitivity, self.high_bw = sensitivity, high_bw
+        self.sensitivity, self.high_bw, self.samples = sensitivity, high_bw, None
 
     @property
     def counts_f(self) -> list[tuple[int, int, int]]:
@@ -92,6 +99,10 @@ class OneSample(Block):
     @property
     def rate_bytes(self) -> bytes:  # type: ignore[override]
         return counts_of(self.dps_u[0] if self.high_bw else self.dps_f[0], self.sensitivity)[1]
+
+    def cut_samples(self) -> list[bytes]:
+        samples = self.samples = [self.rate_bytes]
+        return samples
 
 
 def next_piece(block: Block | None, k: int, want: int, span: tuple[int, int],
@@ -327,7 +338,7 @@ class DataPath:
             b.dps_f, b.dps_u = b.y, x
         else:
             b.dps_f, b.dps_u = b.y + out, x + raw
-        b.sensitivity, b.high_bw, b.unselected = sensitivity, high_bw, None
+        b.sensitivity, b.high_bw, b.unselected, b.samples = sensitivity, high_bw, None, None
         b.selected = to_counts(b.dps_u if high_bw else b.dps_f, sensitivity)
         b.rate_bytes = to_bytes(b.selected)
         return b
