@@ -1,0 +1,95 @@
+"""Run a benchmark against another checkout of the package and this one, interleaved.
+
+    python tools/bench_pair.py --base ../parent [--runs 3] -- tools/bench_chip.py [its options]
+
+Runs the benchmark script (this checkout's copy) ``--runs`` times with the other checkout
+first on PYTHONPATH (A, the base) and as many times with this one (B), alternately: A, B, A,
+B ..., so that the load of a shared machine falls on both alike. Every output line is read as
+a template with numbers in it; for each template that every run printed, the line is printed
+once more with each number replaced by ``A median -> B median`` and, for the numbers that
+are times or ratios, the ratio B/A (below 1: B is faster). The load average (1 min) is taken
+before each run and printed with its range.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+
+NUMBER = re.compile(r"-?\d[\d,]*\.?\d*(?:e[-+]?\d+)?")
+HERE = Path(__file__).resolve().parent.parent
+
+
+def _numbers(line: str) -> tuple[str, list[float]]:
+    """(the line with its numbers as {}, the numbers)."""
+    values = [float(m.replace(",", "")) for m in NUMBER.findall(line)]
+    return NUMBER.sub("{}", line), values
+
+
+def _run(script: list[str], pythonpath: str | None) -> tuple[list[str], float]:
+    env = dict(os.environ)
+    if pythonpath:
+        env["PYTHONPATH"] = pythonpath
+    else:
+        env.pop("PYTHONPATH", None)
+    load = os.getloadavg()[0]
+    done = subprocess.run([sys.executable, *script], env=env, cwd=HERE, capture_output=True,
+                          text=True, check=True)
+    return done.stdout.splitlines(), load
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--base", required=True, type=Path,
+                        help="the other checkout (its folder holding bmg160_emu)")
+    parser.add_argument("--runs", type=int, default=3, help="runs of each, alternated")
+    parser.add_argument("script", nargs=argparse.REMAINDER,
+                        help="-- then the benchmark script and its options")
+    args = parser.parse_args()
+    script = args.script[1:] if args.script[:1] == ["--"] else args.script
+    if not script:
+        parser.error("give the benchmark after --")
+    if not (args.base / "bmg160_emu").is_dir():
+        parser.error(f"{args.base}: no bmg160_emu package there")
+    outputs: dict[str, list[list[str]]] = {"A": [], "B": []}
+    loads: list[float] = []
+    for _ in range(args.runs):
+        for side, path in (("A", str(args.base.resolve())), ("B", None)):
+            lines, load = _run(script, path)
+            outputs[side].append(lines)
+            loads.append(load)
+    print(f"{' '.join(script)}: A = {args.base} (PYTHONPATH), B = this checkout; "
+          f"{args.runs} runs each, alternated; load average {min(loads):.1f}-{max(loads):.1f}")
+    first = outputs["A"][0]
+    for i, line in enumerate(first):
+        template, _ = _numbers(line)
+        if "{}" not in template:
+            print(line)
+            continue
+        columns = {}
+        for side in ("A", "B"):
+            runs = [o[i] for o in outputs[side] if i < len(o)]
+            parsed = [_numbers(r) for r in runs]
+            if len(parsed) != args.runs or any(t != template for t, _ in parsed):
+                columns = {}
+                break
+            columns[side] = [statistics.median(v[j] for _, v in parsed)
+                             for j in range(len(parsed[0][1]))]
+        if not columns:
+            print(line + "   (differs between runs or checkouts: not paired)")
+            continue
+        pieces = []
+        for a, b in zip(columns["A"], columns["B"]):
+            ratio = f" ({b / a:.3f})" if a > 0 and b > 0 else ""
+            pieces.append(f"{a:g} -> {b:g}{ratio}")
+        print(template.format(*pieces))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
