@@ -6,9 +6,9 @@ Runs the benchmark script (this checkout's copy) ``--runs`` times with the other
 first on PYTHONPATH (A, the base) and as many times with this one (B), alternately: A, B, A,
 B ..., so that the load of a shared machine falls on both alike. Every output line is read as
 a template with numbers in it; for each template that every run printed, the line is printed
-once more with each number replaced by ``A median -> B median`` and, for the numbers that
-are times or ratios, the ratio B/A (below 1: B is faster). The load average (1 min) is taken
-before each run and printed with its range.
+once more with each number that varies replaced by ``A median -> B median [B/A]`` (for a
+time, below 1: B is faster); a number the same in every run (a count, a setting) is printed
+as it is. The load average (1 min) is taken before each run and printed with its range.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-NUMBER = re.compile(r"-?\d[\d,]*\.?\d*(?:e[-+]?\d+)?")
+NUMBER = re.compile(r"(?<![\w.])-?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
 HERE = Path(__file__).resolve().parent.parent
 
 
@@ -29,6 +29,11 @@ def _numbers(line: str) -> tuple[str, list[float]]:
     """(the line with its numbers as {}, the numbers)."""
     values = [float(m.replace(",", "")) for m in NUMBER.findall(line)]
     return NUMBER.sub("{}", line), values
+
+
+def _key(template: str) -> str:
+    """A template without its padding (a number's width moves the spaces around it)."""
+    return " ".join(template.split())
 
 
 def _run(script: list[str], pythonpath: str | None) -> tuple[list[str], float]:
@@ -65,27 +70,28 @@ def main() -> int:
             loads.append(load)
     print(f"{' '.join(script)}: A = {args.base} (PYTHONPATH), B = this checkout; "
           f"{args.runs} runs each, alternated; load average {min(loads):.1f}-{max(loads):.1f}")
-    first = outputs["A"][0]
-    for i, line in enumerate(first):
+    parsed = {side: [{_key(t): v for t, v in reversed([_numbers(line) for line in lines])}
+                     for lines in runs]
+              for side, runs in outputs.items()}  # per run: template -> its first numbers
+    for line in outputs["A"][0]:
         template, _ = _numbers(line)
         if "{}" not in template:
             print(line)
             continue
-        columns = {}
-        for side in ("A", "B"):
-            runs = [o[i] for o in outputs[side] if i < len(o)]
-            parsed = [_numbers(r) for r in runs]
-            if len(parsed) != args.runs or any(t != template for t, _ in parsed):
-                columns = {}
-                break
-            columns[side] = [statistics.median(v[j] for _, v in parsed)
-                             for j in range(len(parsed[0][1]))]
-        if not columns:
-            print(line + "   (differs between runs or checkouts: not paired)")
+        values = {side: [run.get(_key(template)) for run in runs]
+                  for side, runs in parsed.items()}
+        if any(v is None for vs in values.values() for v in vs):
+            print(line + "   (not printed by every run: not paired)")
             continue
         pieces = []
-        for a, b in zip(columns["A"], columns["B"]):
-            ratio = f" ({b / a:.3f})" if a > 0 and b > 0 else ""
+        for j in range(len(values["A"][0])):
+            a_runs = [v[j] for v in values["A"]]
+            b_runs = [v[j] for v in values["B"]]
+            if len(set(a_runs + b_runs)) == 1:  # a count or a setting, the same everywhere
+                pieces.append(f"{a_runs[0]:g}")
+                continue
+            a, b = statistics.median(a_runs), statistics.median(b_runs)
+            ratio = f" [{b / a:.3f}]" if a > 0 and b > 0 else ""
             pieces.append(f"{a:g} -> {b:g}{ratio}")
         print(template.format(*pieces))
     return 0
