@@ -21,7 +21,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-NUMBER = re.compile(r"(?<![\w.])-?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?(?![\w.])")
+# a number, with a unit or an x right after it allowed (131.7x, 5.4us), not inside a word (0x02)
+NUMBER = re.compile(r"(?<![\w.])-?\d[\d,]*(?:\.\d+)?(?:e[-+]?\d+)?(?![\d.])")
 HERE = Path(__file__).resolve().parent.parent
 
 
