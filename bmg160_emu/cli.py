@@ -17,22 +17,12 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
-from bmg160_emu import __version__, commands
+from bmg160_emu import __version__, commands, startup
 from bmg160_emu.commands._common import CommandError  # the commands raise it; old name here
 from bmg160_emu.commands._extras import missing_message
-
-
-def _stopped_while_starting(number: int, frame: object) -> None:
-    """SIGINT or SIGTERM before a command runs: one line and the signal's exit status, never
-    a KeyboardInterrupt traceback from the middle of an import (issue 24)."""
-    name = signal.Signals(number).name
-    sys.stderr.write(f"bmg160-emu: interrupted by {name} while starting; nothing written\n")
-    if _AS_COMMAND:  # nothing to clean up yet, and no finaliser can swallow it (__init__.py)
-        sys.stderr.flush()
-        os._exit(128 + number)
-    raise SystemExit(128 + number)
 
 
 def _stopped_while_exiting(number: int, frame: object) -> None:
@@ -46,9 +36,9 @@ def _stopped_while_exiting(number: int, frame: object) -> None:
 
 
 # Run as the command (the console script, python -m bmg160_emu), the process exits with the
-# command; bmg160_emu/__init__.py has held the signals since the package's first line.
+# command; bmg160_emu.startup has held the signals since the package's first line.
 # Imported by a program (tests call main() in-process), the handlers are restored at the end.
-_AS_COMMAND = sys.argv[0].endswith(("bmg160-emu", "bmg160_emu/__main__.py"))
+_AS_COMMAND = startup.AS_COMMAND
 
 __all__ = ["CommandError", "build_parser", "main"]
 
@@ -83,10 +73,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous = {}
     if in_main_thread:  # restored at the end unless this process is the command
-        previous = {n: signal.signal(n, _stopped_while_starting)
+        previous = {n: signal.signal(n, startup.stopped_while_starting)
                     for n in (signal.SIGINT, signal.SIGTERM)
                     if signal.getsignal(n) is not signal.SIG_IGN}
     command = "?"
+    from bmg160_emu.io.atomic import outputs_so_far
+
+    before = outputs_so_far()
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -122,7 +115,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt as exc:
         name = getattr(exc, "signal_name", "SIGINT")
-        kept = getattr(exc, "kept", None) or "unfinished outputs removed (docs/outputs.md)"
+        kept = getattr(exc, "kept", None) or _what_was_kept(before)
         print(f"bmg160-emu {command}: interrupted by {name}; {kept}", file=sys.stderr)
         return 143 if name == "SIGTERM" else 130
     except BrokenPipeError:
@@ -134,6 +127,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not _AS_COMMAND:
             for number, handler in previous.items():
                 signal.signal(number, _restorable(handler))
+
+
+def _what_was_kept(before: tuple[list[Path], list[Path]]) -> str:
+    """What a stopped command leaves, from io.atomic's record of this command's outputs:
+    never "removed" alone when some were written whole (issue 35)."""
+    from bmg160_emu.io.atomic import outputs_so_far
+
+    written, discarded = (after[len(then):] for after, then in zip(outputs_so_far(), before))
+    done = [str(p) for p in dict.fromkeys(written)]
+    cut = [str(p) for p in dict.fromkeys(discarded) if str(p) not in done]
+    if not done and not cut:
+        return "nothing written"
+    said = []
+    if done:
+        said.append(f"{', '.join(done)} written whole")
+    if cut:
+        said.append(f"unfinished {', '.join(cut)} removed (docs/outputs.md)")
+    return "; ".join(said)
 
 
 def _restorable(handler: Any) -> Any:

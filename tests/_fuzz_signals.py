@@ -22,6 +22,7 @@ traceback none of whose frames is in the package is counted as ``start-up``, not
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import random
@@ -29,7 +30,7 @@ import signal
 import subprocess
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -126,9 +127,26 @@ def _environment() -> dict[str, str]:
 
 
 def start(command: Command, work: Path) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "bmg160_emu", *command.line(work)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                            env=_environment(), cwd=work)
+    with sigint_not_ignored():
+        return subprocess.Popen([sys.executable, "-m", "bmg160_emu", *command.line(work)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                env=_environment(), cwd=work)
+
+
+@contextlib.contextmanager
+def sigint_not_ignored() -> Iterator[None]:
+    """Children started in the block get SIGINT at its default: a campaign run as a
+    background job (`pytest &`) inherits it ignored, children inherit that across exec, and
+    the command keeps an ignored SIGINT ignored (as nohup asks), so a trial that sends it
+    waited for ever (issue 35). A handled signal is reset to its default by exec."""
+    ignored = signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    if ignored:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        if ignored:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 @dataclass

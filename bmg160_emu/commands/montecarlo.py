@@ -63,7 +63,7 @@ def register(subparsers: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.adcs.montecarlo import parse_seeds, run_montecarlo
+    from bmg160_emu.adcs.montecarlo import MonteCarloResult, parse_seeds, run_montecarlo
     from bmg160_emu.adcs.scenarios import ScenarioError, load_scenario
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.faults import FaultError
@@ -88,29 +88,23 @@ def run(args: argparse.Namespace) -> int:
         from bmg160_emu.commands._common import check_writable
 
         check_writable(Path(args.output))  # before the runs: else all of them would be lost
-    scheduler, progress = _scheduler_and_progress(args.scheduler, args.progress)
+    scheduler = _scheduler(args.scheduler)
     try:
         scenario = load_scenario(args.scenario)
-        result = run_montecarlo(
-            scenario,
-            seeds,
-            scheduler=scheduler,
-            workers=args.workers,
-            progress=progress,
-            percentiles=percentiles,
-        )
     except ScenarioError as exc:
-        message = str(exc)
-        if not message.startswith(str(args.scenario)):
-            message = f"{args.scenario}: {message}"  # found after loading: name the file
-        raise CommandError(message) from None
-    except (FaultError, RuntimeError) as exc:
-        raise CommandError(str(exc)) from None
-    from bmg160_emu.io.atomic import held_signals
+        raise CommandError(_named(str(exc), args.scenario)) from None
+    from bmg160_emu.progress import Progress
 
-    stopped = None
-    try:
-        with held_signals():  # a signal now waits until the summary and the file are out
+    progress = Progress("bmg160-emu montecarlo", enabled=args.progress)
+    result: MonteCarloResult | None = None
+    reported = False
+
+    def report() -> None:  # the summary and the file, with a signal held until both are out
+        nonlocal reported
+        from bmg160_emu.io.atomic import held_signals
+
+        assert result is not None
+        with held_signals():
             print(result.summary(rows=max(2, args.rows)))
             if args.output:
                 try:
@@ -119,24 +113,50 @@ def run(args: argparse.Namespace) -> int:
                     raise CommandError(f"cannot write {args.output}: {exc.strerror or exc} "
                                        "(the table above holds the results)") from None
                 print(f"curves written to {args.output}")
-    except KeyboardInterrupt as exc:  # held while writing: the file is whole
+            reported = True
+
+    stopped = None
+    try:
+        try:
+            result = run_montecarlo(scenario, seeds, scheduler=scheduler, workers=args.workers,
+                                    progress=progress, percentiles=percentiles)
+        except ScenarioError as exc:
+            raise CommandError(_named(str(exc), args.scenario)) from None
+        except (FaultError, RuntimeError, ValueError) as exc:
+            raise CommandError(str(exc)) from None
+        report()
+    except KeyboardInterrupt as exc:  # held while writing, or between the runs and the report
+        if result is None:
+            raise  # no run had finished (its own message says so)
         stopped = getattr(exc, "signal_name", "SIGINT")
+        while not reported:  # a signal came before the report began: the runs are kept
+            try:
+                report()
+            except KeyboardInterrupt:
+                pass
+    stopped = result.stopped_by or stopped
     if stopped is not None and not result.interrupted:
         print(f"bmg160-emu montecarlo: interrupted by {stopped} after all {result.runs} runs; "
               "the summary above" + (f" and {args.output} are complete" if args.output
                                      else " is complete"), file=sys.stderr)
         return 143 if stopped == "SIGTERM" else 130
     if result.interrupted:
-        print(f"bmg160-emu montecarlo: interrupted by {result.stopped_by} after {result.runs} of "
+        print(f"bmg160-emu montecarlo: interrupted by {stopped} after {result.runs} of "
               f"{result.planned_runs} runs; the finished runs are summarised above"
               + (f" and in {args.output}" if args.output else ""), file=sys.stderr)
-        return 143 if result.stopped_by == "SIGTERM" else 130
+        return 143 if stopped == "SIGTERM" else 130
     return 0
 
 
-def _scheduler_and_progress(scheduler: str | None, progress: bool | None) -> tuple[str, bool | None]:
+def _named(message: str, scenario: str) -> str:
+    """A scenario error found after loading names the file too."""
+    return message if message.startswith(str(scenario)) else f"{scenario}: {message}"
+
+
+def _scheduler(scheduler: str | None) -> str:
     """The scheduler this install can use (Dask's local cluster, or this process without
-    Dask, said on stderr) and the bar (off without tqdm unless asked for)."""
+    Dask, said on stderr), its address checked before any work (issue 35)."""
+    from bmg160_emu.adcs.montecarlo import scheduler_address
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.commands._extras import available, install_line
 
@@ -147,12 +167,11 @@ def _scheduler_and_progress(scheduler: str | None, progress: bool | None) -> tup
             print("bmg160-emu montecarlo: Dask is not installed: the runs go in this process "
                   f"(--scheduler sync); {install_line('montecarlo')} runs them on all cores",
                   file=sys.stderr)
-    elif scheduler != "sync" and not has_dask:
+    try:
+        scheduler = scheduler_address(scheduler)
+    except ValueError as exc:
+        raise CommandError(str(exc)) from None
+    if scheduler != "sync" and not has_dask:
         raise CommandError(f"--scheduler {scheduler} needs the [montecarlo] extra (Dask): "
                            f"{install_line('montecarlo')}, or --scheduler sync")
-    if not available("tqdm"):
-        if progress:
-            raise CommandError("--progress needs the [montecarlo] extra (tqdm): "
-                               f"{install_line('montecarlo')}")
-        progress = False
-    return scheduler, progress
+    return scheduler

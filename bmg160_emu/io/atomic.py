@@ -29,8 +29,20 @@ from typing import IO, Any
 
 __all__ = [
     "AtomicFile", "OutputError", "atomic_open", "atomic_path", "check_free_space", "check_writable",
-    "held_signals",
+    "held_signals", "outputs_so_far",
 ]
+
+# every target this process put in place, and every one whose temporary file was removed
+# unfinished, in order: what a stopped command says it kept (issue 35: identify said
+# "unfinished outputs removed" with 4 of its 5 outputs written)
+_WRITTEN: list[Path] = []
+_DISCARDED: list[Path] = []
+
+
+def outputs_so_far() -> tuple[list[Path], list[Path]]:
+    """Copies of the lists of outputs written whole and of outputs removed unfinished by
+    this process so far (a caller compares them before and after its work)."""
+    return list(_WRITTEN), list(_DISCARDED)
 
 
 class OutputError(OSError):
@@ -131,6 +143,7 @@ def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iter
                                      dir=folder)
     os.close(fd)
     temp = Path(temp_name)
+    placed = False
     try:
         yield temp
         if special:
@@ -144,9 +157,13 @@ def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iter
             else:
                 os.chmod(temp, _mode_for_new_file())
             os.replace(temp, target)
+        placed = True
+        _WRITTEN.append(Path(os.fspath(path)))
     finally:
         with contextlib.suppress(FileNotFoundError):
             temp.unlink()
+        if not placed:
+            _DISCARDED.append(Path(os.fspath(path)))
 
 
 @contextlib.contextmanager
