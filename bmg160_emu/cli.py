@@ -123,6 +123,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         # Unix tools do, and keep Python from complaining again when it flushes stdout at exit.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        # a file the user named that the system refuses (a name too long, a loop of links, a
+        # folder where a file was meant): one line naming it, wherever the command met it
+        # (issue 35: path options were checked one by one, and a 300-character name slipped
+        # through four of them). An OSError without a file name is a defect: its traceback.
+        if exc.filename is None:
+            raise
+        from bmg160_emu.io.atomic import name_problem, shown_path
+
+        why = name_problem(exc.filename) or exc.strerror or type(exc).__name__
+        print(f"bmg160-emu {command}: error: cannot use {shown_path(exc.filename)}: {why}",
+              file=sys.stderr)
+        return 2
     finally:
         if not _AS_COMMAND:
             for number, handler in previous.items():

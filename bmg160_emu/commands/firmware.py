@@ -9,6 +9,7 @@ from bmg160_emu import limits
 from bmg160_emu.commands._common import (
     Subparsers,
     add_command_parser,
+    add_renamed_option,
     bounded_option,
     duration_seconds,
 )
@@ -70,8 +71,11 @@ def _common(parser: argparse.ArgumentParser) -> None:
         "--address", default="0x68", help="7-bit I2C address: 0x68 (SDO low) or 0x69 (SDO high)"
     )
     parser.add_argument(
-        "--mode", default="physical", choices=("physical", "paper"), help="noise discretization"
+        "--noise-mode", default="physical", choices=("physical", "paper"),
+        help="noise discretisation (default: physical)"
     )
+    add_renamed_option(parser, "--mode", "--noise-mode", dest="noise_mode",
+                       choices=("physical", "paper"))
     parser.add_argument("--seed", type=bounded_option(limits.FIRMWARE_SEED), default=1, help="seed of the on-chip generator")
     parser.add_argument(
         "--normal",
@@ -100,7 +104,7 @@ def _build(args: argparse.Namespace):
         return build_firmware(
             profile=args.profile,
             address=address,
-            mode=args.mode,
+            mode=args.noise_mode,
             seed=args.seed,
             normal=args.normal,
             out_dir=args.out,

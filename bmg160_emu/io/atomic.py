@@ -29,7 +29,7 @@ from typing import IO, Any
 
 __all__ = [
     "AtomicFile", "OutputError", "atomic_open", "atomic_path", "check_free_space", "check_writable",
-    "held_signals", "outputs_so_far",
+    "held_signals", "name_problem", "outputs_so_far", "shown_path", "size_text",
 ]
 
 # every target this process put in place, and every one whose temporary file was removed
@@ -61,9 +61,42 @@ def _is_special(target: Path) -> bool:
         return False
 
 
+NAME_MAX = 255  # bytes in one path component on Linux's file systems (limits.h)
+PATH_MAX = 4096  # bytes in a whole path given to the kernel (limits.h)
+
+
+def shown_path(path: str | os.PathLike[str], width: int = 80) -> str:
+    """A path for a one-line message: whole when short, else its start and end around
+    ``...`` (a 300-character name must not fill the screen)."""
+    text = os.fspath(path)
+    if isinstance(text, bytes):  # pragma: no cover - the commands give str paths
+        text = text.decode(errors="replace")
+    if len(text) <= width:
+        return text
+    keep = (width - 3) // 2
+    return text[:keep] + "..." + text[-keep:]
+
+
+def name_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why the kernel would refuse ``path`` by its length alone (ENAMETOOLONG), or None: a
+    component over NAME_MAX bytes, or the whole over PATH_MAX (issue 35: a 300-character
+    name was an OSError traceback in identify, generate, thermal and firmware capture)."""
+    text = os.fsencode(path)
+    if len(text) >= PATH_MAX:
+        return f"the path is {len(text):,} bytes; Linux takes at most {PATH_MAX - 1:,}"
+    longest = max(text.split(b"/"), key=len)
+    if len(longest) > NAME_MAX:
+        return (f"a name in it is {len(longest):,} bytes; a file name is at most "
+                f"{NAME_MAX} bytes")
+    return None
+
+
 def check_writable(path: str | os.PathLike[str]) -> None:
     """Refuse, before any work, a path whose folder is missing or not writable, or that is a
-    folder: :class:`OutputError` naming the path."""
+    folder, or whose name is too long: :class:`OutputError` naming the path."""
+    problem = name_problem(path)
+    if problem is not None:
+        raise OutputError(f"cannot write {shown_path(path)}: {problem}")
     target = _resolved(path)
     if target.is_dir():
         raise OutputError(f"cannot write {os.fspath(path)}: it is a folder")
@@ -88,12 +121,13 @@ def check_free_space(path: str | os.PathLike[str], size_bytes: int) -> None:
     free = shutil.disk_usage(target.parent).free
     if size_bytes > free:
         raise OutputError(
-            f"cannot write {os.fspath(path)}: it needs {_size(size_bytes)} and "
-            f"{target.parent} has {_size(free)} free"
+            f"cannot write {os.fspath(path)}: it needs {size_text(size_bytes)} and "
+            f"{target.parent} has {size_text(free)} free"
         )
 
 
-def _size(n: int) -> str:
+def size_text(n: int) -> str:
+    """A byte count for a message: ``812 bytes``, ``5.6 GB``."""
     for unit in ("bytes", "kB", "MB", "GB", "TB"):
         if n < 1000 or unit == "TB":
             return f"{n:,} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
