@@ -54,10 +54,19 @@ def _terminate(signum: int, frame: object) -> None:
     raise Terminated
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+class CommandLine(argparse.ArgumentParser):
+    """The top-level parser; ``command_parsers`` maps each command to its own parser, so
+    that a command's mistakes are told with the command's usage (``demo --sed 3`` printed
+    the top-level usage, issue 35)."""
+
+    command_parsers: dict[str, argparse.ArgumentParser]
+
+
+def build_parser() -> CommandLine:
+    parser = CommandLine(
         prog="bmg160-emu",
         description="Emulate the Bosch BMG160 gyroscope at register level.",
+        epilog="bmg160-emu help COMMAND (or bmg160-emu COMMAND --help) describes a command.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -66,7 +75,25 @@ def build_parser() -> argparse.ArgumentParser:
             continue
         module = importlib.import_module(f"{commands.__name__}.{info.name}")
         module.register(sub)
+    helper = sub.add_parser("help", help="describe bmg160-emu or one of its commands",
+                            description="Describe bmg160-emu, or the command named.")
+    helper.add_argument("topic", nargs="?", metavar="COMMAND", help="a command (default: all)")
+    helper.set_defaults(func=lambda args: _help(parser, args.topic))
+    parser.command_parsers = dict(sub.choices)
     return parser
+
+
+def _help(parser: CommandLine, topic: str | None) -> int:
+    """``bmg160-emu help [COMMAND]``: the help of the program or of one command."""
+    if topic is None:
+        parser.print_help()
+        return 0
+    command = parser.command_parsers.get(topic)
+    if command is None:
+        names = ", ".join(sorted(parser.command_parsers))
+        parser.command_parsers["help"].error(f"no command {topic!r}; the commands: {names}")
+    command.print_help()
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -82,8 +109,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     before = outputs_so_far()
     try:
         parser = build_parser()
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
         command = args.command
+        if extra:  # told with the command's own usage, not the program's
+            parser.command_parsers.get(command, parser).error(
+                f"unrecognized arguments: {' '.join(extra)}")
         if not getattr(args, "func", None):
             parser.print_help()
             return 2

@@ -90,11 +90,16 @@ class Progress:
     @contextmanager
     def stage(self, total: int, unit: str = "", what: str = "") -> Iterator[Update]:
         """One stage of ``total`` units (runs, fits, samples): yields ``update(done)``."""
-        stage = _Stage(self, max(int(total), 0), unit, what)
+        stage = self.start(total, unit, what)
         try:
             yield stage.update
         finally:
             stage.close()
+
+    def start(self, total: int, unit: str = "", what: str = "") -> _Stage:
+        """A stage without a ``with`` block: ``.update(done)``; it ends its terminal line
+        when ``done`` reaches ``total`` (``.close()`` ends it earlier)."""
+        return _Stage(self, max(int(total), 0), unit, what)
 
     def say(self, text: str) -> None:
         """One line of its own (a stage that has no count)."""
@@ -121,8 +126,11 @@ class _Stage:
         self.judged = False  # the estimate has been made (said or not)
         self.next_tenth = 1
         self.logged_at = -1.0  # when the last log line was written (-1: never)
+        self.closed = False
 
     def update(self, done: int) -> None:
+        if self.closed:
+            return
         self.done = min(max(int(done), 0), self.total) if self.total else int(done)
         now = self.owner.clock()
         elapsed = now - self.started
@@ -151,6 +159,8 @@ class _Stage:
             if line:
                 self.logged_at = now
                 self.owner._write(self._line(elapsed) + "\n")
+        if self.total and self.done >= self.total:
+            self.close()
 
     def _line(self, elapsed: float) -> str:
         parts = [f"{self.owner.label}: {self.what}"]
@@ -164,6 +174,9 @@ class _Stage:
         return ", ".join(parts)
 
     def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
         if self.drawn_at >= 0:  # the terminal line: leave its last state, end the line
             self.owner._write("\r" + self._line(self.owner.clock() - self.started)
                               + "\x1b[K\n")

@@ -409,9 +409,9 @@ NUMERIC_OPTIONS: dict[str, tuple[str, ...]] = {
     "replay --data-range": ("replay", "{seeds}/recording.csv", "--unit", "counts", "--script",
                             "{seeds}/short.script", "--seed", "1", "--data-range", "{v}"),
     "script --seed": ("script", "{seeds}/short.script", "-q", "--seed", "{v}"),
-    "firmware capture --seconds": ("firmware", "capture", "--seconds", "{v}", "--output",
+    "firmware capture --duration": ("firmware", "capture", "--duration", "{v}", "--output",
                                    "{tmp}/s.txt"),
-    "firmware capture --odr": ("firmware", "capture", "--seconds", "1", "--odr", "{v}",
+    "firmware capture --rate": ("firmware", "capture", "--duration", "1", "--rate", "{v}",
                                "--output", "{tmp}/s.txt"),
     "firmware build --seed": ("firmware", "build", "--seed", "{v}", "--out", "{tmp}/fw"),
     # an unknown engine after the value: a valid timeout (1.5) ends there, no guest boots

@@ -155,9 +155,10 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
     ``devices=True`` where the command's session takes other devices (``--device``: run,
     stub, dump, script; not where the session is one gyro's, as record's and demo's are)."""
     group = parser.add_argument_group("emulated chip")
-    group.add_argument("--seed", type=bounded_option(limits.SEED), default=None, help="master noise seed (default: random)")
+    group.add_argument("--seed", type=bounded_option(limits.SEED), default=None, metavar="N",
+                       help="master noise seed (default: random)")
     group.add_argument(
-        "--profile", default=None,
+        "--profile", default=None, metavar="NAME|FILE",
         help="noise profile name or TOML (default: the part's own: paper for the bmg160, the "
              "data-sheet profile of the others)",
     )
@@ -197,6 +198,7 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
         type=_address,
         action="append",
         default=None,
+        metavar="ADDRESS",
         help="I2C address of a chip, 0x68 or 0x69; repeat for two chips (default 0x68 "
              "unless --device is given)",
     )

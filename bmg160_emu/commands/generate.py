@@ -58,7 +58,7 @@ def register(subparsers: Subparsers) -> None:
         EPILOG,
     )
     parser.add_argument(
-        "--profile", default="paper",
+        "--profile", default="paper", metavar="NAME|FILE",
         help="built-in profile (paper, datasheet), a TOML profile, a Kalibr imu.yaml (.yaml, "
         ".yml) or a MATLAB gyroparams .m file (default paper)"
     )
@@ -74,7 +74,7 @@ def register(subparsers: Subparsers) -> None:
         help="simulated time: 10s, 5min, 2h, 1d, or seconds (positive)",
     )
     parser.add_argument(
-        "--seed", type=bounded_option(limits.SEED), default=None,
+        "--seed", type=bounded_option(limits.SEED), default=None, metavar="N",
         help="noise seed (default: random, chosen, printed and written to a CSV header)",
     )
     parser.add_argument(

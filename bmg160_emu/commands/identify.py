@@ -9,7 +9,13 @@ import sys
 from pathlib import Path
 
 from bmg160_emu import limits
-from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    add_progress_options,
+    bounded_option,
+    progress_for,
+)
 
 EPILOG = """\
 examples:
@@ -47,7 +53,7 @@ def register(subparsers: Subparsers) -> None:
         "and write a profile the generator loads back.",
         EPILOG,
     )
-    parser.add_argument("file", type=Path, help="record: .csv, .npy, .npz, .resd (deg/s) or "
+    parser.add_argument("file", type=Path, metavar="FILE", help="record: .csv, .npy, .npz, .resd (deg/s) or "
                         "the firmware's UART stream (.txt)")
     parser.add_argument(
         "--rate",
@@ -88,6 +94,7 @@ def register(subparsers: Subparsers) -> None:
         "--seed",
         type=bounded_option(limits.SEED),
         default=None,
+        metavar="N",
         help="seed of the --compare emulator record (default: random; the same seed as the "
         "recording's own generator would reproduce its noise almost sample for sample)",
     )
@@ -134,7 +141,7 @@ def register(subparsers: Subparsers) -> None:
         "(percentile 95 %% intervals beside the asymptotic ones)",
     )
     parser.add_argument(
-        "--skip", default=None, metavar="DURATION", help="drop the start (warm-up), e.g. 40min"
+        "--skip", default=None, metavar="TIME", help="drop the start (warm-up), e.g. 40min"
     )
     parser.add_argument(
         "--units",
@@ -181,6 +188,7 @@ def register(subparsers: Subparsers) -> None:
         help="do not fit the sensor's output filter, quantization and lines (the fit then "
         "starts where the white -1/2 slope does)",
     )
+    add_progress_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -421,6 +429,8 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
 
     model = ["WN", "GM", "RW"] + ["QN"] * args.with_q + ["DR"] * args.with_r
     fits = {}
+    boot = progress_for(args, "identify").start(args.bootstrap * len(result.axes),
+                                                "bootstrap fits")  # ends itself when done
     for i, axis in enumerate(result.axes):
         wv = haar_wv(record.rate_dps[:, i], record.rate_hz, MIN_COEFFS_FRACTION)
         keep = np.ones(wv.m.size, dtype=bool)
@@ -441,8 +451,9 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
         )
         try:
             fit = gmwm.gmwm_fit(wv, model)
-            if args.bootstrap:
-                fit = gmwm.bootstrap(fit, args.bootstrap, seed=args.seed)
+            if args.bootstrap:  # the axes' replicates, one axis after another
+                fit = gmwm.bootstrap(fit, args.bootstrap, seed=args.seed,
+                                     progress=lambda r, i=i: boot.update(i * args.bootstrap + r))
         except gmwm.GMWMError as exc:
             raise IdentificationError(f"axis {axis.axis}: {exc}") from None
         est = {k: Estimate(e.value, e.ci_low, e.ci_high, e.unit) for k, e in fit.estimates.items()}

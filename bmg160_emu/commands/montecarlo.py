@@ -7,7 +7,12 @@ import sys
 from pathlib import Path
 
 from bmg160_emu import limits
-from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    add_progress_options,
+    bounded_option,
+)
 
 EPILOG = """\
 examples:
@@ -26,39 +31,33 @@ def register(subparsers: Subparsers) -> None:
     parser = add_command_parser(
         subparsers,
         "montecarlo",
-        "run an ADCS scenario over many noise seeds",
-        "Run a scenario file (TOML, docs/scenarios.md) once per seed and "
-        "summarise the angle error of the propagated attitude against truth.",
+        "run an ADCS scenario over many noise seeds: angle-error percentiles, to CSV or JSON",
+        "Run a scenario file (TOML, docs/scenarios.md) once per noise seed and summarise the "
+        "angle error of the propagated attitude against truth as percentiles over time.",
         EPILOG,
     )
     parser.add_argument("scenario", metavar="SCENARIO", help="scenario file (TOML)")
-    parser.add_argument("--runs", type=bounded_option(limits.RUNS), default=None, help="number of runs (default 100)")
+    parser.add_argument("--runs", type=bounded_option(limits.RUNS), default=None, metavar="N",
+                        help="number of runs (default 100)")
+    parser.add_argument("--seeds", default=None, metavar="START|A:B|LIST",
+                        help="START (seeds START..START+runs-1, default 0), A:B (B excluded) "
+                        "or 1,5,9")
     parser.add_argument(
-        "--seeds",
-        default=None,
-        help="START (seeds START..START+runs-1, default 0), A:B (B excluded) or 1,5,9",
-    )
-    parser.add_argument(
-        "--scheduler",
-        default=None,
+        "--scheduler", default=None, metavar="local|sync|ADDRESS",
         help="'local' (Dask local cluster; the default with the [montecarlo] extra), 'sync' "
         "(this process; the default without Dask) or a Dask scheduler address such as "
         "tcp://host:8786",
     )
-    parser.add_argument(
-        "--workers", type=bounded_option(limits.WORKERS), default=None, help="local worker processes (default: all cores)"
-    )
-    parser.add_argument(
-        "--percentiles",
-        default="50,90,95,99",
-        help="comma-separated percentiles of the angle error (default 50,90,95,99)",
-    )
-    parser.add_argument("--output", default=None, help="write the curves to FILE (.json or .csv)")
-    parser.add_argument("--rows", type=bounded_option(limits.ROWS), default=10, help="rows of the printed table")
-    bar = parser.add_mutually_exclusive_group()
-    bar.add_argument("--progress", dest="progress", action="store_true", default=None,
-                     help="always show the progress bar (default: only on a terminal)")
-    bar.add_argument("--no-progress", dest="progress", action="store_false")
+    parser.add_argument("--workers", type=bounded_option(limits.WORKERS), default=None,
+                        metavar="N", help="local worker processes (default: all cores)")
+    parser.add_argument("--percentiles", default="50,90,95,99", metavar="P,P,...",
+                        help="comma-separated percentiles of the angle error (default "
+                        "50,90,95,99)")
+    parser.add_argument("-o", "--output", default=None, metavar="FILE",
+                        help="write the curves to FILE (.json or .csv)")
+    parser.add_argument("--rows", type=bounded_option(limits.ROWS), default=10, metavar="N",
+                        help="rows of the printed table (default 10)")
+    add_progress_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -93,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
     except ScenarioError as exc:
         raise CommandError(_named(str(exc), args.scenario)) from None
+    _check_memory(scenario, len(seeds), args.scenario)
     from bmg160_emu.progress import Progress
 
     progress = Progress("bmg160-emu montecarlo", enabled=args.progress)
@@ -146,6 +146,27 @@ def run(args: argparse.Namespace) -> int:
               + (f" and in {args.output}" if args.output else ""), file=sys.stderr)
         return 143 if stopped == "SIGTERM" else 130
     return 0
+
+
+# Bytes held per run and grid time until the summary: the run's error and time arrays, their
+# stack across runs, and np.percentile's sorted copy of it (4 arrays of float64)
+BYTES_PER_RUN_AND_TIME = 32
+
+
+def _check_memory(scenario, runs: int, path: str) -> None:
+    """Every run's curve is kept until the percentiles are taken: refuse, before the runs, what
+    this process cannot hold (a million runs of a 1-day scenario on a 1 s grid are 2.8 TB)."""
+    from bmg160_emu.adcs.evaluation import readout_options
+    from bmg160_emu.adcs.scenarios import ScenarioError
+    from bmg160_emu.commands._common import CommandError, check_memory
+
+    try:
+        times = int(scenario.duration_s / readout_options(scenario)["grid_s"]) + 1
+    except ScenarioError as exc:
+        raise CommandError(_named(str(exc), path)) from None
+    check_memory(runs * times * BYTES_PER_RUN_AND_TIME,
+                 f"keeping {runs:,} runs of {times:,} grid times each",
+                 "fewer --runs, or a coarser [readout] grid_s in the scenario")
 
 
 def _named(message: str, scenario: str) -> str:

@@ -18,11 +18,6 @@ from bmg160_emu.commands._common import (
     progress_for,
 )
 
-# What record holds per sample until it writes the file: 56 bytes of arrays (time, counts,
-# truth) and the writer's copies; peak RSS over a 50 s run, measured on 100,000 and 500,000
-# samples at 2000 Hz (2026-12-06): 78 bytes a sample to CSV, 117 to NPZ, 131 to RESD
-RECORD_BYTES_PER_SAMPLE = 140
-
 EPILOG = """\
 examples:
   bmg160-emu record --duration 10min --rate 200 --seed 7 -o static.csv
@@ -111,8 +106,8 @@ def run(args: argparse.Namespace) -> int:
     except limits.LimitError as exc:
         raise CommandError(f"{exc} (at {chip.odr_hz:g} Hz; a lower --rate records longer)")\
             from None
-    check_memory(samples * RECORD_BYTES_PER_SAMPLE, f"recording {samples:,} samples "
-                 f"({RECORD_BYTES_PER_SAMPLE} bytes each until they are written)",
+    check_memory(samples * limits.RECORD_BYTES_PER_SAMPLE, f"recording {samples:,} samples "
+                 f"({limits.RECORD_BYTES_PER_SAMPLE} bytes each until they are written)",
                  "record less (--duration) or at a lower --rate")
     if scenario is not None:
         chip.set_true_rate(scenario)
