@@ -46,7 +46,7 @@ PATH_OPTIONS: dict[str, tuple[str, ...]] = {
                                    "--output", "{tmp}/s.txt"),
     "firmware capture --out": ("firmware", "capture", "--out", "{p}", "--duration", "1",
                                "--output", "{tmp}/s.txt"),
-    "firmware capture --output": ("firmware", "capture", "--duration", "1", "--output", "{p}"),
+    "firmware capture -o": ("firmware", "capture", "--duration", "1", "-o", "{p}"),
     "generate --profile": ("generate", "--profile", "{p}", "--duration", "0.2s", "--seed", "1",
                            "-o", "{tmp}/o.npy"),
     "generate -o": ("generate", "--duration", "0.2s", "--seed", "1", "-o", "{p}"),
@@ -86,13 +86,17 @@ PATH_OPTIONS: dict[str, tuple[str, ...]] = {
     "run --log": ("run", "--log", "{p}", "--", "true"),
     "run --trace": ("run", "--trace", "{p}", "--", "true"),
     "run --profile": ("run", "--profile", "{p}", "--", "true"),
+    "run --device": ("run", "--device", "{p}@0x10", "--", "true"),
     "script FILE": ("script", "{p}", "-q", "--seed", "1"),
     "script --trace": ("script", "{seeds}/short.script", "-q", "--seed", "1", "--trace", "{p}"),
+    "script --device": ("script", "{seeds}/short.script", "-q", "--seed", "1", "--device",
+                        "{p}@0x10"),
     "script --profile": ("script", "{seeds}/short.script", "-q", "--seed", "1", "--profile",
                          "{p}"),
     "stub --stats": ("stub", "--bus", "99", "--duration", "1s", "--stats", "{p}"),
     "stub --ready-file": ("stub", "--bus", "99", "--duration", "1s", "--ready-file", "{p}"),
     "stub --profile": ("stub", "--bus", "99", "--duration", "1s", "--profile", "{p}"),
+    "stub --device": ("stub", "--bus", "99", "--duration", "1s", "--device", "{p}@0x10"),
     "thermal FILE": ("thermal", "{p}", "--block", "10s"),
     "thermal --noise-profile": ("thermal", "{seeds}/thermal.csv", "--block", "10s",
                                 "--noise-profile", "{p}"),
@@ -121,7 +125,7 @@ PATH_OPTIONS: dict[str, tuple[str, ...]] = {
 }
 
 # Options that take a path but are not typed Path in their parser (a built-in name or a file)
-PATH_DESTS = {"profile", "noise_profile", "scenario", "output", "out"}
+PATH_DESTS = {"profile", "noise_profile", "scenario", "output", "out", "devices"}
 
 
 def path_actions() -> Iterator[tuple[str, argparse.Action]]:
@@ -163,9 +167,15 @@ def path_values(tmp: Path, rng: random.Random) -> list[tuple[str, str]]:
     ]
 
 
+PATH_LIMIT_S = 120.0  # a hang, not a speed: a valid identify --figures run is ~5 s here
+
+
 def fuzz_path(label: str, kind: str, path: str, tmp: Path,
-              run: Callable[[list[str]], Outcome] = run_in_process) -> tuple[str, Outcome]:
+              run: Callable[[list[str]], Outcome] | None = None) -> tuple[str, Outcome]:
     """One path option with one hostile path; also fails on a temporary file left in tmp."""
+    if run is None:
+        def run(argv: list[str]) -> Outcome:
+            return run_in_process(argv, PATH_LIMIT_S)
     seeds = str(cli_seed_folder())
     argv = [a.replace("{p}", path).replace("{seeds}", seeds).replace("{tmp}", str(tmp))
             for a in PATH_OPTIONS[label]]

@@ -418,13 +418,15 @@ def scheduler_address(text: str) -> str:
         return text
     if rest.startswith("["):  # [IPv6]:port
         host, _, port_text = rest[1:].partition("]")
+        has_port = port_text != ""  # "]:8786"; anything else after "]" fails the port check
         port_text = port_text.removeprefix(":")
         try:
             ipaddress.IPv6Address(host)
         except ValueError:
             raise ValueError(f"{expected} ({cut(host)!r} is not an IPv6 address)") from None
     else:
-        host, _, port_text = rest.rpartition(":") if ":" in rest else (rest, "", "")
+        has_port = ":" in rest  # "host:" too: an empty port is no port
+        host, _, port_text = rest.rpartition(":") if has_port else (rest, "", "")
         if re.fullmatch(r"[0-9.]+", host):
             try:
                 ipaddress.IPv4Address(host)
@@ -434,7 +436,7 @@ def scheduler_address(text: str) -> str:
         elif not re.fullmatch(r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]*[A-Za-z0-9])?"
                               r"(\.[A-Za-z0-9]([A-Za-z0-9-]*[A-Za-z0-9])?)*", host):
             raise ValueError(f"{expected} ({cut(host)!r} is not a host name)")
-    if port_text and (not re.fullmatch(r"[0-9]{1,5}", port_text)
+    if has_port and (not re.fullmatch(r"[0-9]{1,5}", port_text)
                       or not 1 <= int(port_text) <= 65535):
         raise ValueError(f"{expected} (the port must be 1 to 65535, not "
                          f"{cut(port_text, 20)!r})")
