@@ -10,6 +10,7 @@ touches this file.
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import os
 import pkgutil
@@ -26,19 +27,39 @@ from bmg160_emu.commands._extras import missing_message
 
 
 def _stopped_while_exiting(number: int, frame: object) -> None:
-    """A signal after the command returned: its outputs are finished; exit now, as it says."""
+    """A signal after the command returned: its outputs are finished (each is whole or
+    absent, io.atomic); say so and exit now, with the signal's status (issue 35: a SIGTERM
+    then used to end the process without a word)."""
     for stream in (sys.stdout, sys.stderr):
         try:
+            if stream is sys.stderr:
+                stream.write(f"bmg160-emu {_EXITING[0]}: interrupted by "
+                             f"{signal.Signals(number).name} while exiting; what it wrote is "
+                             "whole (docs/outputs.md)\n")
             stream.flush()
         except (OSError, ValueError):
             pass
     os._exit(128 + number)
 
 
+_EXITING = ["?"]  # the command being run, for the line above
+
+
+def _signals_ignored_at_the_end() -> None:
+    """The last exit handler (registered first): from here the interpreter tears itself
+    down, restoring the default handlers on the way (CPython's _PySignal_Fini), and a signal
+    then ended the process without a word; ignored (a disposition the teardown keeps, in
+    every thread), it is dropped, and the status is the command's."""
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, signal.SIG_IGN)
+
+
 # Run as the command (the console script, python -m bmg160_emu), the process exits with the
 # command; bmg160_emu.startup has held the signals since the package's first line.
 # Imported by a program (tests call main() in-process), the handlers are restored at the end.
 _AS_COMMAND = startup.AS_COMMAND
+if _AS_COMMAND:
+    atexit.register(_signals_ignored_at_the_end)
 
 __all__ = ["CommandError", "build_parser", "main"]
 
@@ -110,7 +131,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         parser = build_parser()
         args, extra = parser.parse_known_args(argv)
-        command = args.command
+        command = _EXITING[0] = args.command
         if extra:  # told with the command's own usage, not the program's
             parser.command_parsers.get(command, parser).error(
                 f"unrecognized arguments: {' '.join(extra)}")
