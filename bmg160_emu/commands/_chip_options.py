@@ -332,7 +332,8 @@ def buses_from_args(args: argparse.Namespace, bus: int | None, announce: bool = 
     ``bus``); every device shares one clock (``clock`` when given). A chosen seed is printed
     now, or with ``announce=False`` left to :func:`announce_seed`."""
     from bmg160_emu.clock import RealTimeClock, VirtualClock
-    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._common import CommandError, profile_named
+    from bmg160_emu.noise.profile import ProfileError
 
     configs = configs_from_args(args)
     seed = session_seed(args, announce)
@@ -342,6 +343,9 @@ def buses_from_args(args: argparse.Namespace, bus: int | None, announce: bool = 
     for config in configs:
         try:
             device = config.build(seed, clock)
+        except ProfileError as exc:  # named by the profile as given (issue 35)
+            raise CommandError(profile_named(getattr(config, "profile", None), str(exc))) \
+                from None
         except (ValueError, KeyError, OSError) as exc:
             raise CommandError(str(exc)) from None
         number = bus if config.bus is None else config.bus

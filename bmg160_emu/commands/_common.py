@@ -250,3 +250,12 @@ class _RenamedOption(argparse.Action):
         print(f"{parser.prog}: note: {option_string} is now spelled {self.new} (the old "
               "spelling goes in the next release; CHANGELOG.md)", file=sys.stderr)
         setattr(namespace, self.dest, values)
+
+
+def profile_named(profile: Any, message: str) -> str:
+    """A noise profile's error, named by the profile as the user gave it: the file, or the
+    built-in name (``paper mode needs sigma_gyro ...`` named neither, issue 35)."""
+    if profile is None or str(profile) in message:
+        return message
+    shown = str(profile)
+    return f"{shown}: {message}" if Path(shown).suffix else f"profile {shown}: {message}"

@@ -14,6 +14,7 @@ from bmg160_emu.commands._common import (
     add_progress_options,
     add_renamed_option,
     bounded_option,
+    profile_named,
     progress_for,
 )
 from bmg160_emu.durations import parse_duration
@@ -120,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from bmg160_emu.io.partial import clear_sidecar, write_sidecar
     from bmg160_emu.io.rate_stream import RateStreamWriter
+    from bmg160_emu.noise.profile import ProfileError
 
     suffix = args.output.suffix.lower()
     if suffix not in (".npy", ".csv", ".resd"):
@@ -140,8 +142,12 @@ def run(args: argparse.Namespace) -> int:
     try:
         gen = profile_noise(args.profile, args.rate, seed=args.seed, mode=args.noise_mode,
                             bandwidth_code=args.bandwidth, use_output=not args.raw)
+    except ProfileError as exc:  # named by the profile as given (issue 35)
+        raise CommandError(profile_named(args.profile, str(exc))) from None
     except ValueError as exc:
         text = str(exc)  # a rate the BW code has not is named as the option it came from
+        if text.startswith("unsupported output data rate"):  # paper mode (docs/limits.md)
+            text = f"rate {args.rate:g} Hz in paper mode: {text}"
         raise CommandError(f"--{text}" if text.startswith("rate ") else text) from None
     if gen.profile.errors:  # not used by generate, but a bad table is a bad profile
         from bmg160_emu.device.sensor_errors import SensorErrors

@@ -429,6 +429,8 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
 
     model = ["WN", "GM", "RW"] + ["QN"] * args.with_q + ["DR"] * args.with_r
     fits = {}
+    from functools import partial
+
     boot = progress_for(args, "identify").start(args.bootstrap * len(result.axes),
                                                 "bootstrap fits")  # ends itself when done
     for i, axis in enumerate(result.axes):
@@ -453,7 +455,7 @@ def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
             fit = gmwm.gmwm_fit(wv, model)
             if args.bootstrap:  # the axes' replicates, one axis after another
                 fit = gmwm.bootstrap(fit, args.bootstrap, seed=args.seed,
-                                     progress=lambda r, i=i: boot.update(i * args.bootstrap + r))
+                                     progress=partial(_told, boot, i * args.bootstrap))
         except gmwm.GMWMError as exc:
             raise IdentificationError(f"axis {axis.axis}: {exc}") from None
         est = {k: Estimate(e.value, e.ci_low, e.ci_high, e.unit) for k, e in fit.estimates.items()}
@@ -517,6 +519,11 @@ def _progress(steps: int):
     from tqdm import tqdm
 
     return tqdm(total=steps, unit="step", desc="identify", file=sys.stderr)
+
+
+def _told(stage, before: int, done: int) -> None:
+    """A bootstrap replicate done: ``before`` are the earlier axes' replicates."""
+    stage.update(before + done)
 
 
 def _step(bar, stage: str) -> None:

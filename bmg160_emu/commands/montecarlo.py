@@ -120,9 +120,9 @@ def run(args: argparse.Namespace) -> int:
         try:
             result = run_montecarlo(scenario, seeds, scheduler=scheduler, workers=args.workers,
                                     progress=progress, percentiles=percentiles)
-        except ScenarioError as exc:
+        except (ScenarioError, FaultError) as exc:  # a table of the file: named by it
             raise CommandError(_named(str(exc), args.scenario)) from None
-        except (FaultError, RuntimeError, ValueError) as exc:
+        except (RuntimeError, ValueError) as exc:
             raise CommandError(str(exc)) from None
         report()
     except KeyboardInterrupt as exc:  # held while writing, or between the runs and the report

@@ -205,14 +205,22 @@ def _find_bad_line(path: Path, lines: list[str], numbers: int | np.ndarray, widt
 
 
 def open_npz(path: str | Path):
-    """The archive of an NPZ file (arrays read lazily, one key at a time)."""
+    """The archive of an NPZ file (arrays read lazily), owning the file it opens here; closed
+    here when unreadable (np.load left a truncated zip's file open, issue 35)."""
+    from numpy.lib.npyio import NpzFile
+
+    handle = open(path, "rb")  # noqa: SIM115 - owned by the archive from here on
     try:
-        archive = np.load(path, allow_pickle=False)
-    except ARRAY_ERRORS as exc:
-        raise RateFileError(f"not a readable NPZ archive ({exc})", path=path) from None
-    if isinstance(archive, np.ndarray):
-        raise RateFileError("not an NPZ archive (a .npy array)", path=path)
-    return archive
+        magic = handle.read(6)
+        handle.seek(0)
+        if magic.startswith(b"\x93NUMPY"):
+            raise RateFileError("not an NPZ archive (a .npy array)", path=path)
+        return NpzFile(handle, own_fid=True, allow_pickle=False)
+    except BaseException as exc:
+        handle.close()
+        if isinstance(exc, ARRAY_ERRORS) and not isinstance(exc, RateFileError):
+            raise RateFileError(f"not a readable NPZ archive ({exc})", path=path) from None
+        raise
 
 
 def npz_array(archive, key: str, path: str | Path) -> np.ndarray:
@@ -343,14 +351,16 @@ def median_step(t: np.ndarray) -> float:
 # --------------------------------------------------------------------------- writing
 
 
+CSV_ROWS = 65_536  # rows formatted at a time by write_csv (a few MB of text)
+
+
 def write_csv(path: str | Path, comments: Sequence[str], names: Sequence[str],
               blocks: Sequence[np.ndarray]) -> None:
     """Write ``#`` comment lines, a header and the columns of ``blocks`` side by side.
 
     Integer arrays are written with ``str``, floats with ``repr`` (the shortest text that
-    reads back to the same float), NaN as an empty cell. Rows are formatted ``CSV_ROWS`` at
-    a time: a whole recording as Python numbers and one string took about 770 bytes a row,
-    77 GB for the 1e8 samples ``record`` may hold (issue 35).
+    reads back to the same float), NaN as an empty cell; CSV_ROWS rows at a time (all at
+    once took 770 bytes a row: 77 GB for the 1e8 samples record may hold, issue 35).
     """
     columns = [b.reshape(len(b), -1) for b in blocks]
     formats = [str if c.dtype.kind in "iu" else _float_cell for c in columns]
@@ -364,9 +374,6 @@ def write_csv(path: str | Path, comments: Sequence[str], names: Sequence[str],
                 buffer.write(",".join(f(v) for f, group in zip(formats, cells) for v in group)
                              + "\n")
             handle.write(buffer.getvalue())
-
-
-CSV_ROWS = 65_536  # rows formatted at a time by write_csv (a few MB of text)
 
 
 def _float_cell(value: float) -> str:
