@@ -389,6 +389,18 @@ def map_runs(run: RunFunction, seeds: Iterable[int], *, scheduler: str = "local"
                      workers)
 
 
+def default_scheduler() -> tuple[str, str | None]:
+    """The scheduler when none is asked for: Dask's local cluster where Dask is installed,
+    else this process, with a note that says so and how to get Dask (the CLI and the
+    Basilisk example fall back alike, issue 35)."""
+    import importlib.util
+
+    if all(importlib.util.find_spec(name) is not None for name in ("dask", "distributed")):
+        return "local", None
+    return "sync", ("Dask is not installed: the runs go in this process (scheduler sync); "
+                    "pip install 'bmg160-emu[montecarlo]' runs them on all cores")
+
+
 SCHEMES = ("tcp", "tls", "inproc", "ucx", "ws", "wss")  # distributed's comm back ends
 
 
