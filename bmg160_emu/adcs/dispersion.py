@@ -108,15 +108,16 @@ class NoiseDispersion:
         to x, y, z by :func:`identified_axes`; ``base`` gives what is not dispersed (T, the
         bias): the profile identified from the same record."""
         origin = "identification"
+        parsed: Any = result
         if not isinstance(result, Mapping):
             origin = str(result)
             try:
-                result = json.loads(Path(result).read_text())
+                parsed = json.loads(Path(result).read_text())
             except OSError as exc:
                 raise DispersionError(f"{origin}: cannot read: {exc.strerror}") from None
             except json.JSONDecodeError as exc:
                 raise DispersionError(f"{origin}: not JSON (line {exc.lineno}: {exc.msg})") from None
-        tables = identified_axes(result, origin)
+        tables = identified_axes(parsed, origin)
         intervals: dict[str, dict[str, Interval]] = {}
         for axis in AXES:
             table = tables[axis]
