@@ -53,8 +53,8 @@ _EXPORTS = {
     "patch_i2c_dev": "bmg160_emu.bus.i2c_dev_node",
     "patch_spidev": "bmg160_emu.bus.patching",
     "FakeSpiDev": "bmg160_emu.bus.spi",
-    "Transaction": "bmg160_emu.bus.transactions",
-    "TransactionLog": "bmg160_emu.bus.transactions",
+    "Transaction": "bmg160_emu.traffic.transaction",
+    "TransactionLog": "bmg160_emu.traffic.transaction",
     "NoiseGenerator": "bmg160_emu.noise",
     "load_profile": "bmg160_emu.noise",
 }

@@ -35,7 +35,7 @@ LAYERS = {  # first name under bmg160_emu -> layer (a module may import its laye
     "linux": 4, "io": 4,
     "bus": 3,
     "device": 2,
-    "clock": 1, "durations": 1, "noise": 1,
+    "clock": 1, "durations": 1, "noise": 1, "traffic": 1,
     "limits": 0,
 }
 

@@ -8,7 +8,8 @@ import errno
 import pytest
 from _standin_chip import RegisterFileChip
 
-from bmg160_emu.bus.i2c import DEFAULT_FUNCS, I2C_FUNC_SMBUS_QUICK, I2CBus, I2CMessage, smbus_pec
+from bmg160_emu.bus.i2c import DEFAULT_FUNCS, I2CBus, I2CMessage, smbus_pec
+from bmg160_emu.traffic.kinds import I2C_FUNC_SMBUS_QUICK
 
 
 @pytest.fixture

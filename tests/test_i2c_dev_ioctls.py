@@ -237,7 +237,7 @@ def test_read_and_write_are_plain_i2c_capped_at_8192_bytes():
 def test_adapter_without_plain_i2c_refuses_read_write_and_rdwr():
     from bmg160_emu.bus.i2c import DEFAULT_FUNCS
     from bmg160_emu.bus.i2c_dev import I2CDevFile
-    from bmg160_emu.bus.kernel_abi import I2C_FUNC_I2C
+    from bmg160_emu.traffic.kinds import I2C_FUNC_I2C
 
     bus = I2CBus(1, {0x68: RegisterFileChip()}, funcs=DEFAULT_FUNCS & ~I2C_FUNC_I2C)
     file = I2CDevFile(bus)

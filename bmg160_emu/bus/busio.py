@@ -21,7 +21,7 @@ import threading
 from typing import Any
 
 from bmg160_emu.bus.i2c import I2CBus, I2CMessage
-from bmg160_emu.bus.machine import SCAN_FIRST, SCAN_LAST, micropython_error
+from bmg160_emu.bus.machine import micropython_error
 from bmg160_emu.bus.spi import UNDRIVEN_BYTE, SpiFrame
 
 __all__ = ["I2C", "SPI", "Wiring", "chip_select", "wiring"]
@@ -140,22 +140,11 @@ class I2C(_Lockable):
     def probe(self, address: int) -> bool:
         """Whether a device acknowledges ``address`` (a write of no data)."""
         self._check()
-        try:
-            self._bus.i2c_transfer([I2CMessage.write(address, b"")])
-        except OSError:
-            return False
-        return True
+        return self._bus.probe(address)
 
     def scan(self) -> list[int]:
         self._check()
-        found = []
-        for address in range(SCAN_FIRST, SCAN_LAST + 1):
-            try:
-                self._bus.i2c_transfer([I2CMessage.write(address, b"")])
-            except OSError:
-                continue
-            found.append(address)
-        return found
+        return self._bus.scan()
 
     def writeto(self, address: int, buffer: Any, *, start: int = 0, end: int | None = None) -> None:
         self._check()

@@ -22,29 +22,20 @@ from typing import Any
 
 from bmg160_emu.bus.kernel_abi import (
     I2C_DEV_MAX_TRANSFER,
-    I2C_FUNC_I2C,
-    I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
     I2C_FUNC_SMBUS_EMUL,
-    I2C_FUNC_SMBUS_PROC_CALL,
-    I2C_FUNC_SMBUS_QUICK,
-    I2C_FUNC_SMBUS_READ_BLOCK_DATA,
-    I2C_FUNC_SMBUS_READ_BYTE,
-    I2C_FUNC_SMBUS_READ_BYTE_DATA,
-    I2C_FUNC_SMBUS_READ_I2C_BLOCK,
-    I2C_FUNC_SMBUS_READ_WORD_DATA,
-    I2C_FUNC_SMBUS_WRITE_BLOCK_DATA,
-    I2C_FUNC_SMBUS_WRITE_BYTE,
-    I2C_FUNC_SMBUS_WRITE_BYTE_DATA,
-    I2C_FUNC_SMBUS_WRITE_I2C_BLOCK,
-    I2C_FUNC_SMBUS_WRITE_WORD_DATA,
     I2C_RDWR_IOCTL_MAX_MSGS,
     I2C_SMBUS_BLOCK_MAX,
 )
-from bmg160_emu.bus.transactions import TransactionLog, errno_name
+from bmg160_emu.traffic.kinds import (
+    I2C_FUNC_I2C,
+    I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
+    I2C_FUNC_SMBUS_READ_BLOCK_DATA,
+    KIND_FUNCS,
+)
+from bmg160_emu.traffic.transaction import TransactionLog, errno_name
 
 __all__ = [
     "DEFAULT_FUNCS",
-    "I2C_FUNC_SMBUS_QUICK",
     "I2C_SMBUS_BLOCK_MAX",
     "I2CBus",
     "I2CMessage",
@@ -58,6 +49,7 @@ __all__ = [
 ]
 
 I2C_RDWR_MAX_MSG_LEN = I2C_DEV_MAX_TRANSFER  # i2c-dev refuses longer messages
+SCAN_FIRST, SCAN_LAST = 0x08, 0x77  # the addresses a scan probes
 
 # A plain-I2C adapter with the core's SMBus emulation plus receive-length support (so SMBus
 # block reads and block process calls work, as the spec's mapping asks).
@@ -67,26 +59,6 @@ DEFAULT_FUNCS = (
     | I2C_FUNC_SMBUS_READ_BLOCK_DATA
     | I2C_FUNC_SMBUS_BLOCK_PROC_CALL
 )
-
-# transaction kind -> functionality bit it needs
-KIND_FUNCS = {
-    "write_quick": I2C_FUNC_SMBUS_QUICK,
-    "read_quick": I2C_FUNC_SMBUS_QUICK,
-    "read_byte": I2C_FUNC_SMBUS_READ_BYTE,
-    "write_byte": I2C_FUNC_SMBUS_WRITE_BYTE,
-    "read_byte_data": I2C_FUNC_SMBUS_READ_BYTE_DATA,
-    "write_byte_data": I2C_FUNC_SMBUS_WRITE_BYTE_DATA,
-    "read_word_data": I2C_FUNC_SMBUS_READ_WORD_DATA,
-    "write_word_data": I2C_FUNC_SMBUS_WRITE_WORD_DATA,
-    "process_call": I2C_FUNC_SMBUS_PROC_CALL,
-    "read_block_data": I2C_FUNC_SMBUS_READ_BLOCK_DATA,
-    "write_block_data": I2C_FUNC_SMBUS_WRITE_BLOCK_DATA,
-    "block_process_call": I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
-    "read_i2c_block_data": I2C_FUNC_SMBUS_READ_I2C_BLOCK,
-    "write_i2c_block_data": I2C_FUNC_SMBUS_WRITE_I2C_BLOCK,
-    "i2c_read": I2C_FUNC_I2C,
-    "i2c_write": I2C_FUNC_I2C,
-}
 
 TransactionHook = Callable[["I2CBus", int, int, str], None]
 # What a hook with ``takes_register`` may return: a change to the bytes the host receives,
@@ -484,6 +456,20 @@ class I2CBus:
                         chip.i2c_write(data)
                     self._record(chip, message.address, "i2c_write", register, data[1:])
         return list(messages)
+
+    def probe(self, address: int) -> bool:
+        """Whether a device acknowledges ``address``: a write of no data, its NACK caught
+        (MicroPython's and CircuitPython's ``scan``/``probe``)."""
+        try:
+            self.i2c_transfer([I2CMessage.write(address, b"")])
+        except OSError:
+            return False
+        return True
+
+    def scan(self) -> list[int]:
+        """The 7-bit addresses 0x08..0x77 that acknowledge (0b0000xxx and 0b1111xxx are
+        reserved; MicroPython's and CircuitPython's ``scan`` probe the same range)."""
+        return [address for address in range(SCAN_FIRST, SCAN_LAST + 1) if self.probe(address)]
 
     def i2c_write(self, address: int, data: bytes | Sequence[int]) -> None:
         """A plain I2C write (``write()`` on /dev/i2c-N): data[0] sets the pointer."""

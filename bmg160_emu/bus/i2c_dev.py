@@ -33,7 +33,6 @@ from typing import Protocol
 from bmg160_emu.bus.i2c import I2CBus, I2CMessage, os_error
 from bmg160_emu.bus.kernel_abi import (
     I2C_DEV_MAX_TRANSFER,
-    I2C_FUNC_I2C,
     I2C_FUNCS,
     I2C_M_RD,
     I2C_M_RECV_LEN,
@@ -67,6 +66,7 @@ from bmg160_emu.bus.kernel_abi import (
     SMBUS_IOCTL_DATA_SIZE,
     SMBUS_SIZE_NAMES,
 )
+from bmg160_emu.traffic.kinds import I2C_FUNC_I2C
 
 INT_MAX = 0x7FFFFFFF  # I2C_RETRIES and I2C_TIMEOUT refuse more (i2c-dev.c)
 ULONG_MASK = 0xFFFFFFFFFFFFFFFF  # an ioctl argument is an unsigned long (LP64)

@@ -42,7 +42,6 @@ from bmg160_emu.bus.spi import UNDRIVEN_BYTE, SpiFrame
 __all__ = ["I2C", "SPI", "Pin", "SoftI2C", "SoftSPI", "micropython_error", "micropython_machine"]
 
 _NO_ACK = (errno.EREMOTEIO, errno.ENXIO, errno.ENODEV)  # an address nobody acknowledges
-SCAN_FIRST, SCAN_LAST = 0x08, 0x77  # 7-bit addresses 0b0000xxx and 0b1111xxx are reserved
 
 
 def micropython_error(exc: OSError) -> OSError:
@@ -157,14 +156,7 @@ class I2C:
             raise micropython_error(exc) from None
 
     def scan(self) -> list[int]:
-        found = []
-        for address in range(SCAN_FIRST, SCAN_LAST + 1):
-            try:
-                self._bus.i2c_transfer([I2CMessage.write(address, b"")])
-            except OSError:
-                continue
-            found.append(address)
-        return found
+        return self._bus.scan()
 
     def readfrom(self, addr: int, nbytes: int, stop: bool = True) -> bytes:
         return self._transfer([I2CMessage.read_message(addr, int(nbytes))])[0].data

@@ -28,7 +28,7 @@ from bmg160_emu.bus.i2c import (
     emulated_bus_for_path,
 )
 from bmg160_emu.bus.kernel_abi import I2C_M_RD
-from bmg160_emu.bus.transactions import TransactionLog
+from bmg160_emu.traffic.transaction import TransactionLog
 
 if TYPE_CHECKING:
     from typing_extensions import Self

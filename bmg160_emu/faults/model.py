@@ -13,6 +13,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from bmg160_emu.traffic.kinds import READ_KINDS
+
 BUS_KINDS = ("nack", "timeout", "stuck_bus", "corrupt_byte")
 SAMPLE_KINDS = ("stuck_axis", "bias_step", "spike", "saturation", "lost_samples",
                 "temperature_ramp")
@@ -23,12 +25,6 @@ FAULT_KINDS = BUS_KINDS + SAMPLE_KINDS + CHIP_KINDS
 # next bits, so the bits of a saved truth record keep their meaning.
 _FLAG_ORDER = ("nack", "timeout", *SAMPLE_KINDS, *CHIP_KINDS, "stuck_bus", "corrupt_byte")
 FAULT_FLAGS = {kind: 1 << i for i, kind in enumerate(_FLAG_ORDER)}
-
-# Transaction kinds (I2CBus's words) that carry data from the chip: a corrupt_byte fault can
-# only act on these.
-READ_KINDS = frozenset(("read_byte", "read_byte_data", "read_word_data", "process_call",
-                        "read_block_data", "block_process_call", "read_i2c_block_data",
-                        "i2c_read"))
 
 SATURATED_DPS = 1.0e6  # far beyond +-2000 deg/s: the chip clips it to +-32767 counts
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -230,6 +226,26 @@ def fault_from_dict(entry: dict[str, Any], where: str = "fault") -> Fault:
         raise FaultError(f"{where}: {exc}") from None
     except TypeError as exc:
         raise FaultError(f"{where}: {exc}") from None
+
+
+# Effect parameters of a Fault; a log entry replaces its trigger by the onset it records.
+_EFFECT_KEYS = ("duration_s", "axis", "step_dps", "amplitude_dps", "samples", "register", "bit",
+                "rate_c_per_s", "tc_bias_dps_per_c", "byte")
+
+
+def effect_parameters(fault: Fault) -> dict[str, Any]:
+    """The fault's kind and the effect parameters that differ from their defaults (no
+    trigger): what a ``fault:<kind>`` log entry carries for a replay."""
+    params: dict[str, Any] = {"kind": fault.kind}
+    defaults = Fault.__dataclass_fields__
+    for key in _EFFECT_KEYS:
+        value = getattr(fault, key)
+        if key == "tc_bias_dps_per_c":
+            if np.any(value):
+                params[key] = [float(v) for v in value]
+        elif value != defaults[key].default:
+            params[key] = value
+    return params
 
 
 def describe_flags(flags: int) -> list[str]:

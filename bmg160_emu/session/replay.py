@@ -11,17 +11,16 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from bmg160_emu.bus.transactions import Transaction, bytes_from_json, errno_name
 from bmg160_emu.io.trace import (
-    FAULT_KIND_PREFIX,
     TRACE_FORMAT_TAG,
-    TRUE_RATE_KIND,
     TraceFormatError,
     TraceHeader,
-    parse_fault_entry,
     parse_true_rate_entry,
 )
 from bmg160_emu.session.decode import describe_transaction, record_value
+from bmg160_emu.traffic.fault_entry import parse_fault_entry
+from bmg160_emu.traffic.kinds import FAULT_KIND_PREFIX, TRUE_RATE_KIND
+from bmg160_emu.traffic.transaction import Transaction, bytes_from_json, errno_name
 
 
 @dataclass
