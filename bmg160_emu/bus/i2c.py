@@ -42,6 +42,7 @@ __all__ = [
     "WireFilter",
     "emulated_bus",
     "emulated_bus_for_path",
+    "emulated_bus_numbers",
     "os_error",
     "register_bus",
     "smbus_pec",
@@ -532,6 +533,11 @@ def emulated_bus(number: int) -> I2CBus | None:
     """The innermost registered bus with this number, or None."""
     stack = _registry.get(number)
     return stack[-1] if stack else None
+
+
+def emulated_bus_numbers() -> list[int]:
+    """The numbers of the registered buses, lowest first (the /dev/i2c-N that exist)."""
+    return sorted(_registry)
 
 
 def emulated_bus_for_path(path: str) -> I2CBus | None:
