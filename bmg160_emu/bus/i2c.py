@@ -26,6 +26,7 @@ from bmg160_emu.bus.kernel_abi import (
     I2C_RDWR_IOCTL_MAX_MSGS,
     I2C_SMBUS_BLOCK_MAX,
 )
+from bmg160_emu.bus.wire import WiredChip, WireFault
 from bmg160_emu.traffic.kinds import (
     I2C_FUNC_I2C,
     I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
@@ -39,7 +40,6 @@ __all__ = [
     "I2C_SMBUS_BLOCK_MAX",
     "I2CBus",
     "I2CMessage",
-    "WireFilter",
     "emulated_bus",
     "emulated_bus_for_path",
     "emulated_bus_numbers",
@@ -62,9 +62,6 @@ DEFAULT_FUNCS = (
 )
 
 TransactionHook = Callable[["I2CBus", int, int, str], None]
-# What a hook with ``takes_register`` may return: a change to the bytes the host receives,
-# ``wire(offset, data) -> data`` with ``offset`` the place of ``data[0]`` in the transaction.
-WireFilter = Callable[[int, bytes], bytes]
 
 
 def os_error(code: int) -> OSError:
@@ -127,8 +124,17 @@ class I2CBus:
     hook fails the transaction as a real adapter would (NACK = EREMOTEIO, timeout = ETIMEDOUT).
     A hook whose attribute ``takes_register`` is true is called as ``hook(bus, index, address,
     kind, register)`` (the register the transaction names, or None) and may return a
-    :data:`WireFilter`: the bytes the host reads pass through it (a corrupted byte on the
-    wire; the PEC is checked after it, as the host's adapter checks it).
+    :class:`~bmg160_emu.bus.wire.WireFault`: the bytes the host reads and the data bytes the
+    device receives pass through it (a corrupted byte on the wire; the PEC is checked after
+    it, as the host's adapter checks it).
+
+    A transaction is what an SMBus call is on the wire: one kind, one index, one log entry.
+    In a plain-I2C transfer (``i2c_transfer``) a write followed by a read of the same
+    address is one transaction too, of kind ``i2c_read`` naming the register its write
+    set (``register``, the write's other bytes in ``written``): a register read, the same
+    whether smbus2, Blinka, periphery or MicroPython sent it. Every other message is a
+    transaction of its own (``i2c_write``, or ``i2c_read`` from the current pointer,
+    ``register`` None).
     ``claimed``: addresses a kernel driver has bound; ``I2C_SLAVE`` on them gives EBUSY unless
     forced. ``funcs``: the adapter's functionality mask; a kind whose bit is missing fails with
     EOPNOTSUPP. ``nack_errno``: the errno of an address nobody acknowledges (EREMOTEIO).
@@ -213,6 +219,8 @@ class I2CBus:
         read: bytes = b"",
         error: str | None = None,
     ) -> None:
+        if chip.__class__ is WiredChip:
+            chip.finish()  # its faults report before the transaction's entry
         if self.log.enabled:
             self.log.record(
                 self._time(chip), self.number, address, kind, register, written, read, error
@@ -240,7 +248,7 @@ class I2CBus:
             raise os_error(errno.EOPNOTSUPP)
         chip = self.devices.get(address)
         if self.transaction_hooks:
-            wires: list[WireFilter] = []
+            wires: list[WireFault] = []
             for hook in list(self.transaction_hooks):
                 try:
                     if getattr(hook, "takes_register", False):
@@ -255,7 +263,7 @@ class I2CBus:
                     )
                     raise
             if wires and chip is not None:
-                return _Wire(chip, wires)
+                return WiredChip(chip, wires)
         if chip is None:
             raise self._fail(None, address, kind, register, self.nack_errno, written)
         return chip
@@ -444,7 +452,15 @@ class I2CBus:
         with ExitStack() as stack:  # one transfer: no other thread between its messages
             for key in sorted(chips):
                 stack.enter_context(chips[key].lock)
-            for message in messages:
+            i = 0
+            while i < len(messages):
+                message = messages[i]
+                following = messages[i + 1] if i + 1 < len(messages) else None
+                if (not message.read and message.data and following is not None
+                        and following.read and following.address == message.address):
+                    self._register_read(message, following)  # write, repeated start, read
+                    i += 2
+                    continue
                 if message.read:
                     chip = self._begin(message.address, "i2c_read")
                     message.data = chip.i2c_read(message.length) if message.length else b""
@@ -456,7 +472,18 @@ class I2CBus:
                     if data:
                         chip.i2c_write(data)
                     self._record(chip, message.address, "i2c_write", register, data[1:])
+                i += 1
         return list(messages)
+
+    def _register_read(self, write: I2CMessage, read: I2CMessage) -> None:
+        """A write then (repeated start) a read of one address: one transaction, a register
+        read (kind ``i2c_read`` naming the register the write set)."""
+        address, data = write.address, write.data
+        register, written = data[0], data[1:]
+        chip = self._begin(address, "i2c_read", register, written)
+        chip.i2c_write(data)
+        read.data = chip.i2c_read(read.length) if read.length else b""
+        self._record(chip, address, "i2c_read", register, written, read.data)
 
     def probe(self, address: int) -> bool:
         """Whether a device acknowledges ``address``: a write of no data, its NACK caught
@@ -483,30 +510,6 @@ class I2CBus:
     def __repr__(self) -> str:
         devices = ", ".join(f"0x{a:02x}" for a in sorted(self.devices))
         return f"<I2CBus {self.number} devices [{devices}]>"
-
-
-class _Wire:
-    """The chip as the host hears it during one transaction whose read bytes a hook changes:
-    every read primitive's result goes through the wire filters, at its offset in the
-    transaction; everything else is the chip's."""
-
-    def __init__(self, chip: Any, wires: list[WireFilter]) -> None:
-        self.chip, self.wires, self.offset = chip, wires, 0
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.chip, name)
-
-    def _heard(self, data: bytes) -> bytes:
-        offset, self.offset = self.offset, self.offset + len(data)
-        for wire in self.wires:
-            data = wire(offset, data)
-        return data
-
-    def read(self, register: int, count: int) -> bytes:
-        return self._heard(self.chip.read(register, count))
-
-    def i2c_read(self, count: int) -> bytes:
-        return self._heard(self.chip.i2c_read(count))
 
 
 # --------------------------------------------------------------------------- registry

@@ -63,12 +63,12 @@ from bmg160_emu.faults.model import (
     describe_flags,
     fault_from_dict,
 )
-from bmg160_emu.faults.replay import replay_schedule
+from bmg160_emu.faults.replay import replay_bus_fault, replay_schedule
 from bmg160_emu.faults.schedule import FaultSchedule
 from bmg160_emu.faults.targets import ChipOnBus
 
 __all__ = [
     "AXES", "BUS_KINDS", "CHIP_KINDS", "FAULT_FLAGS", "FAULT_KINDS", "SAMPLE_KINDS",
     "SATURATED_DPS", "ChipOnBus", "Fault", "FaultError", "FaultEvent", "FaultSchedule", "GyroTarget",
-    "describe_flags", "fault_from_dict", "inject", "replay_schedule",
+    "describe_flags", "fault_from_dict", "inject", "replay_bus_fault", "replay_schedule",
 ]

@@ -16,6 +16,7 @@ import numpy as np
 from bmg160_emu.faults.model import Fault, FaultError, GyroTarget, fault_from_dict
 from bmg160_emu.faults.sample_effects import Activation, counts_samples
 from bmg160_emu.faults.schedule import FaultSchedule
+from bmg160_emu.faults.targets import ChipOnBus
 
 
 def replay_schedule(entries: Sequence[dict[str, Any]], target: GyroTarget) -> FaultSchedule:
@@ -46,4 +47,21 @@ def replay_schedule(entries: Sequence[dict[str, Any]], target: GyroTarget) -> Fa
     schedule.install_on_samples(target)
     for i, act in enumerate(activations):
         schedule.activate(i, target, act.start_s, activation=act)
+    return schedule
+
+
+def replay_bus_fault(entry: dict[str, Any], chip: Any, bus: Any) -> FaultSchedule:
+    """A recorded ``corrupt_byte`` acted again: on the next transaction to ``chip`` on
+    ``bus`` (the one that followed its entry in the session), with the same byte and bit,
+    so the replayed transaction reads, or writes, what the session's did. Writes nothing to
+    the bus log; the schedule stays installed, spent, until the replay ends."""
+    effect = dict(entry["fault"])
+    if effect.get("kind") != "corrupt_byte":
+        raise FaultError(f"{effect.get('kind')}: only a corrupt_byte has an entry to replay; a "
+                         "failing bus fault is its failed transaction")
+    effect.pop("duration_s", None)  # one entry per transaction it touched
+    fault = fault_from_dict({**effect, "address": int(chip.address), "max_count": 1},
+                            "replayed fault")
+    schedule = FaultSchedule([fault], log_to_bus=False)
+    schedule.install([ChipOnBus(chip, bus)])
     return schedule

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from bmg160_emu.faults.corrupt import CorruptWire
 from bmg160_emu.faults.model import (
     CHIP_KINDS,
     FAULT_FLAGS,
@@ -54,7 +55,7 @@ class _BusHook:
         self.schedule = schedule
 
     def __call__(self, bus: Any, index: int, address: int, kind: str,
-                 register: int | None = None) -> Callable[[int, bytes], bytes] | None:
+                 register: int | None = None) -> CorruptWire | None:
         return self.schedule._transaction_hook(bus, index, address, kind, register)
 
 
@@ -162,11 +163,11 @@ class FaultSchedule:
         return plan
 
     def _transaction_hook(self, bus: Any, index: int, address: int, kind: str,
-                          register: int | None = None) -> Callable[[int, bytes], bytes] | None:
+                          register: int | None = None) -> CorruptWire | None:
         _, gyros_here, entries = self._bus_plan(bus)
         now = clock_time(gyros_here[0].chip) if gyros_here else 0.0
         failure: OSError | None = None
-        wire: Callable[[int, bytes], bytes] | None = None
+        wire: CorruptWire | None = None
         for i, fault, targets, is_bus_fault in entries:
             if (fault.conditional or fault.kind == "corrupt_byte") and not fault.selects(
                     address, register, kind):
@@ -177,17 +178,42 @@ class FaultSchedule:
                     continue
                 if not self._bus_fault_now(i, fault, bus, index, now) or failure is not None:
                     continue
-                event = self._bus_event(fault, index, now, address, addressed, gyros_here)
                 if fault.kind == "corrupt_byte":
-                    wire = wire or _flip(fault.byte, fault.bit)
-                else:
-                    failure = OSError(event, os.strerror(event))
+                    if wire is None:  # one corruption per transaction; reported when it ends
+                        wire = CorruptWire(fault, kind, self._corruption_reporter(
+                            bus, index, now, address, addressed))
+                    continue
+                code = self._bus_event(fault, index, now, address, addressed, gyros_here)
+                failure = OSError(code, os.strerror(code))
             elif self._triggered(i, fault, bus, index, now):
                 for gyro in targets:
                     self.activate(i, gyro, now, index)
         if failure is not None:
+            if wire is not None:  # the transaction fails: nothing crossed the wire
+                wire.what = "not acted: the transaction failed"
+                wire.report(wire)
             raise failure
         return wire
+
+    def _corruption_reporter(self, bus: Any, index: int, now: float, address: int,
+                             addressed: list[GyroTarget]) -> Callable[[CorruptWire], None]:
+        """What a corrupt_byte does once its transaction is over: its event (what it changed,
+        or that it found nothing to change), the gyro's flag, and its ``fault:corrupt_byte``
+        log entry, just before the transaction's own (replay acts it again from there)."""
+        def report(wire: CorruptWire) -> None:
+            fault = wire.fault
+            gyro = addressed[0].index if addressed else None
+            detail = f"{fault.describe()} at address 0x{address:02x}: {wire.what}"
+            event = FaultEvent(now, fault.kind, gyro, index, detail)
+            self.events.append(event)
+            if gyro is not None and wire.acted:
+                self._pending.setdefault(gyro, []).append((now, FAULT_FLAGS[fault.kind]))
+            log = getattr(bus, "log", None)
+            if self.log_to_bus and log is not None and getattr(log, "enabled", True):
+                text = fault_entry_text(detail, effect_parameters(fault))
+                log.append(Transaction(now, getattr(bus, "number", 0), address,
+                                       FAULT_KIND_PREFIX + fault.kind, written=text.encode()))
+        return report
 
     def _triggered(self, i: int, fault: Fault, bus: Any, index: int, now: float) -> bool:
         """One-shot or random trigger of a sample or chip fault at this transaction."""
@@ -216,18 +242,16 @@ class FaultSchedule:
 
     def _bus_event(self, fault: Fault, index: int, now: float, address: int,
                    addressed: list[GyroTarget], gyros_here: list[GyroTarget]) -> int:
-        """Record a bus fault acting on a transaction; its errno (0: the transaction goes on
-        with a corrupted byte)."""
+        """Record a bus fault failing a transaction; its errno (the failed transaction, with
+        that errno, is its record in the log)."""
         gyro = addressed[0].index if addressed else None
-        code = _BUS_ERRORS.get(fault.kind, 0)
+        code = _BUS_ERRORS[fault.kind]
         if fault.kind in ("timeout", "stuck_bus") and fault.stall_s > 0 and gyros_here:
             stall(gyros_here[0].chip, fault.stall_s)
         self.events.append(FaultEvent(now, fault.kind, gyro, index,
                                       f"{fault.describe()} at address 0x{address:02x}"))
         if gyro is not None:
             self._pending.setdefault(gyro, []).append((now, FAULT_FLAGS[fault.kind]))
-        if not code and self.log_to_bus and gyro is not None:
-            self._note(self.events[-1], addressed[0], fault, event_too=False)
         return code
 
     # ----------------------------------------------------------------- chip and sample side
@@ -351,17 +375,3 @@ def entry_text(event: FaultEvent, fault: Fault | None, activation: Activation | 
         first_sample_s=event.time_s,
         held_dps=None if activation.held is None else activation.held.tolist(),
         base_temperature_c=base_c)
-
-
-def _flip(byte: int, bit: int) -> Callable[[int, bytes], bytes]:
-    """The wire filter of a corrupt_byte fault: bit ``bit`` of the ``byte``-th byte the host
-    reads in the transaction is inverted (a glitch the host samples)."""
-    def wire(offset: int, data: bytes) -> bytes:
-        place = byte - offset
-        if not 0 <= place < len(data):
-            return data
-        out = bytearray(data)
-        out[place] ^= 1 << bit
-        return bytes(out)
-
-    return wire

@@ -68,6 +68,9 @@ READ_KINDS = frozenset(("read_byte", "read_byte_data", "read_word_data", "proces
                         "read_block_data", "block_process_call", "read_i2c_block_data",
                         "i2c_read"))
 
+# Kinds that carry no byte at all: the address alone.
+NO_DATA_KINDS = frozenset(("write_quick", "read_quick"))
+
 # Kinds whose written bytes, after the register, are register data (auto-increment).
 # (write_byte and a 1-byte i2c_write only move the register pointer; a block write's
 # first byte is its count, which this chip stores as data too: spec 2.1.)
