@@ -17,7 +17,7 @@ and the order of checks, copies and transfers here is the kernel's:
   kernel's sizes (1, 2 or 34 bytes) and only for the kinds i2cdev_ioctl_smbus copies; size 6
   (I2C_SMBUS_I2C_BLOCK_BROKEN) becomes an I2C block read of 32 bytes.
 - ``I2C_RDWR``: 1..42 messages, each at most 8192 bytes, every buffer copied in first; after
-  the transfer every read buffer is copied back, and one that cannot be makes it EFAULT.
+  the transfer the read buffers are copied back, last first, until one faults (EFAULT).
 - Every copy of the caller's memory may fault (``UserMemory``): EFAULT, never a crash, at
   the place the kernel's copy would fault (for an SMBus read, after the transfer).
 - ``read()``/``write()``: plain I2C at the open file's address, 8192 bytes at most.
@@ -304,15 +304,11 @@ class I2CDevFile:
         if recv_len:
             raise os_error(errno.EOPNOTSUPP)
         self.bus.i2c_transfer(messages)
-        fault = False  # every read buffer is copied back; one that faults makes it EFAULT
+        # the read buffers are copied back last message first; the first copy that faults
+        # makes the result EFAULT and ends the copying (earlier messages keep no data)
         for message, buffer in reversed(list(zip(messages, buffers))):
             if message.read and buffer is not None and message.data:
-                try:
-                    buffer.write(message.data)
-                except OSError:
-                    fault = True
-        if fault:
-            raise os_error(errno.EFAULT)
+                buffer.write(message.data)
         return count
 
     # ------------------------------------------------------------------ read, write
