@@ -279,7 +279,10 @@ def bmg160_machine(bmg160_i2c_bus: Any) -> Iterator[Any]:
     plugin's bus number) and every ``SoftI2C`` reach the chip; yields the module."""
     from bmg160_emu.bus.machine import micropython_machine
 
-    with micropython_machine({bmg160_i2c_bus.number: bmg160_i2c_bus}) as machine:
+    number = bmg160_i2c_bus.number
+    where = (f"the chip is on I2C({number}); to reach it as I2C({{id}}), mark the test "
+             f"@pytest.mark.bmg160(bus={{id}})")
+    with micropython_machine({number: bmg160_i2c_bus}, where=where) as machine:
         yield machine
 
 

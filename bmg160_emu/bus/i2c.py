@@ -439,14 +439,18 @@ class I2CBus:
 
     # ------------------------------------------------------------------ plain I2C
 
-    def i2c_transfer(self, messages: Sequence[I2CMessage]) -> list[I2CMessage]:
+    def i2c_transfer(self, messages: Sequence[I2CMessage], *,
+                     kernel_limits: bool = True) -> list[I2CMessage]:
         """A combined transfer (``I2C_RDWR``): messages separated by repeated starts, one stop
         at the end. Read messages get their ``data`` filled in. A message to an address
-        without a device stops the transfer with EREMOTEIO; earlier messages took effect."""
-        if not 1 <= len(messages) <= I2C_RDWR_IOCTL_MAX_MSGS:
+        without a device stops the transfer with EREMOTEIO; earlier messages took effect.
+        ``kernel_limits``: i2c-dev's 1..42 messages of at most 8192 bytes (EINVAL); a
+        microcontroller's bus (MicroPython, CircuitPython) has none of them."""
+        if kernel_limits and not 1 <= len(messages) <= I2C_RDWR_IOCTL_MAX_MSGS:
             raise os_error(errno.EINVAL)
         for message in messages:
-            if message.length > I2C_RDWR_MAX_MSG_LEN or not 0 <= message.address <= 0x7F:
+            if ((kernel_limits and message.length > I2C_RDWR_MAX_MSG_LEN)
+                    or not 0 <= message.address <= 0x7F):
                 raise os_error(errno.EINVAL)
         chips = {id(c): c for m in messages if (c := self.devices.get(m.address)) is not None}
         with ExitStack() as stack:  # one transfer: no other thread between its messages
