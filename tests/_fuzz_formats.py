@@ -187,7 +187,7 @@ def load_rate_file(path: Path) -> None:
 
 
 def load_replay(path: Path) -> None:
-    from bmg160_emu.session.playback import load_replay_data
+    from bmg160_emu.session.rate_replay import load_replay_data
 
     data = load_replay_data(path)
     _finite(data.rate_dps, "replay data")

@@ -7,7 +7,7 @@ import pytest
 
 from bmg160_emu.io.rates import RateFileError as RecordError
 from bmg160_emu.io.rates import load_rate_record
-from bmg160_emu.noise.identification import IdentificationError, identify
+from bmg160_emu.noise.identify import IdentificationError, identify
 
 
 @pytest.fixture

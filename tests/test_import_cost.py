@@ -41,7 +41,7 @@ def test_the_low_pass_filter_needs_no_scipy() -> None:
     modules = _imported_after(
         """
         import numpy as np
-        from bmg160_emu.device.lowpass import LowPass
+        from bmg160_emu.noise.lowpass import LowPass
         f = LowPass(200, 23.0)
         f.run(np.ones((2000, 3)), np.ones((2, 3)))
         """

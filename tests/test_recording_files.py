@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.session.playback import load_replay_data
+from bmg160_emu.session.rate_replay import load_replay_data
 from bmg160_emu.session.record import (
     Recording,
     RecordingFormatError,

@@ -9,7 +9,7 @@ import pytest
 
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.noise import load_profile
-from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.identify import identify
 from bmg160_emu.noise.profile import AxisNoise, Profile
 from bmg160_emu.session.record import read_recording, record, write_recording
 

@@ -5,7 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.session.playback import ReplayData, ReplayDataError, ReplaySource, load_replay_data
+from bmg160_emu.session.rate_replay import (
+    ReplayData,
+    ReplayDataError,
+    ReplaySource,
+    load_replay_data,
+)
 
 
 def _csv(tmp_path, text: str, name: str = "flight.csv"):

@@ -14,7 +14,7 @@ from bmg160_emu.clock import VirtualClock
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.io.trace import TraceHeader, TraceWriter, read_trace
 from bmg160_emu.session.decode import describe_transaction
-from bmg160_emu.session.replay import replay_trace
+from bmg160_emu.session.trace_replay import replay_trace
 
 SEED = 5
 TRUE_RATE = (3.0, -1.0, 0.5)

@@ -77,7 +77,7 @@ class GyroSpec:
     noise: bool = True
     noise_mode: str = "physical"
     temperature_c: float = 23.0
-    errors: Any = None  # the unit's error table (bmg160_emu.device.sensor_errors.SensorErrors)
+    errors: Any = None  # the unit's error table (bmg160_emu.noise.sensor_errors.SensorErrors)
     unit: Any = None  # k: unit k of lot ``lot``; "per-run": a new unit of the lot every run
     lot: int = 0  # the production lot's seed (device.unit_population.draw_unit)
     acceleration_g: Any = (0.0, 0.0, 0.0)  # g in the sensor frame (g-sensitivity)
@@ -124,7 +124,7 @@ class GyroSpec:
         if self.errors is not None and self.unit is not None:
             raise ScenarioError(f"{self.name}: give errors or unit, not both")
         if self.errors is not None:
-            from bmg160_emu.device.sensor_errors import SensorErrors
+            from bmg160_emu.noise.sensor_errors import SensorErrors
 
             try:
                 self.errors = SensorErrors.from_dict(self.errors, where=f"{self.name}: errors") \

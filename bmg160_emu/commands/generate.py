@@ -32,10 +32,10 @@ The noise is the sensing element's, through the sensor's output stage as the pro
 [output] table names it (identify --profile-out writes the filter and the quantization step
 it found on a record): a profile without one gives the noise as before. --bandwidth CODE
 (BW register 0x10, 0-7) sets the rate to that code's ODR and filters with the chip's
-low-pass for that code instead (device/lowpass.py: 2nd-order Butterworth at the code's
+low-pass for that code instead (noise/bandwidths.py: 2nd-order Butterworth at the code's
 bandwidth), as a chip at that setting does; --raw leaves the output stage out. Paper mode is
 the paper's output-referred recursion: nothing filters it. The library equivalent is
-bmg160_emu.device.datapath.profile_noise, the code the chip's data path uses.
+bmg160_emu.noise.sensor_noise.profile_noise, on the same code as the chip's noise.
 """
 
 CHUNK_SAMPLES = 1 << 18  # samples per generate() call while streaming (6 MB per chunk)
@@ -99,7 +99,6 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.device.datapath import ProfileNoise, profile_noise
     from bmg160_emu.io.atomic import (
         OutputError,
         atomic_path,
@@ -109,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from bmg160_emu.io.partial import clear_sidecar, write_sidecar
     from bmg160_emu.io.rate_stream import RateStreamWriter
+    from bmg160_emu.noise.sensor_noise import ProfileNoise, profile_noise
 
     suffix = args.output.suffix.lower()
     if suffix not in (".npy", ".csv", ".resd"):
@@ -132,13 +132,6 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         text = str(exc)  # a rate the BW code has not is named as the option it came from
         raise CommandError(f"--{text}" if text.startswith("rate ") else text) from None
-    if gen.profile.errors:  # not used by generate, but a bad table is a bad profile
-        from bmg160_emu.device.sensor_errors import SensorErrors
-
-        try:
-            SensorErrors.from_dict(gen.profile.errors, f"{args.profile} [errors]")
-        except ValueError as exc:
-            raise CommandError(str(exc)) from None
     total = round(duration * gen.rate_hz)
     if total < 1:
         raise CommandError(f"duration {args.duration!r} is shorter than one sample period")

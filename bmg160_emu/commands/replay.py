@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device import spec_choices
     from bmg160_emu.durations import check_simulated_time
-    from bmg160_emu.session.playback import ReplayDataError, ReplaySource, load_replay_data
+    from bmg160_emu.session.rate_replay import ReplayDataError, ReplaySource, load_replay_data
 
     if (args.output is None) == (args.script is None):
         raise CommandError("give -o OUT (record the chip's output) or --script FILE, one of them")

@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.durations import parse_duration
     from bmg160_emu.io.atomic import atomic_open
     from bmg160_emu.io.rates import RateFileError, check_time_column, read_csv_table
-    from bmg160_emu.noise.identification import IdentificationError
+    from bmg160_emu.noise.identify import IdentificationError
     from bmg160_emu.noise.thermal_fit import ThermalFitError, fit_bias_temperature
 
     for out in (args.px4_params, args.errors_out):

@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.device.parts import part_table
     from bmg160_emu.io.trace import TraceFormatError, read_trace
     from bmg160_emu.session.decode import describe_transaction
-    from bmg160_emu.session.replay import replay_trace
+    from bmg160_emu.session.trace_replay import replay_trace
 
     try:
         header, records = read_trace(args.file)

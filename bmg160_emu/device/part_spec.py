@@ -19,7 +19,7 @@ from typing import Any
 
 from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import regmap
-from bmg160_emu.device.engines import Nvm
+from bmg160_emu.device.nvm import Nvm
 from bmg160_emu.device.registers import (
     ABSENT_READ,
     REGISTER_COUNT,
@@ -134,7 +134,7 @@ def derive(name: str, title: str, differences: Differences = Differences(), **de
         reg = base
         a = base.address
         if base.name in d.absent:
-            # stored as 0 for ever: reset 0, write mask 0, no upsets (access.poke_reg), no hook
+            # stored as 0 for ever: reset 0, write mask 0, no upsets (register_access.poke_reg), no hook
             reg = Register(a, f"RESERVED_0x{a:02X}", "r", ABSENT_READ, (), "reserved on this part")
             absent.add(a)
             peek[a], action[a], effect[a] = None, None, None

@@ -29,18 +29,19 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from bmg160_emu.device import engines
+from bmg160_emu.clock import NEVER
 from bmg160_emu.device import fifo as fifo_mod
+from bmg160_emu.device import offsets
 from bmg160_emu.device import spec_choices as choice
-from bmg160_emu.device.engines import (
+from bmg160_emu.device.interrupts import latch_hold_ns
+from bmg160_emu.device.offsets import FastOffset
+from bmg160_emu.device.power_modes import (
     DEEP_SUSPEND,
     FAST_POWER_UP,
-    NEVER,
     SAMPLING_MODES,
     SUSPEND,
-    FastOffset,
+    power_mode,
 )
-from bmg160_emu.device.interrupts import latch_hold_ns
 from bmg160_emu.device.registers import REGISTERS, address_of, field_of, offset_mask
 from bmg160_emu.device.spec_choices import bw_code, range_code
 from bmg160_emu.device.state import ChipState
@@ -90,7 +91,7 @@ def _peek_fifo_status(s: ChipState, now: int) -> int:
 
 
 def _peek_bist(s: ChipState, now: int) -> int:
-    rate_ok = s.power_mode in engines.SAMPLING_MODES and now >= s.data_start_ns
+    rate_ok = s.power_mode in SAMPLING_MODES and now >= s.data_start_ns
     return s.bist.register(now, rate_ok, s.chip.inject_bist_failure)
 
 
@@ -125,7 +126,7 @@ def _int_rst_latch(s: ChipState, value: int, now: int) -> None:
     if value & _RESET_INT:
         s.irq.reset_int()
     if value & _OFFSET_RESET:
-        engines.set_offsets(s.regs, (0, 0, 0))
+        offsets.set_offsets(s.regs, (0, 0, 0))
         s.invalidate()
 
 
@@ -183,7 +184,7 @@ def _bw(s: ChipState, old: int, new: int, now: int) -> None:
 
 def _lpm(s: ChipState, old: int, new: int, now: int, *, lpm1: bool) -> None:
     r = s.regs
-    old_mode = engines.power_mode(old, r[_LPM2]) if lpm1 else engines.power_mode(r[_LPM1], old)
+    old_mode = power_mode(old, r[_LPM2]) if lpm1 else power_mode(r[_LPM1], old)
     power_transition(s, old_mode, _LPM1 if lpm1 else _LPM2, new, now)
 
 
@@ -333,7 +334,7 @@ def finish_foc(s: ChipState) -> None:
     foc, s.foc = s.foc, None
     if foc is None:
         return
-    engines.set_offsets(s.regs, foc.offsets_lsb(s.offset_lsb_dps, engines.OFFSET_BITS))
+    offsets.set_offsets(s.regs, foc.offsets_lsb(s.offset_lsb_dps, offsets.OFFSET_BITS))
     s.invalidate()
     s.irq.offset_done()
     s.update_engine_flags()

@@ -1,12 +1,15 @@
 """Every "unconfirmed" behaviour of the register specification, chosen in one place.
 
 Each constant names the spec section it answers. docs/unconfirmed-choices.md lists them
-with their reasons; change a behaviour here, not in the model.
+with their reasons; change a behaviour here, not in the model. The one exception is the
+output filter of each BW code (5.3), which a noise profile names too: it is chosen in
+``bmg160_emu.noise.bandwidths``.
 """
 
 from __future__ import annotations
 
 from bmg160_emu.device.registers import address_of, field_of
+from bmg160_emu.noise import bandwidths
 
 # 2.1: the I2C address is 0x68 with SDO low, 0x69 with SDO high; the chip answers nowhere else.
 VALID_ADDRESSES = (0x68, 0x69)
@@ -22,17 +25,6 @@ SENSITIVITY_TABLES = {"binary": SENSITIVITY_BINARY, "nominal": SENSITIVITY_NOMIN
 DEFAULT_SENSITIVITY = "binary"
 RESERVED_RANGE_AS_CODE = 0  # 4.8: codes 5..7 produce data as +-2000 deg/s
 
-# 5.3: BW code -> (ODR Hz, -3 dB low-pass bandwidth Hz); codes 8..15 behave as code & 7 (4.9).
-BANDWIDTHS = {
-    0: (2000, 523.0),  # QC figure; BMI088 sources say 532 Hz
-    1: (2000, 230.0),
-    2: (1000, 116.0),
-    3: (400, 47.0),
-    4: (200, 23.0),
-    5: (100, 12.0),
-    6: (200, 64.0),
-    7: (100, 32.0),
-}
 _RANGE_CODE = field_of("RANGE", "range")
 _BW_CODE = field_of("BW", "bw")
 
@@ -45,17 +37,14 @@ def range_code(range_reg: int) -> int:
 
 def bw_code(bw: int) -> int:
     """The BW code a BW byte behaves as: codes 8..15 as code & 7 (4.9, unconfirmed)."""
-    return _BW_CODE.extract(bw) % len(BANDWIDTHS)
+    return _BW_CODE.extract(bw) % len(bandwidths.BW_CODES)
 
 
 def bandwidth(bw: int) -> tuple[int, float]:
-    """(ODR Hz, filter bandwidth Hz) of a BW byte (5.3)."""
-    return BANDWIDTHS[bw_code(bw)]
+    """(ODR Hz, filter bandwidth Hz) of a BW byte: its code's filter (5.3, the table of
+    noise.bandwidths, where a profile's BW code finds it too)."""
+    return bandwidths.BANDWIDTHS[bw_code(bw)]
 
-
-# The chip's filter is not documented: a Butterworth low-pass of this order at the table's
-# bandwidth, unity DC gain (5.3, unconfirmed).
-LOWPASS_ORDER = 2
 
 # 6.9: offset resolution, one LSB of the +-2000 deg/s range of the sensitivity table.
 OFFSET_LSB_RANGE_CODE = 0

@@ -1,6 +1,6 @@
 """Transaction traces: JSON Lines files of every bus transaction (the format only).
 
-Decoding for a person is :mod:`bmg160_emu.session.decode`, replay is :mod:`bmg160_emu.session.replay`.
+Decoding for a person is :mod:`bmg160_emu.session.decode`, replay is :mod:`bmg160_emu.session.trace_replay`.
 
 File layout (``docs/trace-format.md``): the first line is a header object describing the
 chip the session ran against (seed, profile, options), every following line is one

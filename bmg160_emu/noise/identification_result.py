@@ -1,6 +1,6 @@
 """What identification found: per axis (AxisIdentification) and per record
 (Identification), as a summary for people, a JSON-ready dict and a profile the generator
-takes (identification.py is the pipeline that finds it).
+takes (identify.py is the procedure that finds it).
 
 The profile carries the sensor's own output stage when one was found (issue 23): the
 output filter (order and corner) and the quantization step go into its [output] table,

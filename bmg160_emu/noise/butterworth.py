@@ -1,8 +1,9 @@
-"""A sensor's output low-pass in numbers: the digital Butterworth the chip uses (register
-spec 5.3, ``device/lowpass.py`` runs it), its power response, and what it does to white
-noise: the variance, the sample correlation and the Allan variance of the filtered noise.
+"""The output low-pass designed: the digital Butterworth of the chip's BW codes (register
+spec 5.3, ``bandwidths.py``) and of a profile's own ``[output]`` filter, its power response,
+and what it does to white noise: the variance, the sample correlation and the Allan
+variance of the filtered noise. ``lowpass.py`` runs the design on three axes.
 
-Why here, in the noise layer: identification fits such a filter to a record and a profile
+Why in the noise layer: identification fits such a filter to a record and a profile
 carries it, with no chip in sight; the chip builds its own filter from the same design.
 The design is numpy only (a chip does not import scipy, issue 10); the impulse response,
 used by identification alone, takes scipy.signal.lfilter.
@@ -26,7 +27,6 @@ import numpy as np
 # Beyond the Nyquist frequency there is no low-pass to design; scipy.signal.butter refuses
 # Wn >= 1. The chip table's widest band (523 Hz at 2000 Hz ODR, spec 5.3) is Wn = 0.52.
 MAX_WN = 0.99
-MAX_ORDER = 8  # the orders a profile may name (identify tries 1..4)
 SETTLED = 1e-17  # impulse-response tail (of its first value) below which a filter has settled
 MAX_SETTLE = 1 << 20  # samples: a corner 1e-4 of the rate settles within this
 

@@ -1,11 +1,12 @@
-"""The chip's rate low-pass filter for a BW code, run block-wise on three axes.
+"""The output low-pass run block-wise on three axes: the chip's filter of a BW code, on the
+true rate (device/datapath.py) and on the sensing element's noise (sensor_noise.py).
 
 The filter acts on deviations from a reference level, so a constant input equal to the
 reference passes bit-exactly (unity DC gain without rounding error) and the filter starts
 at steady state: a constant rate reads exactly from the first sample (spec 5.3, 6.1).
 
 Design and filtering use numpy only, so that building a chip does not import scipy (about
-0.6 s of start-up). The design (``noise.output_filter``, shared with identification and a
+0.6 s of start-up). The design (``butterworth.py``, shared with identification and a
 profile's own filter) is the one ``scipy.signal.butter`` computes (analog Butterworth poles,
 cut-off prewarped, bilinear transform at fs = 2), so the coefficients agree with it (bit for
 bit for the table's eight BW codes; a test compares them). The filter is the direct-form-II-transposed
@@ -25,10 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from bmg160_emu.device import spec_choices
-from bmg160_emu.noise.output_filter import MAX_WN, Butterworth, butterworth
-
-__all__ = ["MAX_WN", "LowPass", "butterworth", "coefficients"]
+from bmg160_emu.noise.bandwidths import LOWPASS_ORDER
+from bmg160_emu.noise.butterworth import Butterworth
 
 SUB_BLOCK = 32  # samples per matrix product: big enough to amortise numpy calls, H stays small
 SUB_BLOCKS = 32  # sub-blocks solved together (one chunk of SUB_BLOCK * SUB_BLOCKS samples)
@@ -136,10 +135,10 @@ class _Blocks:
 
 
 @cache
-def coefficients(odr_hz: float, bandwidth_hz: float, order: int = spec_choices.LOWPASS_ORDER
+def coefficients(odr_hz: float, bandwidth_hz: float, order: int = LOWPASS_ORDER
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(b, a, steady-state state per unit input) of the Butterworth low-pass (the chip's
-    order unless another is named: a profile's own filter, noise.output_filter)."""
+    order unless another is named: a profile's own filter, butterworth.py)."""
     b, a = Butterworth(int(order), float(bandwidth_hz), float(odr_hz)).coefficients()
     big_a, big_b, _, _ = _state_space(b, a)
     # the state a constant unit input holds: z = A z + B (what lfilter_zi solves)
@@ -157,7 +156,7 @@ class LowPass:
     """Three-axis low-pass with state ``(order, 3)`` carried between blocks."""
 
     def __init__(self, odr_hz: float, bandwidth_hz: float,
-                 order: int = spec_choices.LOWPASS_ORDER) -> None:
+                 order: int = LOWPASS_ORDER) -> None:
         self.design = Butterworth(int(order), float(bandwidth_hz), float(odr_hz))
         self.b, self.a, self._zi_unit = coefficients(float(odr_hz), float(bandwidth_hz),
                                                      int(order))
@@ -213,7 +212,7 @@ class LowPass:
 
     def settle_on(self, x: np.ndarray) -> None:
         """Rest at 0 in the state the filter holds after ``x`` (n, 3), started at rest at
-        x[0]: a noise filter started settled (datapath.SensorNoise). By linearity that
+        x[0]: a noise filter started settled (sensor_noise.SensorNoise). By linearity that
         state is the one of the deviations from x[0] plus the settled state of x[0]; with
         the reference at 0, ``run_pieces`` needs no reference arithmetic."""
         level = np.array(x[0], dtype=float)

@@ -9,7 +9,7 @@ of the closed-form Allan variance of the generator's own model (fit.py: white no
 the output filter + Gauss-Markov terms + random walk + the lines, plus the quantization
 floor, ramp and a 1/f bank when asked). Fitting that model is what makes the numbers
 returned the numbers the generator takes (noise-model.md, "Two facts"); the IEEE read-offs
-are reported beside it, labelled (readoffs.py). identified.py holds the results.
+are reported beside it, labelled (readoffs.py). identification_result.py holds the results.
 
 Fit methods are looked up by name in FIT_METHODS ("wls", the default; other modules may
 register theirs, e.g. a GMWM fit, with fit.fit_curve's signature: the curve, rate, sample
@@ -28,7 +28,7 @@ import numpy as np
 from bmg160_emu.noise import diagnostics
 from bmg160_emu.noise.allan import AllanCurve, allan_confidence, noise_alpha_from_slope
 from bmg160_emu.noise.fit import CI_LEVEL, CurveFit, Estimate, FitError, Term, fit_curve
-from bmg160_emu.noise.identified import (
+from bmg160_emu.noise.identification_result import (
     UNIT_SCALES,
     AxisIdentification,
     Identification,

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from bmg160_emu.device import regmap
 from bmg160_emu.device import spec_choices as choice
-from bmg160_emu.device.engines import DEEP_SUSPEND, FAST_POWER_UP, SUSPEND
+from bmg160_emu.device.power_modes import DEEP_SUSPEND, FAST_POWER_UP, SUSPEND
 from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of, field_of
 from bmg160_emu.device.state import ChipState
 
