@@ -36,7 +36,7 @@ def test_a_trace_decodes_them_so(tmp_path):
         bus.log.sinks.append(trace)
         bus.write_byte_data(0x68, 0x16, 0x05)  # INT3 and INT4 active high
         bus.write_byte_data(0x68, 0x18, 0x81)  # data-ready to INT3 and INT4
-    read_header, records = read_trace(path)
+    _, records = read_trace(path)
     parts = {0x68: part_table("bmi088_gyro").registers}
     conf, io_map = (describe_transaction(r, parts=parts) for r in records)
     assert "int3_lvl high" in conf and "int4_lvl high" in conf and "int1" not in conf
