@@ -27,6 +27,7 @@ from bmg160_emu.bus.kernel_abi import (
     I2C_SMBUS_BLOCK_MAX,
 )
 from bmg160_emu.bus.wire import WiredChip, WireFault
+from bmg160_emu.bus.wrote import check_wrote
 from bmg160_emu.traffic.kinds import (
     I2C_FUNC_I2C,
     I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
@@ -40,13 +41,8 @@ __all__ = [
     "I2C_SMBUS_BLOCK_MAX",
     "I2CBus",
     "I2CMessage",
-    "emulated_bus",
-    "emulated_bus_for_path",
-    "emulated_bus_numbers",
     "os_error",
-    "register_bus",
     "smbus_pec",
-    "unregister_bus",
 ]
 
 I2C_RDWR_MAX_MSG_LEN = I2C_DEV_MAX_TRANSFER  # i2c-dev refuses longer messages
@@ -511,45 +507,29 @@ class I2CBus:
         """A plain I2C read (``read()`` on /dev/i2c-N) from the chip's current pointer."""
         return self.i2c_transfer([I2CMessage.read_message(address, length)])[0].data
 
+    def writes(self, address: int | None = None) -> list[tuple[int, int]]:
+        """``(register, value)`` of every byte written into the device at ``address`` (the
+        first attached by default), one pair per register, whichever kind carried it."""
+        return self.log.register_writes(self._device_address(address))
+
+    def assert_wrote(self, before: str | None = None, address: int | None = None,
+                     **values: int) -> None:
+        """Assert the driver wrote each ``NAME=value`` (the device's register names) to the
+        device at ``address`` (the first attached by default) and, with ``before="NAME"``,
+        each before its first write of NAME; the failure lists every write."""
+        __tracebackhide__ = True
+        address = self._device_address(address)
+        check_wrote(self.writes(address), self.devices[address], values, before)
+
+    def _device_address(self, address: int | None) -> int:
+        if address is None:
+            if not self.devices:
+                raise ValueError(f"bus {self.number} has no device")
+            return next(iter(self.devices))
+        if address not in self.devices:
+            raise ValueError(f"no device at 0x{address:02x} on bus {self.number}")
+        return address
+
     def __repr__(self) -> str:
         devices = ", ".join(f"0x{a:02x}" for a in sorted(self.devices))
         return f"<I2CBus {self.number} devices [{devices}]>"
-
-
-# --------------------------------------------------------------------------- registry
-
-_registry: dict[int, list[I2CBus]] = {}
-
-
-def register_bus(bus: I2CBus) -> None:
-    """Make ``bus`` the emulated bus for its number (what opening /dev/i2c-N reaches)."""
-    _registry.setdefault(bus.number, []).append(bus)
-
-
-def unregister_bus(bus: I2CBus) -> None:
-    stack = _registry.get(bus.number, [])
-    for i in range(len(stack) - 1, -1, -1):
-        if stack[i] is bus:
-            del stack[i]
-            break
-    if not stack:
-        _registry.pop(bus.number, None)
-
-
-def emulated_bus(number: int) -> I2CBus | None:
-    """The innermost registered bus with this number, or None."""
-    stack = _registry.get(number)
-    return stack[-1] if stack else None
-
-
-def emulated_bus_numbers() -> list[int]:
-    """The numbers of the registered buses, lowest first (the /dev/i2c-N that exist)."""
-    return sorted(_registry)
-
-
-def emulated_bus_for_path(path: str) -> I2CBus | None:
-    """The registered bus for a device path such as ``/dev/i2c-1``."""
-    prefix = "/dev/i2c-"
-    if not path.startswith(prefix) or not path[len(prefix) :].isdigit():
-        return None
-    return emulated_bus(int(path[len(prefix) :]))

@@ -49,16 +49,15 @@ from collections.abc import Callable, Iterator, Mapping
 from contextlib import ContextDecorator
 from typing import Any
 
-from bmg160_emu.bus.i2c import (
-    I2CBus,
+from bmg160_emu.bus.i2c import I2CBus, os_error
+from bmg160_emu.bus.i2c_dev import I2CDevFile
+from bmg160_emu.bus.i2c_dev_files import REAL_FILE_IO, file_io_type, open_file_object
+from bmg160_emu.bus.registry import (
     emulated_bus_for_path,
     emulated_bus_numbers,
-    os_error,
     register_bus,
     unregister_bus,
 )
-from bmg160_emu.bus.i2c_dev import I2CDevFile
-from bmg160_emu.bus.i2c_dev_files import REAL_FILE_IO, file_io_type, open_file_object
 from bmg160_emu.bus.user_memory import IOCTL_BUFSZ, IoctlArgument
 
 __all__ = ["I2C_MAJOR", "KERNEL", "I2cDevKernel", "buses_from_mapping", "patch_i2c_dev"]

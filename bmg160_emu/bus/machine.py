@@ -34,11 +34,12 @@ from collections.abc import Mapping
 from contextlib import ContextDecorator
 from typing import Any
 
-from bmg160_emu.bus.i2c import I2CBus, register_bus, unregister_bus
+from bmg160_emu.bus.i2c import I2CBus
 from bmg160_emu.bus.machine_i2c import I2C, SoftI2C
 from bmg160_emu.bus.micropython_board import CPU_MHZ_CHOICES, UNIQUE_ID, board
 from bmg160_emu.bus.micropython_rules import allocate, get_int, read_buffer, write_buffer
 from bmg160_emu.bus.micropython_time import time_functions
+from bmg160_emu.bus.registry import register_bus, unregister_bus
 from bmg160_emu.bus.spi import UNDRIVEN_BYTE, SpiFrame
 
 __all__ = ["I2C", "SPI", "Pin", "SoftI2C", "SoftSPI", "freq", "idle", "micropython_machine",

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from bmg160_emu.bus.i2c import I2CBus, emulated_bus
+from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.bus.registry import emulated_bus
 
 CPU_HZ = 160_000_000  # the ESP32 port's default CPU frequency (machine.freq())
 CPU_MHZ_CHOICES = (20, 40, 80, 160, 240)  # ports/esp32/modmachine.c mp_machine_set_freq
