@@ -58,7 +58,7 @@ from bmg160_emu.bus.registry import (
     register_bus,
     unregister_bus,
 )
-from bmg160_emu.bus.user_memory import IOCTL_BUFSZ, IoctlArgument
+from bmg160_emu.bus.user_memory import IOCTL_BUFSZ, IoctlArgument, KeptAlive
 
 __all__ = ["I2C_MAJOR", "KERNEL", "I2cDevKernel", "buses_from_mapping", "patch_i2c_dev"]
 
@@ -404,13 +404,14 @@ class I2cDevKernel:
         except TypeError:
             operator.index(arg)  # fcntl's "i" argument: "'float' object cannot be interpreted
             raise  # as an integer", the TypeError CPython raises
+        known = KeptAlive(arg)
         if view.readonly or not mutate_flag:  # fcntl works on a copy and returns it
             if len(view) > IOCTL_BUFSZ:
                 raise ValueError("ioctl string arg too long")
             copy = bytearray(view)
-            handle.ioctl(request, IoctlArgument(None, memoryview(copy)))
+            handle.ioctl(request, IoctlArgument(None, memoryview(copy), known))
             return bytes(copy)
-        return handle.ioctl(request, IoctlArgument(None, view))
+        return handle.ioctl(request, IoctlArgument(None, view, known))
 
     # ------------------------------------------------------------------ io
 

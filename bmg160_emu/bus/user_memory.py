@@ -10,6 +10,11 @@ own pid (no ptrace permission needed for oneself; page protections apply), or, w
 sandbox refuses those calls (EPERM, ENOSYS), through a pipe (``write(pipe, address, n)``
 copies from the address, ``read(pipe, address, n)`` into it, EFAULT either way).
 A copy is all or nothing, as the kernel's is: a partial copy is EFAULT.
+
+A checked copy costs a system call (a few microseconds), so memory known to be there is
+read directly: the ctypes objects an ioctl argument keeps alive (``_objects``, ctypes'
+record of what a structure's pointers point to: smbus2's data union, periphery's and
+PureIO's message buffers) are Python's own, mapped and writable for the whole call.
 """
 
 from __future__ import annotations
@@ -21,7 +26,8 @@ import os
 import threading
 from typing import Any
 
-__all__ = ["AddressMemory", "BufferMemory", "IoctlArgument", "copy_from_user", "copy_to_user"]
+__all__ = ["AddressMemory", "BufferMemory", "IoctlArgument", "KeptAlive", "copy_from_user",
+           "copy_to_user"]
 
 ULONG_MASK = 0xFFFFFFFFFFFFFFFF  # an ioctl argument is an unsigned long (LP64)
 USER_POINTER = 0x7FFF_0000_0000  # what the kernel sees as the argument when it is a buffer
@@ -122,34 +128,95 @@ def copy_to_user(address: int, data: bytes) -> None:
     _COPIER.copy(address, local, len(data), to_user=True)
 
 
+class KeptAlive:
+    """The memory of every ctypes object an ioctl argument keeps alive through its pointers
+    (ctypes' ``_objects``, documented as the objects that keep its memory valid), looked
+    through when an address is asked about: a Python buffer argument without pointers
+    costs nothing."""
+
+    __slots__ = ("argument", "ranges")
+
+    def __init__(self, argument: Any) -> None:
+        self.argument = argument
+        self.ranges: list[tuple[int, int]] = []  # the objects seen so far
+
+    def covers(self, address: int, size: int) -> bool:
+        """Whether ``address`` .. ``address + size`` lies inside one such object."""
+        end = address + size
+        for start, stop in self.ranges:
+            if start <= address and end <= stop:
+                return True
+        if self.argument is None:
+            return False
+        stack: list[Any] = [getattr(self.argument, "_objects", None)]
+        self.argument, self.ranges = None, []  # looked through once, completely
+        found = False
+        seen: set[int] = set()  # PureIO's structures point back at each other
+        while stack:
+            item: Any = stack.pop()
+            if item is None or id(item) in seen:
+                continue
+            seen.add(id(item))
+            kind = type(item)
+            if kind is dict:
+                stack.extend(item.values())
+            elif kind is tuple or kind is list:
+                stack.extend(item)
+            else:
+                try:
+                    start = ctypes.addressof(item)
+                except TypeError:
+                    continue
+                stop = start + ctypes.sizeof(item)
+                self.ranges.append((start, stop))
+                found = found or (start <= address and end <= stop)
+                inner = getattr(item, "_objects", None)
+                if inner:
+                    stack.append(inner)
+        return found
+
+
+NOTHING_KNOWN = KeptAlive(None)
+
+
 class AddressMemory:
     """``size`` bytes of this process at an address, reached as the kernel reaches user
-    memory: each access is a checked copy."""
+    memory: a checked copy, or a direct one inside ``known`` ranges."""
 
-    __slots__ = ("address", "size")
+    __slots__ = ("address", "known", "size")
 
-    def __init__(self, address: int, size: int) -> None:
-        self.address, self.size = address, size
+    def __init__(self, address: int, size: int, known: KeptAlive = NOTHING_KNOWN) -> None:
+        self.address, self.size, self.known = address, size, known
 
     def read(self) -> bytes:
+        if self.known.covers(self.address, self.size):
+            return ctypes.string_at(self.address, self.size)
         return copy_from_user(self.address, self.size)
 
     def write(self, data: bytes) -> None:
-        copy_to_user(self.address, data[: self.size])
+        data = data[: self.size]
+        if self.known.covers(self.address, len(data)):
+            ctypes.memmove(self.address, data, len(data))
+            return
+        copy_to_user(self.address, data)
 
     def follow(self, offset: int, size: int) -> AddressMemory:
-        pointer = int.from_bytes(copy_from_user(self.address + offset, 8), "little")
-        return AddressMemory(pointer, size)
+        if self.known.covers(self.address + offset, 8):
+            raw = ctypes.string_at(self.address + offset, 8)
+        else:
+            raw = copy_from_user(self.address + offset, 8)
+        return AddressMemory(int.from_bytes(raw, "little"), size, self.known)
 
 
 class BufferMemory:
     """A buffer given to ``fcntl.ioctl``: the memory the argument points to (Python owns
-    it, so it is always there; the pointers stored in it are followed with checks)."""
+    it, so it is always there; the pointers stored in it are followed with checks, or
+    directly into the ``known`` ranges)."""
 
-    __slots__ = ("size", "view")
+    __slots__ = ("known", "size", "view")
 
-    def __init__(self, view: memoryview, size: int) -> None:
-        self.view, self.size = view, size
+    def __init__(self, view: memoryview, size: int, known: KeptAlive = NOTHING_KNOWN) -> None:
+        self.view, self.size, self.known = view, size, known
 
     def read(self) -> bytes:
         view, size = self.view, self.size
@@ -163,7 +230,7 @@ class BufferMemory:
 
     def follow(self, offset: int, size: int) -> AddressMemory:
         raw = self.view[offset : offset + 8].tobytes().ljust(8, b"\0")
-        return AddressMemory(int.from_bytes(raw, "little"), size)
+        return AddressMemory(int.from_bytes(raw, "little"), size, self.known)
 
 
 def c_int(value: int) -> int:
@@ -179,10 +246,11 @@ class IoctlArgument:
     """``fcntl.ioctl``'s third argument as i2c-dev sees it: an integer (an unsigned long,
     perhaps a pointer), or a pointer to a buffer (a ctypes structure, a bytearray)."""
 
-    __slots__ = ("number", "view")
+    __slots__ = ("known", "number", "view")
 
-    def __init__(self, number: int | None, view: memoryview | None) -> None:
-        self.number, self.view = number, view
+    def __init__(self, number: int | None, view: memoryview | None,
+                 known: KeptAlive = NOTHING_KNOWN) -> None:
+        self.number, self.view, self.known = number, view, known
 
     @classmethod
     def from_int(cls, value: Any) -> IoctlArgument:
@@ -194,5 +262,5 @@ class IoctlArgument:
 
     def memory(self, size: int) -> AddressMemory | BufferMemory:
         if self.view is not None:
-            return BufferMemory(self.view, size)
+            return BufferMemory(self.view, size, self.known)
         return AddressMemory(self.value, size)
