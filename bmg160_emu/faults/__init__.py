@@ -15,7 +15,7 @@ transaction, drawn from the schedule's seed) and an *effect*:
 | ``nack`` | bus | the transaction fails with ``OSError(EREMOTEIO)`` (121), as a NACK does |
 | ``timeout`` | bus | the transaction fails with ``OSError(ETIMEDOUT)`` (110) after ``stall_s`` |
 | ``stuck_bus`` | bus | every transaction on the bus fails with ``OSError(EBUSY)`` (16) for ``duration_s`` (None: for ever), as while a device holds SDA low |
-| ``corrupt_byte`` | bus | bit ``bit`` of the ``byte``-th byte the host reads is inverted (with PEC: EBADMSG) |
+| ``corrupt_byte`` | bus | bit ``bit`` of the ``byte``-th byte the host reads is inverted (with PEC: EBADMSG), or on a write-only transaction of the ``byte``-th data byte the chip stores |
 | ``stuck_axis`` | sample | ``axis`` repeats its last value for ``duration_s`` (None: for ever) |
 | ``bias_step`` | sample | ``step_dps`` added to ``axis`` (or to all axes) from then on |
 | ``spike`` | sample | ``amplitude_dps`` added to ``axis`` for ``samples`` output samples |
