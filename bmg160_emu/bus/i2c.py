@@ -439,7 +439,8 @@ class I2CBus:
                      kernel_limits: bool = True) -> list[I2CMessage]:
         """A combined transfer (``I2C_RDWR``): messages separated by repeated starts, one stop
         at the end. Read messages get their ``data`` filled in. A message to an address
-        without a device stops the transfer with EREMOTEIO; earlier messages took effect.
+        without a device stops the transfer with EREMOTEIO; earlier messages took effect
+        (the error's ``messages_done`` counts them).
         ``kernel_limits``: i2c-dev's 1..42 messages of at most 8192 bytes (EINVAL); a
         microcontroller's bus (MicroPython, CircuitPython) has none of them."""
         if kernel_limits and not 1 <= len(messages) <= I2C_RDWR_IOCTL_MAX_MSGS:
@@ -453,26 +454,30 @@ class I2CBus:
             for key in sorted(chips):
                 stack.enter_context(chips[key].lock)
             i = 0
-            while i < len(messages):
-                message = messages[i]
-                following = messages[i + 1] if i + 1 < len(messages) else None
-                if (not message.read and message.data and following is not None
-                        and following.read and following.address == message.address):
-                    self._register_read(message, following)  # write, repeated start, read
-                    i += 2
-                    continue
-                if message.read:
-                    chip = self._begin(message.address, "i2c_read")
-                    message.data = chip.i2c_read(message.length) if message.length else b""
-                    self._record(chip, message.address, "i2c_read", None, b"", message.data)
-                else:
-                    data = message.data
-                    register = data[0] if data else None
-                    chip = self._begin(message.address, "i2c_write", register, data[1:])
-                    if data:
-                        chip.i2c_write(data)
-                    self._record(chip, message.address, "i2c_write", register, data[1:])
-                i += 1
+            try:
+                while i < len(messages):
+                    message = messages[i]
+                    following = messages[i + 1] if i + 1 < len(messages) else None
+                    if (not message.read and message.data and following is not None
+                            and following.read and following.address == message.address):
+                        self._register_read(message, following)  # write, restart, read
+                        i += 2
+                        continue
+                    if message.read:
+                        chip = self._begin(message.address, "i2c_read")
+                        message.data = chip.i2c_read(message.length) if message.length else b""
+                        self._record(chip, message.address, "i2c_read", None, b"", message.data)
+                    else:
+                        data = message.data
+                        register = data[0] if data else None
+                        chip = self._begin(message.address, "i2c_write", register, data[1:])
+                        if data:
+                            chip.i2c_write(data)
+                        self._record(chip, message.address, "i2c_write", register, data[1:])
+                    i += 1
+            except OSError as exc:
+                exc.messages_done = i  # type: ignore[attr-defined]  # those took effect
+                raise
         return list(messages)
 
     def _register_read(self, write: I2CMessage, read: I2CMessage) -> None:
