@@ -18,15 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from bmg160_emu.device.config import SETTING_KEYS, ChipConfig
+from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.io.atomic import AtomicFile
-from bmg160_emu.io.errors import (
-    FileFormat,
-    FormatError,
-    loads_json,
-    read_text,
-    register_format,
-)
+from bmg160_emu.io.errors import FormatError, loads_json, read_text
+from bmg160_emu.io.formats import FileFormat, register_format
 from bmg160_emu.traffic.kinds import TRUE_RATE_KIND, known_kind
 from bmg160_emu.traffic.transaction import Transaction, bytes_from_json
 
@@ -69,10 +64,6 @@ def parse_true_rate_entry(written: bytes | str) -> tuple[float, float, float]:
 
 
 # --------------------------------------------------------------------------- JSON Lines
-
-
-# Chip constructor settings a trace header may carry: every ChipConfig option.
-CHIP_SETTING_KEYS = SETTING_KEYS
 
 
 @dataclass

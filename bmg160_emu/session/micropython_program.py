@@ -110,6 +110,7 @@ def run_program(path: str | Path, buses: Mapping[int, Any], clock: Any, *,
     ({number: I2CBus}; the first is every SoftI2C's) on ``clock`` (the chips'): see the
     module. An uncaught exception is printed as a traceback (status 1)."""
     from bmg160_emu.bus.machine import micropython_machine
+    from bmg160_emu.device.contract import RateSensor
 
     path = Path(path)
     messages: list[str] = []
@@ -119,7 +120,7 @@ def run_program(path: str | Path, buses: Mapping[int, Any], clock: Any, *,
         (warn or (lambda line: print(f"warning: {line}", file=sys.stderr)))(text)
 
     gyros = {address for bus in buses.values() for address, chip in bus.devices.items()
-             if hasattr(chip, "set_true_rate")}  # a gyro: stand-ins sense no rate
+             if isinstance(chip, RateSensor)}  # a gyro: stand-ins sense no rate
     watcher = StaleReads(path.name, gyros, note, stale_reads)
     for bus in buses.values():
         bus.log.sinks.append(watcher)
