@@ -6,9 +6,10 @@ Registered as the ``pytest11`` entry point ``bmg160_emu``, so installing the pac
         from mydriver import Gyro            # builds smbus2.SMBus(1) itself
         assert Gyro(bus=1).chip_id() == 0x0F
 
-Fixtures (docs/pytest-plugin.md): ``bmg160_chip`` (a fresh chip), ``bmg160_i2c_bus`` (the
-emulated adapter with the chip at its address on bus 1, an ``I2CBus`` with its transaction
-log and the marker's faults), ``bmg160_i2c_dev`` (``patch_i2c_dev`` on it: the in-process
+Fixtures (docs/pytest-plugin.md): ``bmg160_chip`` (a fresh chip), ``bmg160_devices`` (every
+device on the bus: the chip and the marker's ``devices``), ``bmg160_i2c_bus`` (the emulated
+adapter with them on bus 1, an ``I2CBus`` with its transaction log, ``assert_wrote`` and the
+marker's faults), ``bmg160_i2c_dev`` (``patch_i2c_dev`` on it: the in-process
 /dev/i2c-1 for smbus2, smbus3, Adafruit_PureIO, periphery ...), ``bmg160_smbus``
 (``patch_smbus``: the same plus the legacy smbus module; yields the ``I2CBus``),
 ``bmg160_faults`` (bus, chip and sample faults on that bus from the rigs' FaultSchedule),
