@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu import __version__, commands, startup
-from bmg160_emu.commands._common import CommandError  # the commands raise it; old name here
+from bmg160_emu.commands._common import CommandError  # what the commands raise: one line
 from bmg160_emu.commands._extras import missing_message
 
 
@@ -61,7 +61,7 @@ _AS_COMMAND = startup.AS_COMMAND
 if _AS_COMMAND:
     atexit.register(_signals_ignored_at_the_end)
 
-__all__ = ["CommandError", "build_parser", "main"]
+__all__ = ["build_parser", "main"]
 
 
 class Terminated(KeyboardInterrupt):

@@ -70,6 +70,11 @@ PATH_OPTIONS: dict[str, tuple[str, ...]] = {
                              "true"),
     "kernel run --profile": ("kernel", "run", "--engine", "none", "--profile", "{p}", "--",
                              "true"),
+    "micropython PROGRAM": ("micropython", "--seed", "1", "--duration", "1s", "{p}"),
+    "micropython --profile": ("micropython", "--seed", "1", "--profile", "{p}", "--duration",
+                              "1s", "{tmp}/main.py"),
+    "micropython --device": ("micropython", "--seed", "1", "--device", "{p}@0x10",
+                             "--duration", "1s", "{tmp}/main.py"),
     "montecarlo SCENARIO": ("montecarlo", "{p}", "--runs", "1", "--scheduler", "sync",
                             "--no-progress"),
     "montecarlo -o": ("montecarlo", "{seeds}/mc-short.toml", "--runs", "1", "--scheduler",
@@ -93,6 +98,18 @@ PATH_OPTIONS: dict[str, tuple[str, ...]] = {
                         "{p}@0x10"),
     "script --profile": ("script", "{seeds}/short.script", "-q", "--seed", "1", "--profile",
                          "{p}"),
+    "serve --socket": ("serve", "--socket", "{p}", "--duration", "0.2s"),
+    "serve --trace": ("serve", "--socket", "{tmp}/nodir/s", "--trace", "{p}", "--duration",
+                      "0.2s"),
+    "serve --log": ("serve", "--socket", "{tmp}/nodir/s", "--log", "{p}", "--duration", "0.2s"),
+    "serve --stats": ("serve", "--socket", "{tmp}/nodir/s", "--stats", "{p}", "--duration",
+                      "0.2s"),
+    "serve --ready-file": ("serve", "--socket", "{tmp}/nodir/s", "--ready-file", "{p}",
+                           "--duration", "0.2s"),
+    "serve --profile": ("serve", "--socket", "{tmp}/nodir/s", "--profile", "{p}",
+                        "--duration", "0.2s"),
+    "serve --device": ("serve", "--socket", "{tmp}/nodir/s", "--device", "{p}@0x10",
+                       "--duration", "0.2s"),
     "stub --stats": ("stub", "--bus", "99", "--duration", "1s", "--stats", "{p}"),
     "stub --ready-file": ("stub", "--bus", "99", "--duration", "1s", "--ready-file", "{p}"),
     "stub --profile": ("stub", "--bus", "99", "--duration", "1s", "--profile", "{p}"),
@@ -167,6 +184,7 @@ def path_values(tmp: Path, rng: random.Random) -> list[tuple[str, str]]:
     ]
 
 
+MAIN_PY = "import time\ntime.sleep_ms(5)\n"  # a MicroPython program for micropython's options
 PATH_LIMIT_S = 120.0  # a hang, not a speed: a valid identify --figures run is ~5 s here
 
 
@@ -177,6 +195,7 @@ def fuzz_path(label: str, kind: str, path: str, tmp: Path,
         def run(argv: list[str]) -> Outcome:
             return run_in_process(argv, PATH_LIMIT_S)
     seeds = str(cli_seed_folder())
+    (tmp / "main.py").write_text(MAIN_PY)
     argv = [a.replace("{p}", path).replace("{seeds}", seeds).replace("{tmp}", str(tmp))
             for a in PATH_OPTIONS[label]]
     outcome = run(argv)

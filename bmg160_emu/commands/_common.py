@@ -150,7 +150,8 @@ def run_script_file(
     printed to stderr after ``failed_prefix`` and gives exit status 1, else 0.
     """
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.session.script import ScriptFailure, ScriptSyntaxError, read_script, run_script
+    from bmg160_emu.session.script import run_script
+    from bmg160_emu.session.script_language import ScriptFailure, ScriptSyntaxError, read_script
 
     chip = next(iter(chips.values()))
     try:
@@ -249,7 +250,7 @@ class _RenamedOption(argparse.Action):
                  values: Any, option_string: str | None = None) -> None:
         print(f"{parser.prog}: note: {option_string} is now spelled {self.new} (the old "
               "spelling goes in the next release; CHANGELOG.md)", file=sys.stderr)
-        setattr(namespace, self.dest, values)
+        setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
 
 
 def profile_named(profile: Any, message: str) -> str:
