@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from typing import Any, Protocol
 
 NS_PER_S = 1_000_000_000
+NEVER = 1 << 62  # a time in ns no clock reaches: "no sample due"
 
 
 def seconds_to_ns(seconds: float) -> int:

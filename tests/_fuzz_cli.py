@@ -368,6 +368,7 @@ NUMERIC_OPTIONS: dict[str, tuple[str, ...]] = {
     "record --temperature": ("record", "--seed", "1", "--duration", "0.05s", "--temperature",
                              "{v}", "-o", "{tmp}/o.csv"),
     "dump --temperature": ("dump", "--seed", "1", "--temperature", "{v}"),
+    "micropython --heap": ("micropython", "--heap", "{v}", "{tmp}/main.py"),
     "dump --seed": ("dump", "--seed", "{v}"),
     "dump --bandwidth": ("dump", "--seed", "1", "--bandwidth", "{v}"),
     "dump --range": ("dump", "--seed", "1", "--range", "{v}"),

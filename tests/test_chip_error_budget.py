@@ -15,8 +15,8 @@ from bmg160_emu.bus.smbus import FakeSMBus
 from bmg160_emu.device import spec_choices as choice
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.device.config import ChipConfig
-from bmg160_emu.device.sensor_errors import SensorErrors
 from bmg160_emu.device.unit_population import draw_unit
+from bmg160_emu.noise.sensor_errors import SensorErrors
 from bmg160_emu.session.record import record
 
 WHITE_N = 0.014  # deg/s/sqrt(Hz), the BMG160 data sheet's typical noise density

@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from bmg160_emu.device import spec_choices
 from bmg160_emu.device.parts import PART_NAMES, make_chip
-from bmg160_emu.noise.identification import identify
-from bmg160_emu.noise.output_filter import Butterworth
+from bmg160_emu.noise.bandwidths import BANDWIDTHS, LOWPASS_ORDER
+from bmg160_emu.noise.butterworth import Butterworth
+from bmg160_emu.noise.identify import identify
 
 SAMPLES = 40_000  # per axis; three independent axes are pooled
 _BW, _RATE_HBW, _FIFO_CONFIG_1 = 0x10, 0x13, 0x3E
@@ -38,9 +38,9 @@ def expected(chip, code: int, n: int) -> tuple[float, float, float]:
     x = T / L; a random walk's, K^2 L / 6. The slow terms are correlated 1 from sample to
     sample (T >> 1 / ODR). The sd of a sample std of n correlated samples is about
     sqrt((1 + 2 sum rho_k^2) / 2n) of it (Bartlett), here over 3 n pooled samples."""
-    odr, bandwidth = spec_choices.BANDWIDTHS[code]
+    odr, bandwidth = BANDWIDTHS[code]
     axis = chip.state.path.noise.generator.profile.x
-    white = Butterworth(spec_choices.LOWPASS_ORDER, bandwidth, float(odr)).white_stats()
+    white = Butterworth(LOWPASS_ORDER, bandwidth, float(odr)).white_stats()
     scale = axis.N**2 * odr
     var_white = scale * white.variance_ratio
     cov1_white = scale * white.autocovariance[1]
@@ -56,7 +56,7 @@ def expected(chip, code: int, n: int) -> tuple[float, float, float]:
     return math.sqrt(var), (cov1_white + slow) / var, math.sqrt((1 + 2 * rho_sum) / (2 * 3 * n))
 
 
-@pytest.mark.parametrize("code", sorted(spec_choices.BANDWIDTHS))
+@pytest.mark.parametrize("code", sorted(BANDWIDTHS))
 @pytest.mark.parametrize("part", PART_NAMES)
 def test_noise_at_rest_follows_the_bw_register(part, code):
     chip = make_chip(part, seed=100 + code)
@@ -107,7 +107,7 @@ def test_a_profile_filter_that_differs_from_the_bw_setting_is_said(caplog):
     axis = AxisNoise(N=0.01, B=0.0, T=0.0, K=0.0, bias=0.0)
     own = Profile("mine", axis, axis, axis, output=OutputStage(order=2, corner_hz=32.0,
                                                                rate_hz=100.0))
-    with caplog.at_level("INFO", logger="bmg160_emu.device.datapath"):
+    with caplog.at_level("INFO", logger="bmg160_emu.noise.sensor_noise"):
         chip = make_chip("bmg160", seed=1, profile=own)
         chip.write(_BW, bytes([7]))  # 100 Hz, 32 Hz: the profile's own filter
         chip.advance(0.1)
@@ -120,7 +120,7 @@ def test_a_profile_filter_that_differs_from_the_bw_setting_is_said(caplog):
 
 
 def test_a_constant_rate_with_noise_off_reads_exactly_at_every_code():
-    for code in sorted(spec_choices.BANDWIDTHS):
+    for code in sorted(BANDWIDTHS):
         chip = make_chip("bmg160", seed=1, noise=False, true_rate=(100.0, -50.0, 12.5))
         chip.write(_BW, bytes([code]))
         data = read_at_rest(chip, 300)
@@ -159,8 +159,8 @@ def test_the_filtered_noise_does_not_depend_on_how_far_ahead_it_was_drawn(sequen
     # the chip's kernel (numpy blocks in fixed chunks) and generate's (scipy's recursion):
     # sample k is the same bits whether it was drawn in small pieces or far ahead and drawn
     # again after a change of filter at sample 5000 (SensorNoise.configure goes back)
-    from bmg160_emu.device.datapath import SensorNoise
     from bmg160_emu.noise import NoiseGenerator
+    from bmg160_emu.noise.sensor_noise import SensorNoise
 
     def noise(pieces, ahead):
         gen = NoiseGenerator("paper", rate_hz=200.0, seed=3)

@@ -13,7 +13,7 @@ ALLOWED_HEX = {
     ("fields.py", 0xFF),  # the default "every bit" mask of a value comparison, not a field
     ("contract.py", 0xFF),  # the 8-bit register pointer range
     ("chip.py", 0x68),  # the default I2C address
-    ("chip.py", 0xFF), ("access.py", 0xFF),  # byte range of poke, pointer saturation (2.4)
+    ("chip.py", 0xFF), ("register_access.py", 0xFF),  # byte range of poke, pointer saturation (2.4)
     ("regmap.py", 0xB6),  # the soft-reset command value (4.13)
     ("spec_choices.py", 0x00),  # FIFO empty tag byte value (6.5)
     ("spec_choices.py", 0xF),  # NVM cycles left at delivery (6.10), a counter value

@@ -5,7 +5,7 @@ import pytest
 from _chip_helpers import period_s, quiet_chip, rates
 
 from bmg160_emu.device.chip import BMG160
-from bmg160_emu.device.engines import set_offsets
+from bmg160_emu.device.offsets import set_offsets
 
 
 def test_self_test_reports_ready_and_pass_after_its_test_time():

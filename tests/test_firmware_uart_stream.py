@@ -77,7 +77,7 @@ def test_a_line_cut_by_the_end_of_the_capture_is_dropped():
 
 
 def test_identification_of_the_capture_gives_back_the_profile_n(stream):
-    from bmg160_emu.noise.identification import identify
+    from bmg160_emu.noise.identify import identify
 
     truth = load_profile("paper").x.N
     result = identify(stream.rate_dps, ODR_HZ)

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from bmg160_emu.cli import main
-from bmg160_emu.device.datapath import profile_noise
 from bmg160_emu.noise import NoiseGenerator, load_profile
 from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar
 from bmg160_emu.noise.interop import flicker_poles, read_adev_csv
+from bmg160_emu.noise.sensor_noise import profile_noise
 
 DEG = math.pi / 180.0
 

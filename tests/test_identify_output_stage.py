@@ -13,10 +13,10 @@ import pytest
 from scipy import signal
 
 from bmg160_emu.cli import main
-from bmg160_emu.device.datapath import profile_noise
 from bmg160_emu.noise import NoiseGenerator, ProfileError, load_profile
-from bmg160_emu.noise.identification import identify, identify_curve
+from bmg160_emu.noise.identify import identify, identify_curve
 from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile, format_profile
+from bmg160_emu.noise.sensor_noise import profile_noise
 
 RATE = 100.0
 WHITE = AxisNoise(N=0.04, B=0.0, T=0.0, K=2e-4, bias=0.1, gm=((1.2e-2, 5.0), (8e-3, 60.0)))
@@ -222,7 +222,7 @@ def test_odd_records_raise_clear_errors_and_no_numpy_warnings(recwarn):
     # issue 24: numpy RuntimeWarnings leaked to stderr from allan.py and datapath.py
     from bmg160_emu.device.chip import BMG160
     from bmg160_emu.noise.allan import octave_oadev, overlapping_adev
-    from bmg160_emu.noise.identification import IdentificationError
+    from bmg160_emu.noise.identify import IdentificationError
 
     for bad in (np.zeros(0), np.r_[np.ones(100), np.nan], np.r_[np.ones(100), np.inf]):
         with pytest.raises(ValueError, match="needs"):

@@ -8,9 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from bmg160_emu.device.lowpass import LowPass
 from bmg160_emu.noise import NoiseGenerator
-from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.identify import identify
+from bmg160_emu.noise.lowpass import LowPass
 from bmg160_emu.noise.profile import AxisNoise, Profile
 
 RATE = 100.0
@@ -140,7 +140,7 @@ def test_every_interval_is_finite_and_ordered_on_short_and_awkward_records():
 @pytest.mark.parametrize(
     "kind", ["random walk only", "quantized", "sine", "ramp", "single step"])
 def test_awkward_records_give_finite_intervals_or_a_clear_error(kind):
-    from bmg160_emu.noise.identification import IdentificationError
+    from bmg160_emu.noise.identify import IdentificationError
 
     rng = np.random.default_rng(0)
     n = 20_000
@@ -162,7 +162,7 @@ def test_awkward_records_give_finite_intervals_or_a_clear_error(kind):
 
 
 def test_a_record_below_double_precision_is_a_clear_error():
-    from bmg160_emu.noise.identification import IdentificationError
+    from bmg160_emu.noise.identify import IdentificationError
 
     with pytest.raises(IdentificationError, match="below double precision"):
         identify(np.random.default_rng(1).standard_normal(5000) * 1e-200, 200.0)

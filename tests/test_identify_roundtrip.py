@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bmg160_emu.noise import NoiseGenerator, load_profile
-from bmg160_emu.noise.identification import identify, identify_axis
+from bmg160_emu.noise.identify import identify, identify_axis
 from bmg160_emu.noise.profile import AxisNoise, Profile
 
 PAPER = load_profile("paper").x

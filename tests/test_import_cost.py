@@ -41,7 +41,7 @@ def test_the_low_pass_filter_needs_no_scipy() -> None:
     modules = _imported_after(
         """
         import numpy as np
-        from bmg160_emu.device.lowpass import LowPass
+        from bmg160_emu.noise.lowpass import LowPass
         f = LowPass(200, 23.0)
         f.run(np.ones((2000, 3)), np.ones((2, 3)))
         """
@@ -52,7 +52,7 @@ def test_the_low_pass_filter_needs_no_scipy() -> None:
 def test_the_bus_layer_needs_nothing_heavy() -> None:
     modules = _imported_after(
         """
-        import bmg160_emu.bus.i2c, bmg160_emu.bus.smbus, bmg160_emu.bus.transactions
+        import bmg160_emu.bus.i2c, bmg160_emu.bus.smbus, bmg160_emu.traffic.transaction
         """
     )
     assert _heavy(modules) == []

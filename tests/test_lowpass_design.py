@@ -10,16 +10,17 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from bmg160_emu.device import lowpass, spec_choices
+from bmg160_emu.noise import butterworth, lowpass
+from bmg160_emu.noise.bandwidths import BANDWIDTHS, LOWPASS_ORDER
 
 EPS = np.finfo(float).eps
 
 
-@pytest.mark.parametrize("code", sorted(spec_choices.BANDWIDTHS))
+@pytest.mark.parametrize("code", sorted(BANDWIDTHS))
 def test_coefficients_of_every_bw_code_are_scipy_butter(code: int) -> None:
-    odr, bandwidth = spec_choices.BANDWIDTHS[code]
+    odr, bandwidth = BANDWIDTHS[code]
     b, a, zi = lowpass.coefficients(float(odr), float(bandwidth))
-    b_ref, a_ref = signal.butter(spec_choices.LOWPASS_ORDER, bandwidth / (odr / 2.0))
+    b_ref, a_ref = signal.butter(LOWPASS_ORDER, bandwidth / (odr / 2.0))
     # Same operations in the same order as scipy's butter -> bilinear_zpk -> zpk2tf, so the
     # difference is a few rounding steps of numbers of order 1.
     np.testing.assert_allclose(b, b_ref, rtol=0, atol=4 * EPS)
@@ -30,7 +31,7 @@ def test_coefficients_of_every_bw_code_are_scipy_butter(code: int) -> None:
 @pytest.mark.parametrize("order", [1, 2, 3, 4, 6])
 @pytest.mark.parametrize("wn", [0.02, 0.23, 0.5, 0.9])
 def test_butterworth_of_any_order_is_scipy_butter(order: int, wn: float) -> None:
-    b, a = lowpass.butterworth(order, wn)
+    b, a = butterworth.butterworth(order, wn)
     b_ref, a_ref = signal.butter(order, wn)
     # coefficients grow like binomial numbers with the order: compare relative to the largest
     np.testing.assert_allclose(b, b_ref, rtol=0, atol=8 * EPS * np.abs(b_ref).max())
@@ -40,7 +41,7 @@ def test_butterworth_of_any_order_is_scipy_butter(order: int, wn: float) -> None
 @pytest.mark.parametrize("wn", [0.0, 1.0, -0.1, 1.5])
 def test_butterworth_refuses_a_cut_off_outside_the_band(wn: float) -> None:
     with pytest.raises(ValueError, match="between 0 and 1"):
-        lowpass.butterworth(2, wn)
+        butterworth.butterworth(2, wn)
 
 
 L = lowpass.SUB_BLOCK
@@ -48,10 +49,10 @@ CHUNK = lowpass.SUB_BLOCK * lowpass.SUB_BLOCKS
 LENGTHS = [1, 2, L - 1, L, L + 1, 3 * L + 5, CHUNK - 1, CHUNK, CHUNK + 1, 3 * CHUNK + 17]
 
 
-@pytest.mark.parametrize("code", sorted(spec_choices.BANDWIDTHS))
+@pytest.mark.parametrize("code", sorted(BANDWIDTHS))
 @pytest.mark.parametrize("n", LENGTHS)
 def test_block_filter_matches_lfilter(code: int, n: int) -> None:
-    odr, bandwidth = spec_choices.BANDWIDTHS[code]
+    odr, bandwidth = BANDWIDTHS[code]
     filt = lowpass.LowPass(odr, bandwidth)
     rng = np.random.default_rng(1000 * code + n)
     x = 300.0 * rng.standard_normal((n, 3)) + rng.uniform(-50, 50, 3)
@@ -67,7 +68,7 @@ def test_block_filter_matches_lfilter(code: int, n: int) -> None:
 
 @pytest.mark.parametrize("order", [1, 3, 4])
 def test_block_filter_of_other_orders_matches_lfilter(order: int) -> None:
-    b, a = lowpass.butterworth(order, 0.2)
+    b, a = butterworth.butterworth(order, 0.2)
     blocks = lowpass._Blocks(b, a)
     rng = np.random.default_rng(order)
     x = rng.standard_normal((2 * CHUNK + 77, 2))

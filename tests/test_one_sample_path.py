@@ -10,13 +10,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.device import datapath, lowpass, spec_choices
-
-BW_CODES = sorted(spec_choices.BANDWIDTHS)
+from bmg160_emu.device import datapath
+from bmg160_emu.noise import lowpass
+from bmg160_emu.noise.bandwidths import BANDWIDTHS, BW_CODES
 
 
 def _filter(code: int, rng: np.random.Generator) -> lowpass.LowPass:
-    odr, bandwidth = spec_choices.BANDWIDTHS[code]
+    odr, bandwidth = BANDWIDTHS[code]
     f = lowpass.LowPass(odr, bandwidth)
     f.restart(rng.normal(0.0, 100.0, 3))
     f.state = rng.normal(0.0, 5.0, f.state.shape)
@@ -103,7 +103,7 @@ def test_a_one_sample_block_is_the_first_sample_of_a_long_block() -> None:
             mounting = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
             generator = datapath.noise_generator("paper", "physical", 3, 0x68)
             path = datapath.DataPath(mounting, generator, None)
-            path.set_filter(200, 23.0, used_end=0)
+            path.set_filter(4, used_end=0)  # 200 Hz, 23 Hz
             body = rng.normal(0.0, 40.0, (64, 3))
             path.build(0, body[:1], offset, 131.072, high_bw, False)  # filter started
             state = path.filter.state.copy()

@@ -12,8 +12,8 @@ import struct
 import pytest
 from _chip_helpers import period_s, rates
 
-from bmg160_emu.device.chip import DEEP_SUSPEND, NORMAL, POWER_SAVE, SUSPEND
 from bmg160_emu.device.parts import make_chip
+from bmg160_emu.device.power_modes import DEEP_SUSPEND, NORMAL, POWER_SAVE, SUSPEND
 
 DPS = (30.0, -20.0, 10.0)
 

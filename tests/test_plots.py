@@ -13,7 +13,7 @@ import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from bmg160_emu.noise import NoiseGenerator, plots
-from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.identify import identify
 
 RATE_HZ = 200.0
 LSB_DPS = 1 / 16.384  # +-2000 deg/s range, binary sensitivity (32768 / 2000 LSB per deg/s)

@@ -3,13 +3,15 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 
 from bmg160_emu.device.chip import BMG160
-from bmg160_emu.device.sensor_errors import SensorErrors
 from bmg160_emu.noise import NoiseGenerator, load_profile
 from bmg160_emu.noise.profile import LIMITS, ProfileError, format_profile
+from bmg160_emu.noise.sensor_errors import SensorErrors
 
 
 def test_the_datasheet_unit_profile_carries_every_error_term_with_its_source():
@@ -35,12 +37,23 @@ def test_an_errors_table_round_trips_through_the_profile_file(tmp_path):
     assert SensorErrors.from_dict(again.errors) == SensorErrors.from_dict(profile.errors)
 
 
-def test_a_bad_errors_table_is_refused_naming_it(tmp_path):
+def test_a_bad_errors_table_is_refused_naming_the_file_and_table(tmp_path, capsys):
+    # the noise layer checks its own [errors] table on loading (issue 36): the chip, generate
+    # and any other reader of the profile refuse it alike, naming the file
     text = format_profile(load_profile("datasheet")) + "\n[errors]\nzero_rate_offset = 1\n"
     path = tmp_path / "bad.toml"
     path.write_text(text)
-    with pytest.raises(ValueError, match=r"profile datasheet \[errors\]: unknown keys \['zero_rate_offset'\]"):
+    message = r"profile file .*bad\.toml \[errors\]: unknown keys \['zero_rate_offset'\]"
+    with pytest.raises(ProfileError, match=message):
+        load_profile(path)
+    with pytest.raises(ProfileError, match=message):
         BMG160(seed=1, profile=path)
+    from bmg160_emu.cli import main
+
+    assert main(["generate", "--profile", str(path), "--duration", "1s", "--seed", "1",
+                 "-o", str(tmp_path / "n.npy")]) != 0
+    assert re.search(message, capsys.readouterr().err)
+    assert not (tmp_path / "n.npy").exists()
 
 
 @pytest.mark.parametrize(("key", "value"), [("N", 1e308), ("B", 1e4), ("K", 2.0),

@@ -6,7 +6,7 @@ import pytest
 
 from bmg160_emu.cli import main
 from bmg160_emu.io.trace import read_trace
-from bmg160_emu.session.replay import replay_trace
+from bmg160_emu.session.trace_replay import replay_trace
 
 SCRIPT = """\
 read CHIP_ID == 0x0F

@@ -1,4 +1,4 @@
-"""The deterministic error budget (bmg160_emu.device.sensor_errors, unit_population): each
+"""The deterministic error budget (bmg160_emu.noise.sensor_errors, unit_population): each
 term as the model in the module docstring states it, validation, turn-on bias and units."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from bmg160_emu.device.sensor_errors import NO_ERRORS, SensorErrors, TurnOnBias
 from bmg160_emu.device.unit_population import BMG160_TOLERANCES, draw_unit
+from bmg160_emu.noise.sensor_errors import NO_ERRORS, SensorErrors, TurnOnBias
 
 FS = 2000.0
 

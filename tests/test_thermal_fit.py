@@ -125,7 +125,7 @@ def test_exports_to_px4_and_to_our_profile():
     text = fit.px4_params_file()
     assert "1\t1\tTC_G0_X3_2\t" in text and text.count("\n") == 2 + len(params)
     errors = fit.to_errors()
-    from bmg160_emu.device.sensor_errors import SensorErrors
+    from bmg160_emu.noise.sensor_errors import SensorErrors
 
     unit = SensorErrors.from_dict(errors)
     assert np.allclose(unit.bias_dps([0.0, 40.0]), fit.bias_dps([0.0, 40.0]))
@@ -151,7 +151,7 @@ def test_the_thermal_command_fits_a_chamber_log_and_exports(tmp_path, capsys):
     import tomllib
 
     from bmg160_emu.cli import main
-    from bmg160_emu.device.sensor_errors import SensorErrors
+    from bmg160_emu.noise.sensor_errors import SensorErrors
 
     rate, temps = _thermal_record(seed=5, hours=3.0)
     t = np.arange(len(temps)) / RATE_HZ

@@ -14,7 +14,7 @@ from bmg160_emu.bus.spi import FakeSpiDev
 from bmg160_emu.clock import VirtualClock
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.io.trace import TraceHeader, TraceWriter, read_trace
-from bmg160_emu.session.replay import replay_trace
+from bmg160_emu.session.trace_replay import replay_trace
 
 SEED = 11
 TRUE_RATE = (12.5, -3.0, 0.25)

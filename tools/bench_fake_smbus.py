@@ -33,6 +33,7 @@ from bmg160_emu.bus.patching import patch_smbus
 from bmg160_emu.bus.smbus import FakeSMBus
 from bmg160_emu.device import datapath
 from bmg160_emu.device.chip import BMG160
+from bmg160_emu.noise import sensor_noise
 
 RATE_X_LSB = 0x02  # spec 4.2
 BW = 0x10  # spec 4.9
@@ -53,9 +54,9 @@ class DictBus:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     # a whole number of the chip's blocks (datapath.SPAN) and of its noise draws
-    # (datapath.NOISE_CHUNK), 2048 calls today: every round carries the same share of block
+    # (sensor_noise.NOISE_CHUNK), 2048 calls today: every round carries the same share of block
     # and noise computation whatever its phase, so the best round cannot be one without it
-    whole = math.lcm(datapath.SPAN, datapath.NOISE_CHUNK)
+    whole = math.lcm(datapath.SPAN, sensor_noise.NOISE_CHUNK)
     parser.add_argument("--loop", type=int, default=whole,
                         help=f"calls per timed loop (a multiple of {whole})")
     parser.add_argument("--rounds", type=int, default=60, help="interleaved rounds, best kept")

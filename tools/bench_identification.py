@@ -17,7 +17,7 @@ import time
 import allantools
 
 from bmg160_emu.noise import NoiseGenerator
-from bmg160_emu.noise.identification import identify_axis
+from bmg160_emu.noise.identify import identify_axis
 
 
 def main() -> None:

@@ -16,7 +16,7 @@ import time
 import tracemalloc
 
 from bmg160_emu.noise import NoiseGenerator
-from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.identify import identify
 
 
 def main() -> None:

@@ -8,7 +8,7 @@ ratio for a profile with four Gauss-Markov terms per axis (issue 11: at most 1.5
 drawing the 6 normals per axis and sample that profile consumes, and the one-term ratio not
 worse than the 1.32 measured before the numpy-only recursion), and the noise as generate and
 the chip make it, through the chip's low-pass (issue 23: the paper profile through BW code 4's
-23 Hz filter at 200 Hz, datapath.profile_noise, at most 1.5x the same 3 normals per axis
+23 Hz filter at 200 Hz, sensor_noise.profile_noise, at most 1.5x the same 3 normals per axis
 and sample).
 
     python tools/bench_noise_generation.py            # the full 24 h
@@ -22,9 +22,9 @@ import time
 
 import numpy as np
 
-from bmg160_emu.device.datapath import profile_noise
 from bmg160_emu.noise import NoiseGenerator
 from bmg160_emu.noise.profile import AxisNoise, Profile
+from bmg160_emu.noise.sensor_noise import profile_noise
 
 CHUNK = 1 << 18  # samples per generate() call, as the generate command streams
 

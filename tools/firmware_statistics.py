@@ -25,7 +25,7 @@ import numpy as np
 
 from bmg160_emu.firmware.build import build_firmware, capture_uart
 from bmg160_emu.io.uart_stream import read_uart_stream
-from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.identify import identify
 from bmg160_emu.noise.profile import AxisNoise, Profile, load_profile, write_profile
 
 ODR_HZ = 200

@@ -5,7 +5,7 @@ The sensor is a profile with an output stage, like the issue's held-out real uni
 of tau, lag-1 correlation 0.2-0.3 from its filter): per axis white noise, three Gauss-Markov
 poles and a random walk, a sinusoidal line on x and z, all through a 2nd-order low-pass at
 40 Hz and rounded to 1/16.4 deg/s (the output of a +-2000 deg/s range). A recording is what
-``generate`` writes from it (datapath.profile_noise, the chip's code); identify runs with its
+``generate`` writes from it (sensor_noise.profile_noise, the chip's code); identify runs with its
 defaults, and each identified profile is emulated (generate's default, its output stage
 included) ``--emulated`` times. Scored per axis, as the issue scores its real records:
 
@@ -31,10 +31,10 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import chi2
 
-from bmg160_emu.device.datapath import profile_noise
 from bmg160_emu.noise.allan import overlapping_adev
-from bmg160_emu.noise.identification import identify
+from bmg160_emu.noise.identify import identify
 from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile
+from bmg160_emu.noise.sensor_noise import profile_noise
 
 RATE = 100.0
 LENGTH = int(2.8 * 3600 * RATE)

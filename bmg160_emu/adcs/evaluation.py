@@ -37,6 +37,7 @@ from bmg160_emu.device.registers import address_of, field_of
 from bmg160_emu.device.spec_choices import RANGE_CODE_BY_DPS
 from bmg160_emu.durations import MAX_SIMULATED_S
 from bmg160_emu.limits import Bounded, LimitError
+from bmg160_emu.noise.bandwidths import BW_CODES
 
 RANGE, BW, FIFO_STATUS, FIFO_CONFIG_1, FIFO_DATA = (
     address_of(name) for name in ("RANGE", "BW", "FIFO_STATUS", "FIFO_CONFIG_1", "FIFO_DATA"))
@@ -79,7 +80,7 @@ def readout_options(scenario: Scenario) -> dict[str, Any]:
         raise ScenarioError(f"readout: range_dps must be one of {sorted(RANGE_CODE_BY_DPS)}, "
                             f"not {options['range_dps']!r}"[:200])  # a list is unhashable
     code = options["bandwidth_code"]
-    if isinstance(code, bool) or not isinstance(code, int) or code not in range(8):
+    if isinstance(code, bool) or not isinstance(code, int) or code not in BW_CODES:
         raise ScenarioError("readout: bandwidth_code must be 0..7 (spec 5.3)")
     if not isinstance(options["bias"], str) or options["bias"] not in ("none", "profile",
                                                                         "calibrate"):
@@ -111,7 +112,8 @@ class FifoReader:
     """Reads one gyro's FIFO over an I2CBus, as flight software would."""
 
     def __init__(self, bus: Any, address: int, range_dps: int = 2000, bandwidth_code: int = 4):
-        from bmg160_emu.device.spec_choices import BANDWIDTHS, SENSITIVITY_BINARY
+        from bmg160_emu.device.spec_choices import SENSITIVITY_BINARY
+        from bmg160_emu.noise.bandwidths import BANDWIDTHS
 
         self.bus = bus
         self.address = address

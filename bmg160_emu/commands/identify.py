@@ -221,8 +221,8 @@ def _options(args: argparse.Namespace) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.io.rates import RateFileError
-    from bmg160_emu.noise.identification import IdentificationError
+    from bmg160_emu.io.rate_table import RateFileError
+    from bmg160_emu.noise.identify import IdentificationError
     from bmg160_emu.noise.interop import InteropError
 
     for path in (args.plot,):
@@ -246,7 +246,12 @@ def run(args: argparse.Namespace) -> int:
         else:
             record, result = _identify_record(args, options)
             if args.method == "gmwm":
-                gmwm_fits = _apply_gmwm(args, record, result)
+                from bmg160_emu.noise.gmwm_identification import gmwm_identification
+
+                result, gmwm_fits = gmwm_identification(
+                    result, record.rate_dps, with_q=args.with_q, with_r=args.with_r,
+                    tau_min_s=args.tau_min, tau_max_s=args.tau_max, bootstrap=args.bootstrap,
+                    seed=args.seed)
     except (RateFileError, IdentificationError, InteropError) as exc:
         text = str(exc)  # "record too short" and the like: name the file once
         raise CommandError(text if text.startswith(str(args.file)) else f"{args.file}: {text}") \
@@ -288,7 +293,7 @@ def run(args: argparse.Namespace) -> int:
 def _output_stage_line(result) -> str:
     """The output stage the profile carries, with the BW code of the chip family that has
     the same filter at the record's rate (register spec 5.3), if one does."""
-    from bmg160_emu.device.spec_choices import BANDWIDTHS, LOWPASS_ORDER
+    from bmg160_emu.noise.bandwidths import BANDWIDTHS, LOWPASS_ORDER
 
     stage = result.output_stage()
     if stage is None:
@@ -310,7 +315,7 @@ def _output_stage_line(result) -> str:
 
 def _identify_record(args: argparse.Namespace, options: dict):
     from bmg160_emu.io.rates import load_rate_record
-    from bmg160_emu.noise.identification import STAGES_PER_AXIS, identify
+    from bmg160_emu.noise.identify import STAGES_PER_AXIS, identify
 
     columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
     record = load_rate_record(args.file, args.rate, columns)
@@ -338,7 +343,8 @@ def _identify_record(args: argparse.Namespace, options: dict):
 def _identify_curve(args: argparse.Namespace, options: dict):
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.noise.identification import Identification, identify_curve
+    from bmg160_emu.noise.identification_result import Identification
+    from bmg160_emu.noise.identify import identify_curve
     from bmg160_emu.noise.interop import read_adev_csv
 
     if args.rate is None:
@@ -407,78 +413,6 @@ def _write_outputs(args: argparse.Namespace, result) -> list[Path]:
     return written
 
 
-def _apply_gmwm(args: argparse.Namespace, record, result) -> dict:
-    """Replace each axis's Allan-fit N, B, T, K (Q, R) by GMWM's, intervals included; the
-    Allan curve, PSD and read-offs stay (figures, JSON and profile then carry GMWM's values)."""
-    import dataclasses
-
-    import numpy as np
-
-    from bmg160_emu.noise import gmwm
-    from bmg160_emu.noise.fit import Term
-    from bmg160_emu.noise.identification import Estimate, IdentificationError
-    from bmg160_emu.noise.wavelet import MIN_COEFFS_FRACTION, haar_wv
-
-    model = ["WN", "GM", "RW"] + ["QN"] * args.with_q + ["DR"] * args.with_r
-    fits = {}
-    for i, axis in enumerate(result.axes):
-        wv = haar_wv(record.rate_dps[:, i], record.rate_hz, MIN_COEFFS_FRACTION)
-        keep = np.ones(wv.m.size, dtype=bool)
-        if args.tau_min is not None:
-            keep &= wv.taus_s >= args.tau_min
-        elif axis.output_filter is not None:
-            # GMWM's white term knows no filter: the scales where the filter takes less than
-            # 1 % off white noise's Allan variance (it falls as 1 / tau, from 60 % at tau = dt)
-            from bmg160_emu.noise.output_filter import white_avar_unit
-
-            deficit = np.abs(white_avar_unit(wv.taus_s, record.rate_hz,
-                                             axis.output_filter.design) * wv.taus_s - 1.0)
-            keep &= deficit < 0.01
-        if args.tau_max is not None:
-            keep &= wv.taus_s <= args.tau_max
-        wv = dataclasses.replace(
-            wv, m=wv.m[keep], taus_s=wv.taus_s[keep], wv=wv.wv[keep], n_coeffs=wv.n_coeffs[keep]
-        )
-        try:
-            fit = gmwm.gmwm_fit(wv, model)
-            if args.bootstrap:
-                fit = gmwm.bootstrap(fit, args.bootstrap, seed=args.seed)
-        except gmwm.GMWMError as exc:
-            raise IdentificationError(f"axis {axis.axis}: {exc}") from None
-        est = {k: Estimate(e.value, e.ci_low, e.ci_high, e.unit) for k, e in fit.estimates.items()}
-        notes = [  # the Allan fit's notes describe that fit: replaced
-            f"{k} not resolved by this record (at the edge of its search range)"
-            for k, at_edge in zip(fit.names, fit.at_bound)
-            if at_edge
-        ]
-        if fit.p_value < 0.01:
-            notes.append(
-                f"the J test rejects the model (p = {fit.p_value:.2g}): try --with-q/--with-r"
-            )
-        curve_fit = dataclasses.replace(
-            axis.fit,
-            N=est["N"],
-            K=est["K"],
-            terms=[Term(B=est["B"], T=est["T"], T_at_search_edge=bool(
-                dict(zip(fit.names, fit.at_bound)).get("T", False)))],
-            Q=est.get("Q"),
-            R=est.get("R"),
-            flicker=None,
-            flicker_poles=(),
-            tau_range_s=(float(wv.taus_s[0]), float(wv.taus_s[-1])),
-            points=int(wv.m.size),
-            chi2_reduced=fit.objective / max(fit.dof, 1),
-        )
-        reason = axis.tau_range_reason
-        if args.tau_min is None and axis.output_filter is not None:
-            reason = (f"GMWM's scales from tau = {wv.taus_s[0]:.3g} s, where the output filter "
-                      "takes less than 1 % off white noise's Allan variance")
-        result.axes[i] = dataclasses.replace(axis, fit=curve_fit, notes=notes, method="gmwm",
-                                             tau_range_reason=reason)
-        fits[axis.axis] = fit
-    return fits
-
-
 def _gmwm_summary(text: str, fits: dict) -> str:
     lines = text.splitlines()
     for k, line in enumerate(lines):
@@ -528,9 +462,9 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
         "psd": plots.psd_figure(result.axes, record.rate_hz),
     }
     if args.compare:
-        from bmg160_emu.device.datapath import profile_noise
         from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
-        from bmg160_emu.noise.identification import identify_axis
+        from bmg160_emu.noise.identify import identify_axis
+        from bmg160_emu.noise.sensor_noise import profile_noise
 
         chip_rate = min(SUPPORTED_RATES_HZ, key=lambda r: abs(r / record.rate_hz - 1))
         if abs(chip_rate / record.rate_hz - 1) > 0.01:

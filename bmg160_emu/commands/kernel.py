@@ -96,7 +96,7 @@ def _progress(line: str) -> None:
 
 
 def run_prepare(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.linux.guest.engine import EngineError, engines
 
     available = engines()
@@ -122,9 +122,9 @@ def run_prepare(args: argparse.Namespace) -> int:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
     from bmg160_emu.clock import VirtualClock
     from bmg160_emu.commands._chip_options import configs_from_args, session_seed
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.linux.guest import stub_route
     from bmg160_emu.linux.guest.drivers import bind_failure, bind_ops, driver_name, load_order
     from bmg160_emu.linux.guest.engine import EngineError, choose

@@ -4,10 +4,11 @@ Front ends reach the chip only through its primitives (``write``, ``read``, ``i2
 ``i2c_read``, ``peek``, ``dump``; docs/architecture.md). This module holds the lock, the
 primitives, the hook lists, the inputs and the reset entry points; the chip's mutable state
 and sample schedule are its ``ChipState`` (``state``), which the parts beside it take:
-``access`` (one bus transaction), ``regmap`` (what each register does, by name),
-``emission`` (samples through the hooks and the per-sample engines); ``datapath`` and
-``true_rate`` (true rate to counts, in blocks), ``engines``, ``interrupts`` and ``fifo`` are
-the engines the state holds. Section numbers refer to the register specification.
+``register_access`` (one bus transaction), ``regmap`` (what each register does, by name),
+``output_samples`` (the samples due, through the hooks and the per-sample engines);
+``datapath`` and ``true_rate`` (true rate to counts, in blocks), ``fifo``, ``interrupts``,
+``offsets``, ``self_test``, ``nvm`` and ``thermometer`` are the engines the state holds.
+Section numbers refer to the register specification.
 
 Speed: the data path is computed ahead in blocks; the per-sample engines run only when enabled.
 Time is integer nanoseconds: sample k of a run is at ``anchor + k * period``."""
@@ -20,20 +21,25 @@ from typing import Any
 
 import numpy as np
 
-from bmg160_emu.clock import NS_PER_S, RealTimeClock, VirtualClock, seconds_to_ns
-from bmg160_emu.device import access, contract, datapath, emission, engines, environment, regmap
+from bmg160_emu.clock import NEVER, NS_PER_S, RealTimeClock, VirtualClock, seconds_to_ns
+from bmg160_emu.device import (
+    contract,
+    datapath,
+    environment,
+    offsets,
+    output_samples,
+    register_access,
+    regmap,
+)
 from bmg160_emu.device import spec_choices as choice
-from bmg160_emu.device.emission import catch_up
-from bmg160_emu.device.engines import NEVER
+from bmg160_emu.device.nvm import Nvm
+from bmg160_emu.device.output_samples import catch_up
 from bmg160_emu.device.part_spec import BMG160_PART, Part
 from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of
-from bmg160_emu.device.sensor_errors import SensorErrors
 from bmg160_emu.device.state import ChipState
+from bmg160_emu.device.thermometer import Thermometer
 from bmg160_emu.device.true_rate import QueuedRates, streamed_rate, true_rate_source
-
-NORMAL, DEEP_SUSPEND, SUSPEND, FAST_POWER_UP, POWER_SAVE = engines.MODES  # names as before
-power_mode = engines.power_mode  # importable from here as before (linux.i2c_stub)
-VALID_ADDRESSES = contract.VALID_ADDRESSES
+from bmg160_emu.noise.sensor_errors import SensorErrors
 
 _RATE_X_LSB, _RATE_END = address_of("RATE_X_LSB"), address_of("RATE_Z_MSB") + 1
 _BGW_SOFTRESET = address_of("BGW_SOFTRESET")
@@ -98,12 +104,12 @@ class BMG160:
         transform = datapath.body_to_sensor(mounting, scale_factor, misalignment)
         self.seed = seed
         generator = datapath.noise_generator(profile, noise_mode, seed, address) if noise else None
-        engines.Thermometer.check(temperature_c)
+        Thermometer.check(temperature_c)
         image = choice.NVM_DEFAULT_IMAGE if nvm_image is None else nvm_image
         self.state = s = ChipState(
             self, self.part, sensitivity_table=sensitivity_table,
             startup_ns=seconds_to_ns(startup_time_s),
-            thermometer=engines.Thermometer(temperature_c), nvm=engines.Nvm(image, nvm_remain))
+            thermometer=Thermometer(temperature_c), nvm=Nvm(image, nvm_remain))
         s.budget = environment.ErrorBudget.of(
             errors, unit, acceleration_g, generator or profile, seed=seed, address=address,
             thermometer=s.thermometer, times_ns=s.times_ns)
@@ -117,7 +123,7 @@ class BMG160:
 
     def set_temperature(self, temperature_c: float | Callable[[float], float]) -> None:
         """Die temperature in deg C: a constant or a callable of time in seconds."""
-        engines.Thermometer.check(temperature_c)
+        Thermometer.check(temperature_c)
         with self.lock:
             self.state.thermometer.temperature_c = temperature_c
 
@@ -131,7 +137,7 @@ class BMG160:
 
     @property
     def sensor_errors(self) -> SensorErrors:
-        """The unit's deterministic errors (bmg160_emu.device.sensor_errors)."""
+        """The unit's deterministic errors (bmg160_emu.noise.sensor_errors)."""
         return self.state.budget.errors
 
     @property
@@ -166,7 +172,7 @@ class BMG160:
         with self.lock:
             s = self.state
             if isinstance(s.rate, QueuedRates):
-                s.rate.add(emission.first_not_due(s, self.clock.now_ns()), row)
+                s.rate.add(output_samples.first_not_due(s, self.clock.now_ns()), row)
                 return
             self._rate_due()
             s.invalidate()
@@ -241,9 +247,15 @@ class BMG160:
         with self.lock:
             return regmap.pin_level(self.state, pin, self._now())
 
+    def next_pin_change_ns(self) -> int | None:
+        """The earliest time (ns on the chip's clock) INT1 or INT2 may change with no bus
+        access, or None when they hold until one (regmap.next_pin_change)."""
+        with self.lock:
+            return regmap.next_pin_change(self.state, self._now())
+
     def offsets_lsb(self) -> tuple[int, int, int]:
         """The three 12-bit offsets of OFC1..OFC4 and TRIM_GP0 (4.24)."""
-        return engines.offsets_from(self.state.regs)
+        return offsets.offsets_from(self.state.regs)
 
     @property
     def offset_lsb_dps(self) -> float:
@@ -262,7 +274,7 @@ class BMG160:
         payload = self._check_data(data)
         with self.lock:
             now = self._now()
-            self._pointer = access.write_burst(self.state, reg, payload, now)
+            self._pointer = register_access.write_burst(self.state, reg, payload, now)
 
     def read(self, reg: int, n: int = 1) -> bytes:
         """One bus read transaction of ``n`` bytes from ``reg`` with every side effect."""
@@ -283,7 +295,7 @@ class BMG160:
                 return s.cur
             reg = self._check_reg(reg)
             n = self._check_count(n)
-            data, self._pointer = access.read_burst(s, reg, n, now)
+            data, self._pointer = register_access.read_burst(s, reg, n, now)
             return data
         finally:
             lock.release()
@@ -300,14 +312,14 @@ class BMG160:
             now = self._now()
             self._pointer = payload[0]
             if len(payload) > 1:
-                self._pointer = access.write_burst(self.state, payload[0], payload[1:], now)
+                self._pointer = register_access.write_burst(self.state, payload[0], payload[1:], now)
 
     def i2c_read(self, n: int) -> bytes:
         """I2C read of ``n`` bytes from the current register pointer."""
         n = self._check_count(n)
         with self.lock:
             now = self._now()
-            data, self._pointer = access.read_burst(self.state, self._pointer, n, now)
+            data, self._pointer = register_access.read_burst(self.state, self._pointer, n, now)
             return data
 
     @property
@@ -320,14 +332,14 @@ class BMG160:
         reg = self._check_reg(reg)
         with self.lock:
             now = self._now()
-            return access.peek_reg(self.state, reg, now)
+            return register_access.peek_reg(self.state, reg, now)
 
     def dump(self) -> bytes:
         """The 64 registers 0x00..0x3F, without side effects."""
         with self.lock:
             now = self._now()
             s = self.state
-            return bytes(access.peek_reg(s, a, now) for a in range(FIRST_OUTSIDE_MAP))
+            return bytes(register_access.peek_reg(s, a, now) for a in range(FIRST_OUTSIDE_MAP))
 
     def advance(self, seconds: float) -> None:
         """Advance the clock; the chip produces exactly one sample per output period."""
@@ -379,7 +391,7 @@ class BMG160:
             return
         with self.lock:
             now = self._now()
-            access.poke_reg(self.state, reg, value, now)
+            register_access.poke_reg(self.state, reg, value, now)
 
     def power_on_reset(self) -> None:
         """Every register back to reset values, as after a brown-out; data after start-up."""

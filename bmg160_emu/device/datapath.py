@@ -5,7 +5,7 @@
     -> round, saturate to int16 -> the bytes of the RATE registers.
 
 The noise enters before the filter in the physical mode and after it in the paper mode
-(``SensorNoise``: where each term enters, docs/noise-engine.md).
+(``noise.sensor_noise.SensorNoise``: where each term enters, docs/noise-engine.md).
 
 A block is thrown away from the current sample on when the configuration changes
 (``invalidate``); the filter state and the noise realisation carry over, so the samples do
@@ -22,12 +22,9 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.device import spec_choices as choice
-from bmg160_emu.device.lowpass import LowPass
+from bmg160_emu.noise.lowpass import LowPass
+from bmg160_emu.noise.sensor_noise import SensorNoise
 
-NOISE_CHUNK = 2048  # noise computed in chunks of this many samples (a multiple of the
-# filter's 1024-sample pieces, lowpass.py), each with its filter state kept
-PIECE = 16 * NOISE_CHUNK  # samples generated and filtered at once within a draw: the three
-# 768 kB arrays of a piece stay in the cache between the generator and the filter
 SPAN = 1024  # samples computed ahead, in pieces of 1, 2, 4, ... as they are used
 MAX_SPAN = 65536  # when catching up a long gap
 
@@ -218,276 +215,6 @@ def noise_generator(profile: Any, mode: str, seed: int | None, address: int) -> 
     return NoiseGenerator(profile=profile, rate_hz=2000.0, seed=seed, mode=mode)
 
 
-class SensorNoise:
-    """The sensing element's noise by sample index: raw, and as the chip's output carries it.
-
-    Where the noise enters (docs/noise-engine.md): in ``physical`` mode the noise is made in
-    the sensing element, before the chip's digital low-pass, so the filtered output carries
-    it through the filter of the BW code and the unfiltered (data_high_bw) output raw; only
-    the profile's Q term (an output's quantization, IEEE 952) is added after the filter. In
-    ``paper`` mode the paper's recursion is the chip's output (output-referred, its Table 3):
-    both outputs carry it unfiltered. The true rate has its own filter (``DataPath``); the
-    filter is linear, so the two filters together are the chip's one filter of rate + noise.
-
-    The filter's start: each configuration (ODR and filter) starts with the filter settled
-    on ``settle_samples`` samples of fresh noise drawn for the purpose, so the noise is
-    stationary from its first sample (a powered sensor, or a chip whose filter has run
-    since its BW was set); the realisation moves on by those samples.
-
-    Chunk invariance: noise is computed in chunks of NOISE_CHUNK samples counted from the
-    start of the configuration, each filtered from the state the previous one left, and
-    each draw keeps the generator's checkpoint, so sample k does not depend on how far
-    ahead the data path had computed; a new configuration at sample k goes back to the
-    chunk holding k, draws to k again and continues there (``configure``). ``generate``
-    (the command and ``profile_noise``) uses the same class, so a file of noise and a
-    chip's registers hold the same model."""
-
-    def __init__(self, generator: Any, filtered: bool | None = None,
-                 sequential: bool = False) -> None:
-        self.generator = generator
-        # the filter's kernel: the numpy block filter of lowpass.py in chunks (the chip: no
-        # scipy on its import path), or scipy's sequential lfilter over each draw (generate:
-        # a recursion gives the same bits however the record is cut, at a fifth of the cost)
-        self.sequential = sequential
-        # paper mode: output-referred (no filter on the noise)
-        self.filtered = (generator is not None and generator.mode == "physical"
-                         if filtered is None else bool(filtered))
-        self.filter: LowPass | None = None
-        self.config: tuple[Any, ...] | None = None
-        self.seg = 0  # sample where the current configuration starts
-        self.k0 = 0  # first sample held
-        self.end = 0  # one past the last sample drawn
-        self.raw = np.zeros((0, 3))  # what the unfiltered output adds
-        self.out = self.raw  # what the filtered output adds (raw in paper mode)
-        self.draws: list[tuple[int, Any]] = []  # (first sample, generator checkpoint)
-        self.state: np.ndarray | None = None  # filter state at self.end
-        self.notes: list[str] = []  # what configure said (a profile filter not applied)
-
-    def configure(self, odr_hz: float, bandwidth_hz: float | None, used_end: int,
-                  order: int = choice.LOWPASS_ORDER) -> None:
-        """The chip's ODR and filter from sample ``used_end`` on (None: no filter); noise
-        drawn for later samples is redrawn. Nothing changes if both are as they were."""
-        gen = self.generator
-        config = ((float(odr_hz), bandwidth_hz, int(order)) if self.filtered
-                  else (float(odr_hz),))
-        if gen is None or config == self.config:
-            self.config = config
-            return
-        if self.config is not None:
-            self._rewind(used_end)
-        if gen.rate_hz != float(odr_hz):
-            gen.set_rate(float(odr_hz))
-        self.config = config
-        self.seg = self.end = used_end
-        self.draws = []
-        self.filter = None
-        if self.filtered and bandwidth_hz is not None:
-            self.filter = LowPass(float(odr_hz), float(bandwidth_hz), int(order))
-            settle, _ = gen.generate_referred(self.filter.design.settle_samples())
-            self.filter.settle_on(settle)  # the slow terms settled, the white ones decayed
-            self.state = self.filter.state
-            self._note_filter(odr_hz, bandwidth_hz, order)
-
-    def take(self, k0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
-        """(unfiltered, filtered) noise of samples k0 .. k0 + n - 1, deg/s; samples before
-        k0 are forgotten."""
-        if self.generator is None:
-            zeros = np.zeros((n, 3))
-            return zeros, zeros
-        if k0 < self.k0:
-            raise RuntimeError(f"noise of sample {k0} was forgotten (held from {self.k0})")
-        if k0 > self.k0:
-            self._forget(min(k0, self.end))
-        if k0 + n > self.end:
-            self._draw(k0 + n)
-            if k0 > self.k0:  # a gap: samples drawn and never used
-                self._forget(k0)
-        return self.raw[:n], self.out[:n]
-
-    def _draw(self, end: int) -> None:
-        """Whole chunks from self.end until ``end`` is covered (one generator checkpoint),
-        generated and filtered in pieces of PIECE samples, each while it is in the cache
-        (the generator is chunk invariant: the same samples as one call)."""
-        gen = self.generator
-        total = -(-(end - self.end) // NOISE_CHUNK) * NOISE_CHUNK
-        self.draws.append((self.end, gen.checkpoint()))
-        flt = self.filter
-        held = self.end - self.k0
-        if self.sequential and held == 0:  # generate: one call, one pass of the recursion
-            pre, post = gen.generate_referred(total)
-            self.raw = pre if post is None else pre + post
-            self.out = self.raw
-            if flt is not None:
-                from scipy.signal import lfilter
-
-                self.out, self.state = lfilter(flt.b, flt.a, pre, axis=0, zi=self.state)
-                if post is not None:
-                    self.out += post
-            self.end += total
-            return
-        raw = np.empty((held + total, 3))
-        raw[:held] = self.raw[:held]
-        out = raw if flt is None else np.empty((held + total, 3))
-        if flt is not None:
-            out[:held] = self.out[:held]
-        for start in range(0, total, PIECE):
-            m = min(PIECE, total - start)
-            at = held + start
-            pre, post = gen.generate_referred(m)
-            raw[at:at + m] = pre if post is None else pre + post
-            if flt is None:
-                continue
-            assert self.state is not None  # set when the filter was configured
-            if self.sequential:
-                from scipy.signal import lfilter
-
-                out[at:at + m], self.state = lfilter(flt.b, flt.a, pre, axis=0, zi=self.state)
-            else:
-                out[at:at + m], self.state = flt.run_pieces(pre, self.state, NOISE_CHUNK)
-            if post is not None:
-                out[at:at + m] += post
-        self.raw, self.out = raw, out
-        self.end += total
-
-    def _forget(self, k0: int) -> None:
-        """Drop samples before k0, and the checkpoints no rewind to k0 or later needs."""
-        cut = k0 - self.k0
-        same = self.out is self.raw
-        self.raw = self.raw[cut:]
-        self.out = self.raw if same else self.out[cut:]
-        self.k0 = k0
-        draws = self.draws
-        first = 0
-        while first + 1 < len(draws) and draws[first + 1][0] <= k0:
-            first += 1
-        del draws[:first]
-
-    def _rewind(self, used_end: int) -> None:
-        """The generator back at sample ``used_end``; later samples dropped. (The filter's
-        state there is not needed: a new configuration starts its filter settled.)"""
-        if used_end > self.end:
-            self._draw(used_end)
-        if used_end < self.end:
-            draw = max((d for d in self.draws if d[0] <= used_end), default=None,
-                       key=lambda d: d[0])
-            if draw is None:
-                raise RuntimeError(f"noise of sample {used_end} was forgotten")
-            self.generator.restore(draw[1])
-            if used_end > draw[0]:
-                self.generator.generate(used_end - draw[0])
-        keep = max(used_end - self.k0, 0)
-        same = self.out is self.raw
-        self.raw = self.raw[:keep]
-        self.out = self.raw if same else self.out[:keep]
-        self.end = used_end
-
-    def _note_filter(self, odr_hz: float, bandwidth_hz: float, order: int) -> None:
-        """Say so when the profile names a filter of its own that is not this one: the chip
-        filters its noise with its BW setting, never twice (docs/noise-engine.md)."""
-        profile = getattr(self.generator, "profile", None)
-        stage = getattr(profile, "output", None)
-        if stage is None or not stage.has_filter:
-            return
-        if stage.bw_code is not None:
-            same = choice.BANDWIDTHS[stage.bw_code] == (odr_hz, bandwidth_hz) and (
-                order == choice.LOWPASS_ORDER)
-        else:
-            same = order == stage.order and abs(stage.corner_hz / bandwidth_hz - 1) < 0.02
-        if same:
-            return
-        name = getattr(profile, "name", "")
-        note = (f"noise profile {name!r} was identified through {stage.filter_text()}; "
-                f"the chip filters its noise with its own BW setting ({bandwidth_hz:g} Hz at "
-                f"{odr_hz:g} Hz ODR) instead")
-        if note not in self.notes:
-            self.notes.append(note)
-            import logging  # only when there is a note: not on a chip's import path
-
-            logging.getLogger(__name__).info(note)
-
-
-class ProfileNoise:
-    """A profile's noise as ``generate`` writes it: the sensing element's noise through the
-    profile's own output filter (``[output]``: order and corner, or a BW code) or a BW
-    code's filter, then rounded to the profile's LSB, by the same ``SensorNoise`` a chip
-    uses. ``generate(n)``: the next n samples (n, 3) in deg/s."""
-
-    def __init__(self, generator: Any, bandwidth_hz: float | None, order: int,
-                 lsb_dps: float | None = None) -> None:
-        self.generator = generator
-        self.lsb_dps = lsb_dps
-        self.bandwidth_hz = bandwidth_hz
-        self.order = order
-        self._noise = SensorNoise(generator, filtered=generator.mode == "physical",
-                                  sequential=True)
-        self._noise.configure(generator.rate_hz, bandwidth_hz, 0, order)
-        self._k = 0
-
-    @property
-    def rate_hz(self) -> float:
-        return float(self.generator.rate_hz)
-
-    @property
-    def profile(self) -> Any:
-        return self.generator.profile
-
-    @property
-    def mode(self) -> str:
-        return str(self.generator.mode)
-
-    def describe(self) -> str:
-        """The output stage in one word for file headers: 'none', or the filter and LSB."""
-        parts = []
-        if self.bandwidth_hz is not None and self.mode == "physical":
-            parts.append(f"butterworth{self.order}@{self.bandwidth_hz:g}Hz")
-        if self.lsb_dps:
-            parts.append(f"lsb{self.lsb_dps:.6g}dps")
-        return ",".join(parts) or "none"
-
-    def generate(self, n: int) -> np.ndarray:
-        _, out = self._noise.take(self._k, n)
-        self._k += n
-        if self.lsb_dps:
-            return np.rint(out / self.lsb_dps) * self.lsb_dps
-        return out  # rows handed out once: the buffer never writes them nor uses them again
-
-
-def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,
-                  mode: str = "physical", bandwidth_code: int | None = None,
-                  use_output: bool = True) -> ProfileNoise:
-    """The noise ``generate`` writes for a profile: at ``rate_hz`` (default: the BW code's
-    ODR, else the rate the profile's output stage was found at, else 200 Hz) through the BW
-    code's filter when one is given, else the profile's own output filter (``use_output``),
-    rounded to its LSB; physical mode only filters (paper mode is output-referred).
-    ValueError on a rate the code does not have."""
-    from bmg160_emu.noise import NoiseGenerator, load_profile
-
-    profile = load_profile(profile)
-    stage = profile.output if use_output else None
-    code = bandwidth_code
-    if code is None and stage is not None and stage.bw_code is not None:
-        code = stage.bw_code
-    bandwidth: float | None = None
-    order = choice.LOWPASS_ORDER
-    if code is not None:
-        if isinstance(code, bool) or code not in choice.BANDWIDTHS:
-            codes = ", ".join(f"{c} ({o} Hz ODR, {b:g} Hz)" for c, (o, b) in choice.BANDWIDTHS.items())
-            raise ValueError(f"unknown BW code {code!r}: use one of {codes}")
-        odr, bandwidth = choice.BANDWIDTHS[code]
-        if rate_hz is not None and float(rate_hz) != odr:
-            raise ValueError(f"rate {float(rate_hz):g} Hz disagrees with BW code {code} "
-                             f"(ODR {odr} Hz): give one of them")
-        rate_hz = float(odr)
-    elif stage is not None and stage.corner_hz is not None:
-        bandwidth, order = stage.corner_hz, int(stage.order or order)
-    if rate_hz is None and stage is not None and stage.rate_hz is not None:
-        rate_hz = stage.rate_hz
-    generator = NoiseGenerator(profile, rate_hz=200.0 if rate_hz is None else rate_hz,
-                               seed=seed, mode=mode)
-    lsb = stage.lsb_dps if stage is not None else None
-    return ProfileNoise(generator, bandwidth, order, lsb)
-
-
 class DataPath:
     """Transform, filter and noise of one chip; builds blocks, carries state across them."""
 
@@ -503,16 +230,16 @@ class DataPath:
         self._errors_seen: Any = None  # the budget's SensorErrors when last asked if active
         self._errors_active = False
 
-    def set_filter(self, odr_hz: int, bandwidth_hz: float, used_end: int) -> None:
-        """Filter for a BW code; the noise from sample ``used_end`` on is redrawn at the new
-        ODR and through the new filter (SensorNoise.configure)."""
-        self.odr_hz = odr_hz
-        self.filter = LowPass(odr_hz, bandwidth_hz)
-        self.noise.configure(odr_hz, bandwidth_hz, used_end)
+    def set_filter(self, code: int, used_end: int) -> None:
+        """ODR and filter of BW code ``code`` (0..7); the noise from sample ``used_end`` on is
+        redrawn at the new ODR and through the new filter, and the true rate gets a filter of
+        the same design: one call into the noise layer (SensorNoise.configure_code), which
+        holds the code's figures (noise.bandwidths)."""
+        self.odr_hz, self.filter = self.noise.configure_code(code, used_end)
 
-    def change_bandwidth(self, odr_hz: int, bandwidth_hz: float, used_end: int) -> None:
+    def change_bandwidth(self, code: int, used_end: int) -> None:
         """A new BW code while running: the new filter continues from the last output."""
-        self.set_filter(odr_hz, bandwidth_hz, used_end)
+        self.set_filter(code, used_end)
         if self.last_y is not None and not self.restart_filter:
             assert self.filter is not None
             self.filter.restart(self.last_y)

@@ -1,6 +1,6 @@
 """The unit's error budget in the chip's data path, and the inputs that drive it.
 
-Why a module of its own: the deterministic errors of a unit (bmg160_emu.device.sensor_errors)
+Why a module of its own: the deterministic errors of a unit (bmg160_emu.noise.sensor_errors)
 depend on the die temperature (the same one TEMP reports), on the acceleration the chip feels
 (g-sensitivity) and on the power cycle (turn-on bias); the chip's data path applies them to
 the sensor-frame true rate before its low-pass filter (issue 16). ``ErrorBudget`` is that
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from bmg160_emu.clock import NS_PER_S
-from bmg160_emu.device.sensor_errors import NO_ERRORS, SensorErrors, TurnOnBias
+from bmg160_emu.noise.sensor_errors import NO_ERRORS, SensorErrors, TurnOnBias
 
 FULL_SCALE_LSB = 32768.0  # the int16 full scale: FS in deg/s is this over the sensitivity
 

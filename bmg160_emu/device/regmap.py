@@ -29,18 +29,19 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from bmg160_emu.device import engines
+from bmg160_emu.clock import NEVER
 from bmg160_emu.device import fifo as fifo_mod
+from bmg160_emu.device import offsets
 from bmg160_emu.device import spec_choices as choice
-from bmg160_emu.device.engines import (
+from bmg160_emu.device.interrupts import LATCHED, latch_hold_ns
+from bmg160_emu.device.offsets import FastOffset
+from bmg160_emu.device.power_modes import (
     DEEP_SUSPEND,
     FAST_POWER_UP,
-    NEVER,
     SAMPLING_MODES,
     SUSPEND,
-    FastOffset,
+    power_mode,
 )
-from bmg160_emu.device.interrupts import latch_hold_ns
 from bmg160_emu.device.registers import REGISTERS, address_of, field_of, offset_mask
 from bmg160_emu.device.spec_choices import bw_code, range_code
 from bmg160_emu.device.state import ChipState
@@ -55,6 +56,8 @@ _FIFO_WM_EN, _FIFO_CONFIG_0, _FIFO_CONFIG_1 = (
     address_of("FIFO_WM_EN"), address_of("FIFO_CONFIG_0"), address_of("FIFO_CONFIG_1"))
 _FIFO_EN = field_of("INT_EN_0", "fifo_en").mask
 _INT_EN_1 = address_of("INT_EN_1")
+_INT_MAP_0, _INT_MAP_1, _INT_MAP_2 = (
+    address_of("INT_MAP_0"), address_of("INT_MAP_1"), address_of("INT_MAP_2"))
 _INT_LVL = (field_of("INT_EN_1", "int1_lvl").mask, field_of("INT_EN_1", "int2_lvl").mask)
 _FIFO_WM = field_of("FIFO_WM_EN", "fifo_wm_en").mask
 _FIFO_TAG = field_of("FIFO_CONFIG_0", "tag").mask
@@ -90,7 +93,7 @@ def _peek_fifo_status(s: ChipState, now: int) -> int:
 
 
 def _peek_bist(s: ChipState, now: int) -> int:
-    rate_ok = s.power_mode in engines.SAMPLING_MODES and now >= s.data_start_ns
+    rate_ok = s.power_mode in SAMPLING_MODES and now >= s.data_start_ns
     return s.bist.register(now, rate_ok, s.chip.inject_bist_failure)
 
 
@@ -125,7 +128,7 @@ def _int_rst_latch(s: ChipState, value: int, now: int) -> None:
     if value & _RESET_INT:
         s.irq.reset_int()
     if value & _OFFSET_RESET:
-        engines.set_offsets(s.regs, (0, 0, 0))
+        offsets.set_offsets(s.regs, (0, 0, 0))
         s.invalidate()
 
 
@@ -183,7 +186,7 @@ def _bw(s: ChipState, old: int, new: int, now: int) -> None:
 
 def _lpm(s: ChipState, old: int, new: int, now: int, *, lpm1: bool) -> None:
     r = s.regs
-    old_mode = engines.power_mode(old, r[_LPM2]) if lpm1 else engines.power_mode(r[_LPM1], old)
+    old_mode = power_mode(old, r[_LPM2]) if lpm1 else power_mode(r[_LPM1], old)
     power_transition(s, old_mode, _LPM1 if lpm1 else _LPM2, new, now)
 
 
@@ -333,7 +336,7 @@ def finish_foc(s: ChipState) -> None:
     foc, s.foc = s.foc, None
     if foc is None:
         return
-    engines.set_offsets(s.regs, foc.offsets_lsb(s.offset_lsb_dps, engines.OFFSET_BITS))
+    offsets.set_offsets(s.regs, foc.offsets_lsb(s.offset_lsb_dps, offsets.OFFSET_BITS))
     s.invalidate()
     s.irq.offset_done()
     s.update_engine_flags()
@@ -360,6 +363,21 @@ def pin_level(s: ChipState, pin: int, now: int) -> int:
     active = pins(s, now)[pin - 1]
     active_high = bool(s.regs[_INT_EN_1] & _INT_LVL[pin - 1])
     return int(active == active_high)
+
+
+def next_pin_change(s: ChipState, now: int) -> int | None:
+    """The earliest time after ``now`` (ns) at which INT1 or INT2 may change with no bus
+    access: the next sample (every engine acts on samples), the end of a data-ready pulse
+    under way or of a temporary latch; None when no source is mapped to a pin or nothing is
+    due. A simulator sleeps until then instead of polling the pins (bmg160-emu serve)."""
+    if not (s.regs[_INT_MAP_0] | s.regs[_INT_MAP_1] | s.regs[_INT_MAP_2]):
+        return None
+    due = [s.next_ns] if s.next_ns != NEVER else []
+    pulse_end = s.last_sample_ns + choice.DATA_READY_PULSE_NS
+    if not s.chip.hold_data_int and pulse_end > now:
+        due.append(pulse_end)
+    due += [h for st in s.irq.status.values() if now < (h := st.hold_until_ns) < LATCHED]
+    return min(due, default=None)
 
 
 def _by_address(table: dict[str, Any]) -> tuple[Any, ...]:

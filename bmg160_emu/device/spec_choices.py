@@ -1,16 +1,20 @@
 """Every "unconfirmed" behaviour of the register specification, chosen in one place.
 
 Each constant names the spec section it answers. docs/unconfirmed-choices.md lists them
-with their reasons; change a behaviour here, not in the model.
+with their reasons; change a behaviour here, not in the model. The one exception is the
+output filter of each BW code (5.3), which a noise profile names too: it is chosen in
+``bmg160_emu.noise.bandwidths``.
 """
 
 from __future__ import annotations
 
 from bmg160_emu.device.registers import address_of, field_of
+from bmg160_emu.noise import bandwidths
 
 # 2.1: the I2C address is 0x68 with SDO low, 0x69 with SDO high; the chip answers nowhere else.
 VALID_ADDRESSES = (0x68, 0x69)
 DEFAULT_ADDRESS = 0x68
+DEFAULT_PART = "bmg160"  # the part of a chip when none is named (device.parts.PART_NAMES)
 # 4.8: full scale of RANGE codes 0..4 in deg/s (codes 5..7 are reserved: RESERVED_RANGE_AS_CODE).
 RANGE_FULL_SCALE_DPS = (2000, 1000, 500, 250, 125)
 RANGE_CODE_BY_DPS = {dps: code for code, dps in enumerate(RANGE_FULL_SCALE_DPS)}
@@ -22,17 +26,6 @@ SENSITIVITY_TABLES = {"binary": SENSITIVITY_BINARY, "nominal": SENSITIVITY_NOMIN
 DEFAULT_SENSITIVITY = "binary"
 RESERVED_RANGE_AS_CODE = 0  # 4.8: codes 5..7 produce data as +-2000 deg/s
 
-# 5.3: BW code -> (ODR Hz, -3 dB low-pass bandwidth Hz); codes 8..15 behave as code & 7 (4.9).
-BANDWIDTHS = {
-    0: (2000, 523.0),  # QC figure; BMI088 sources say 532 Hz
-    1: (2000, 230.0),
-    2: (1000, 116.0),
-    3: (400, 47.0),
-    4: (200, 23.0),
-    5: (100, 12.0),
-    6: (200, 64.0),
-    7: (100, 32.0),
-}
 _RANGE_CODE = field_of("RANGE", "range")
 _BW_CODE = field_of("BW", "bw")
 
@@ -45,17 +38,14 @@ def range_code(range_reg: int) -> int:
 
 def bw_code(bw: int) -> int:
     """The BW code a BW byte behaves as: codes 8..15 as code & 7 (4.9, unconfirmed)."""
-    return _BW_CODE.extract(bw) % len(BANDWIDTHS)
+    return _BW_CODE.extract(bw) % len(bandwidths.BW_CODES)
 
 
 def bandwidth(bw: int) -> tuple[int, float]:
-    """(ODR Hz, filter bandwidth Hz) of a BW byte (5.3)."""
-    return BANDWIDTHS[bw_code(bw)]
+    """(ODR Hz, filter bandwidth Hz) of a BW byte: its code's filter (5.3, the table of
+    noise.bandwidths, where a profile's BW code finds it too)."""
+    return bandwidths.BANDWIDTHS[bw_code(bw)]
 
-
-# The chip's filter is not documented: a Butterworth low-pass of this order at the table's
-# bandwidth, unity DC gain (5.3, unconfirmed).
-LOWPASS_ORDER = 2
 
 # 6.9: offset resolution, one LSB of the +-2000 deg/s range of the sensitivity table.
 OFFSET_LSB_RANGE_CODE = 0
@@ -113,6 +103,14 @@ BIST_TIME_NS = 5_000_000
 NVM_DEFAULT_IMAGE = bytes(6)
 NVM_DEFAULT_REMAIN = 0xF
 NVM_PROG_TIME_NS = 5_000_000
+
+# 2.4: the register address byte's bit 7 is not decoded: bits 6..0 are the address on both
+# buses (bit 7 is SPI's read flag). Over I2C, Zephyr's bmi08x driver sends ``reg | 0x80``
+# on every read, and that driver, unmodified, reads a real BMI088 (this die) over I2C: a
+# Crazyflie 2.1 Brushless application checks GYRO_CHIP_ID through it and calibrates on its
+# rates. Sources and the rest of the evidence: docs/unconfirmed-choices.md.
+REGISTER_ADDRESS_BITS = 7  # decoded address bits: 0x00..0x7F on I2C as on SPI
+REGISTER_ADDRESS_MASK = (1 << REGISTER_ADDRESS_BITS) - 1
 
 # 2.4: a burst starting at 0x40 or above reads 0x00 for every byte; writes there are
 # ignored. A burst that runs into 0x3F stays there and reads the FIFO.

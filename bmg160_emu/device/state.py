@@ -1,8 +1,8 @@
 """The chip's state and its sample schedule, under public names: what the chip's parts act on.
 
 ``BMG160`` (chip.py) keeps the lock, the primitives, the hook lists and the reset entry points.
-Everything a register hook (``regmap``), a bus transaction (``access``) or the sample emission
-(``emission``) reads or changes lives in one ``ChipState`` per chip, and those modules take
+Everything a register hook (``regmap``), a bus transaction (``register_access``) or the
+output samples (``output_samples``) read or change lives in one ``ChipState`` per chip, and those modules take
 that object, never the chip: they see the chip only through it (docs/architecture.md, "The
 chip's state"). It also holds the few operations of the schedule they call: ``invalidate``
 (the configuration changed), ``start_sampling`` and ``stop_sampling`` (power modes, 6.7),
@@ -21,14 +21,18 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from bmg160_emu.clock import NS_PER_S, RealTimeClock, VirtualClock
-from bmg160_emu.device import datapath, engines
+from bmg160_emu.clock import NEVER, NS_PER_S, RealTimeClock, VirtualClock
+from bmg160_emu.device import datapath, offsets
 from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import spec_choices as choice
-from bmg160_emu.device.engines import NEVER
 from bmg160_emu.device.environment import ErrorBudget
 from bmg160_emu.device.interrupts import Interrupts
+from bmg160_emu.device.nvm import Nvm
+from bmg160_emu.device.offsets import FastOffset
+from bmg160_emu.device.power_modes import power_mode
 from bmg160_emu.device.registers import address_of, field_of
+from bmg160_emu.device.self_test import SelfTest
+from bmg160_emu.device.thermometer import Thermometer
 from bmg160_emu.device.true_rate import TrueRate, true_rate_source
 
 # strict mode's messages go where they always went: the chip's logger (logging imported
@@ -82,7 +86,7 @@ class PartTable(Protocol):
     @property
     def effect_at(self) -> tuple[Callable[[ChipState, int, int, int], None] | None, ...]: ...
 
-    def load_nvm(self, nvm: engines.Nvm, regs: bytearray) -> None: ...
+    def load_nvm(self, nvm: Nvm, regs: bytearray) -> None: ...
 
     def fifo_depth(self, mode: int) -> int: ...
 
@@ -128,9 +132,9 @@ class ChipState:
     part: PartTable
     sensitivity_table: tuple[float, ...]
     startup_ns: int
-    thermometer: engines.Thermometer
-    nvm: engines.Nvm
-    bist: engines.SelfTest
+    thermometer: Thermometer
+    nvm: Nvm
+    bist: SelfTest
     budget: ErrorBudget
     path: datapath.DataPath
     regs: bytearray
@@ -141,7 +145,7 @@ class ChipState:
     fifo: fifo_mod.Fifo
     bypass_seq: int
     irq: Interrupts
-    foc: engines.FastOffset | None
+    foc: FastOffset | None
     fifo_mode: int
     fifo_store_mode: int
     fifo_int_on: bool
@@ -164,14 +168,14 @@ class ChipState:
 
     def __init__(self, chip: PublicChip, part: PartTable, *,
                  sensitivity_table: tuple[float, ...], startup_ns: int,
-                 thermometer: engines.Thermometer, nvm: engines.Nvm) -> None:
+                 thermometer: Thermometer, nvm: Nvm) -> None:
         self.chip = chip
         self.part = part
         self.sensitivity_table = sensitivity_table
         self.startup_ns = startup_ns
         self.thermometer = thermometer
         self.nvm = nvm
-        self.bist = engines.SelfTest()
+        self.bist = SelfTest()
         self.k = self.seq_base = -1
         self.block = None
         self.span = (0, 0)
@@ -193,7 +197,7 @@ class ChipState:
 
     @property
     def power_mode(self) -> str:
-        return engines.power_mode(self.regs[_LPM1], self.regs[_LPM2])
+        return power_mode(self.regs[_LPM1], self.regs[_LPM2])
 
     @property
     def sensitivity(self) -> float:
@@ -206,7 +210,7 @@ class ChipState:
         return 1.0 / self.sensitivity_table[choice.OFFSET_LSB_RANGE_CODE]
 
     def offset_dps(self) -> np.ndarray:
-        return engines.offsets_dps(self.regs, self.offset_lsb_dps)
+        return offsets.offsets_dps(self.regs, self.offset_lsb_dps)
 
     def strict_warning(self, message: str) -> None:
         """Questionable driver behaviour: logged when the chip is strict."""
@@ -274,10 +278,12 @@ class ChipState:
     # ------------------------------------------------------------------ data path
 
     def set_filter(self, *, running: bool = False) -> None:
-        """ODR and filter from BW; the noise realisation carries on (a running filter too)."""
-        odr, bandwidth = choice.bandwidth(self.regs[_BW])
+        """ODR and filter from BW's code (codes 8..15 as code & 7); the noise realisation
+        carries on (a running filter too)."""
         set_filter = self.path.change_bandwidth if running else self.path.set_filter
-        set_filter(odr, bandwidth, used_end=self.k + 1)
+        set_filter(choice.bw_code(self.regs[_BW]), used_end=self.k + 1)
+        odr = self.path.odr_hz
+        assert odr is not None  # set by set_filter
         self.odr, self.period_ns = odr, NS_PER_S // odr
 
     def invalidate(self) -> None:

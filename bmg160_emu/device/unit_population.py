@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bmg160_emu.device.sensor_errors import SensorErrors
+from bmg160_emu.noise.sensor_errors import SensorErrors
 
 _DS = "BMG160 data sheet BST-BMG160-DS000-09 table 1 (= BMI088 data sheet table 5, gyroscope)"
 

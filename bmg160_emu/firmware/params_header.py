@@ -12,15 +12,21 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from bmg160_emu.device.spec_choices import (
+    RESERVED_RANGE_AS_CODE,
+    SENSITIVITY_BINARY,
+    VALID_ADDRESSES,
+)
+from bmg160_emu.noise.bandwidths import BANDWIDTHS
 from bmg160_emu.noise.discretization import axis_coefficients, check_mode
 from bmg160_emu.noise.profile import Profile, load_profile
 
-# ODR of each BW code 0..7 (register spec section 5.3).
-BW_ODR_HZ = (2000.0, 2000.0, 1000.0, 400.0, 200.0, 100.0, 200.0, 100.0)
-# LSB per deg/s of RANGE codes 0..4 (binary column 32768/FS, register spec section 5.1);
-# reserved codes 5..7 produce data as for +-2000 deg/s (spec 4.8).
-SENSITIVITY_LSB_PER_DPS = (16.384, 32.768, 65.536, 131.072, 262.144, 16.384, 16.384, 16.384)
-I2C_ADDRESSES = (0x68, 0x69)  # SDO low / high (spec 2.1)
+# ODR of each BW code 0..7 (register spec section 5.3), from the model's table.
+BW_ODR_HZ = tuple(float(odr) for odr, _ in BANDWIDTHS.values())
+# LSB per deg/s of RANGE codes 0..7: the binary column 32768/FS of codes 0..4 (register spec
+# section 5.1); reserved codes 5..7 produce data as for +-2000 deg/s (spec 4.8).
+SENSITIVITY_LSB_PER_DPS = SENSITIVITY_BINARY + (SENSITIVITY_BINARY[RESERVED_RANGE_AS_CODE],) * 3
+I2C_ADDRESSES = VALID_ADDRESSES  # SDO low / high (spec 2.1)
 
 
 # Marsaglia and Tsang (2000), "The Ziggurat Method for Generating Random Variables", J. Stat.

@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu.bus import kernel_abi as abi
-from bmg160_emu.device.chip import NORMAL, POWER_SAVE, power_mode
+from bmg160_emu.device.power_modes import NORMAL, POWER_SAVE, power_mode
 from bmg160_emu.device.registers import REGISTER_COUNT, address_of, field_of
 
 STUB_ADAPTER_NAME = "SMBus stub driver"  # the name i2c-stub gives its adapter

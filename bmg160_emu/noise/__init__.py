@@ -1,7 +1,7 @@
 """Gyroscope noise engine (N, B, T, K per axis) and its identification pipeline.
 
 Names are imported lazily (PEP 562): importing one submodule (``noise.profile`` for the
-firmware header, ``noise.identification`` for the identify command) does not load the
+firmware header, ``noise.identify`` for the identify command) does not load the
 generator, and the generator does not load identification, plots or recording loaders, so
 the chip pays only for what it uses.
 """

@@ -18,7 +18,7 @@ correlation times T_i. The fit, per axis:
 
 The sensor's output stage (output_stage.py) enters the model as it is found: white noise
 through the output filter (the exact discrete Allan variance of filtered white noise,
-output_filter.white_avar_unit, instead of N^2 / tau, so the fit starts at the first tau),
+butterworth.white_avar_unit, instead of N^2 / tau, so the fit starts at the first tau),
 and as known terms the quantization's white floor LSB^2 / 12 after the filter and each
 sinusoidal line (IEEE 952; amplitude and frequency from the PSD, which holds a line in a few
 bins where the Allan variance spreads it under the white noise).
@@ -46,8 +46,8 @@ from bmg160_emu.noise.allan import (
     allan_confidence,
     gauss_markov_avar_unit,
 )
+from bmg160_emu.noise.butterworth import white_avar_unit
 from bmg160_emu.noise.estimate import Estimate
-from bmg160_emu.noise.output_filter import white_avar_unit
 from bmg160_emu.noise.output_stage import FilterFit, quantization_avar, sine_avar_unit
 from bmg160_emu.noise.profile import UNITS
 

@@ -3,7 +3,7 @@ quantizes to, and periodic lines (issue 23). identify fits the noise with them a
 them into the profile (``[output]``, the sine terms), so generate reproduces the record.
 
 - Filter, from the one-sided Welch PSD: S(f) = 2 N^2 |H(f)|^2 + the quantization floor,
-  H a digital Butterworth (noise.output_filter) of order 1 to 4 and corner fc, fitted to the
+  H a digital Butterworth (butterworth.py) of order 1 to 4 and corner fc, fitted to the
   log of the PSD in 60 logarithmic bins from rate/100 to Nyquist (there only white noise
   and the filter matter: a Gauss-Markov term of T = 5 s adds 0.1 % at rate/100). The order
   with the smallest residual wins; the record is called filtered when that residual beats
@@ -11,7 +11,7 @@ them into the profile (``[output]``, the sine terms), so generate reproduces the
   Nyquist. The corner's interval comes from the residual's curvature.
 - Filter, from an Allan deviation curve alone (no samples): the points of its shallow start
   (diagnostics.white_region_start) fitted with the exact Allan variance of filtered white
-  noise (output_filter.white_avar_unit), order 2 (the chip's) unless another fits better.
+  noise (butterworth.white_avar_unit), order 2 (the chip's, bandwidths.LOWPASS_ORDER) unless another fits better.
 - Quantization: the grid the values sit on (``output_grid``): white noise of variance
   LSB^2 / 12 after the filter, which generate reproduces by rounding to the same grid.
 - Lines: Welch bins far above the running median of their neighbours (beyond the
@@ -27,12 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from bmg160_emu.noise.allan import AllanCurve
+from bmg160_emu.noise.bandwidths import LOWPASS_ORDER
+from bmg160_emu.noise.butterworth import Butterworth, white_avar_unit
 from bmg160_emu.noise.estimate import Estimate
-from bmg160_emu.noise.output_filter import Butterworth, white_avar_unit
 from bmg160_emu.noise.spectrum import Spectrum
 
 FILTER_ORDERS = (1, 2, 3, 4)
-CHIP_ORDER = 2  # the chip family's filter (register spec 5.3, unconfirmed: spec_choices)
 PSD_BINS = 60  # logarithmic bins of the PSD fit
 FILTERED_F = 25.0  # (SSE flat - SSE filter) / (SSE filter / dof) above this: a filter
 FLAT_CORNER = 0.95  # of Nyquist: a corner above this is no filter to speak of
@@ -222,7 +222,7 @@ def fit_filter_curve(curve: AllanCurve, rate_hz: float, upto_s: float,
         res = minimize_scalar(lambda u, o=order: cost(o, u)[0],
                               bounds=(math.log(rate_hz / 400.0), math.log(FLAT_CORNER * nyquist)),
                               method="bounded", options={"xatol": 1e-5})
-        value = float(res.fun) - (0.5 if order == CHIP_ORDER else 0.0)  # ties: the chip's order
+        value = float(res.fun) - (0.5 if order == LOWPASS_ORDER else 0.0)  # ties: the chip's order
         if best is None or value < best[0]:
             best = (value, order, math.exp(float(res.x)))
     assert best is not None

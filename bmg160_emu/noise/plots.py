@@ -23,7 +23,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from bmg160_emu.noise.allan import FLICKER_ADEV_FACTOR, gauss_markov_avar
-from bmg160_emu.noise.identified import AxisIdentification
+from bmg160_emu.noise.identification_result import AxisIdentification
 from bmg160_emu.noise.output_stage import OutputGrid, output_grid
 from bmg160_emu.noise.spectrum import (
     Spectrum,

@@ -32,6 +32,9 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
+from bmg160_emu.noise.bandwidths import BW_CODES
+from bmg160_emu.noise.sensor_errors import SensorErrors
+
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
@@ -59,8 +62,7 @@ UNITS = {
 GM_KEYS = ("B", "T")  # keys of one entry of an axis's gm list
 SINE_KEYS = ("A", "f")  # keys of one entry of an axis's sine list: amplitude, frequency
 OUTPUT_KEYS = ("order", "corner_hz", "bw_code", "lsb_dps", "rate_hz")
-BW_CODES = range(8)  # register spec 4.9 / 5.3: the BW field's eight codes (8..15 alias 0..7)
-MAX_FILTER_ORDER = 8
+MAX_FILTER_ORDER = 8  # the orders of a profile's own filter (identify tries 1..4)
 # Largest value of each parameter (smallest T): far beyond any MEMS gyro (the BMG160's N is
 # 0.014 deg/s/sqrt(Hz), its range 2000 deg/s), and small enough that every generated sample
 # is finite at every ODR (N / sqrt(dt) at 2000 Hz stays below 1e4 deg/s; a random walk of
@@ -149,8 +151,8 @@ class Profile:
     y: AxisNoise
     z: AxisNoise
     description: str = ""
-    # the unit's deterministic errors (bmg160_emu.device.sensor_errors.SensorErrors fields),
-    # checked when a chip takes them; None: none
+    # the unit's deterministic errors (sensor_errors.SensorErrors fields), checked on
+    # loading; None: none
     errors: Mapping[str, Any] | None = None
     # the sensor's own output filter and quantization (generate applies them, a chip not)
     output: OutputStage | None = None
@@ -274,6 +276,11 @@ def profile_from_mapping(data: Mapping[str, Any], origin: str = "profile") -> Pr
     errors = data.get("errors")
     if errors is not None and not isinstance(errors, Mapping):
         raise ProfileError(f"{origin}: errors must be a table ([errors])")
+    if errors is not None:  # the unit's error budget, checked here as every other table
+        try:
+            SensorErrors.from_dict(errors, f"{origin} [errors]")
+        except ValueError as exc:
+            raise ProfileError(str(exc)) from None
     output = data.get("output")
     return Profile(name, x=axes[0], y=axes[1], z=axes[2], description=description,
                    errors=None if errors is None else dict(errors),

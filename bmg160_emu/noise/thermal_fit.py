@@ -121,7 +121,7 @@ class ThermalFit:
         return np.column_stack([powers @ a.coefficients for a in self.axes])
 
     def to_errors(self) -> dict[str, Any]:
-        """A profile's ``errors`` table (bmg160_emu.device.sensor_errors.SensorErrors)."""
+        """A profile's ``errors`` table (bmg160_emu.noise.sensor_errors.SensorErrors)."""
         c = np.zeros((3, 4))
         for i, a in enumerate(self.axes[:3]):
             c[i, : self.order + 1] = a.coefficients
@@ -235,7 +235,7 @@ def _terms_for(axis, noise, rate, temps, rate_hz, design, y, ref, order, per_blo
         item = noise[axis]
         return item if isinstance(item, NoiseTerms) else NoiseTerms.from_axis(item)
     # two-step: an ordinary fit, then the noise identified from what it leaves
-    from bmg160_emu.noise.identification import identify_axis
+    from bmg160_emu.noise.identify import identify_axis
 
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     powers = (temps - ref).reshape(-1, 1) ** np.arange(order + 1)

@@ -3,8 +3,7 @@
 A recording holds, per output sample: the chip's sample time, the three rate words as the
 driver reads them (raw counts from RATE_X/Y/Z), the same in deg/s with the range's
 sensitivity, and the true body rate the chip was fed (from ``chip.truth_hooks``). It is
-written as CSV or NPZ by :mod:`bmg160_emu.io.recording` (``docs/commands/record.md``),
-whose names this module re-exports.
+written as CSV, NPZ or RESD by :mod:`bmg160_emu.io.recording` (``docs/commands/record.md``).
 """
 
 from __future__ import annotations
@@ -15,20 +14,11 @@ from collections.abc import Callable
 import numpy as np
 
 from bmg160_emu.device import spec_choices
-from bmg160_emu.device.registers import address_of, field_of
-from bmg160_emu.io.recording import (  # noqa: F401  (the file format's names, re-exported)
-    CSV_COLUMNS,
-    RECORDING_FORMAT_TAG,
-    RECORDING_FORMAT_VERSION,
-    Recording,
-    RecordingFormatError,
-    read_recording,
-    write_recording,
-)
+from bmg160_emu.device.registers import address_of
+from bmg160_emu.io.recording import Recording
 
 RATE_X_LSB = address_of("RATE_X_LSB")  # a 6-byte burst from here gives x, y, z LSB first (4.2)
 RANGE, BW = address_of("RANGE"), address_of("BW")
-RANGE_FIELD, BW_FIELD = field_of("RANGE", "range"), field_of("BW", "bw")
 
 
 # --------------------------------------------------------------------------- recording
@@ -40,8 +30,7 @@ def chip_odr_hz(chip) -> float:
         value = getattr(chip, name, None)
         if value is not None:
             return float(value() if callable(value) else value)
-    bandwidths = spec_choices.BANDWIDTHS  # spec 5.3; codes 8..15 act as code & 7 (4.9)
-    return float(bandwidths[BW_FIELD.extract(chip.peek(BW)) % len(bandwidths)][0])
+    return float(spec_choices.bandwidth(chip.peek(BW))[0])  # codes 8..15 as code & 7 (4.9)
 
 
 def chip_lsb_per_dps(chip) -> float:
@@ -55,9 +44,7 @@ def chip_lsb_per_dps(chip) -> float:
 
 def chip_range_dps(chip) -> int:
     """Full scale of the chip's current RANGE code; reserved codes 5..7 act as 2000 (spec 4.8)."""
-    full_scale = spec_choices.RANGE_FULL_SCALE_DPS
-    code = RANGE_FIELD.extract(chip.peek(RANGE))
-    return full_scale[code if code < len(full_scale) else spec_choices.RESERVED_RANGE_AS_CODE]
+    return spec_choices.RANGE_FULL_SCALE_DPS[spec_choices.range_code(chip.peek(RANGE))]
 
 
 def record(

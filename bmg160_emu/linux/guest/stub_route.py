@@ -94,7 +94,7 @@ def stop(guest: Any) -> None:
 def serve(description: Path, bus: int, ready: Path) -> int:
     """Inside the guest: build the chips, keep them in i2c-stub's memory until SIGTERM."""
     from bmg160_emu.clock import RealTimeClock
-    from bmg160_emu.device.standin import StandinConfig
+    from bmg160_emu.device.contract import RateSensor
     from bmg160_emu.linux.i2c_stub import I2CStubAdapter
     from bmg160_emu.linux.i2c_stub_standin import StandinStubAdapter
 
@@ -103,7 +103,8 @@ def serve(description: Path, bus: int, ready: Path) -> int:
     adapters: list[Any] = []
     for config in chip_configs:
         device = config.build(seed, clock)
-        adapter_type = StandinStubAdapter if isinstance(config, StandinConfig) else I2CStubAdapter
+        # a gyro's adapter refreshes its data at the output rate; a stand-in's applies writes
+        adapter_type = I2CStubAdapter if isinstance(device, RateSensor) else StandinStubAdapter
         adapters.append(adapter_type(device, bus, config.address))
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
