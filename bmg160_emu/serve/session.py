@@ -24,7 +24,7 @@ from typing import Any
 
 from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
 from bmg160_emu.bus.spi import FakeSpiDev
-from bmg160_emu.bus.transactions import TransactionLog, errno_name
+from bmg160_emu.traffic.transaction import TransactionLog, errno_name
 from bmg160_emu.clock import NS_PER_S, VirtualClock
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.durations import MAX_SIMULATED_S
