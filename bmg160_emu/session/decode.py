@@ -11,7 +11,6 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from bmg160_emu.bus.transactions import bytes_from_json
 from bmg160_emu.device import registers
 from bmg160_emu.device.fields import (
     decode_register,
@@ -22,7 +21,9 @@ from bmg160_emu.device.fields import (
 from bmg160_emu.device.registers import REGISTER_COUNT, REGISTERS, Register
 from bmg160_emu.device.spec_choices import REGISTER_ADDRESS_MASK
 from bmg160_emu.io.dump import RegisterDump
-from bmg160_emu.io.trace import FAULT_KIND_PREFIX, TRUE_RATE_KIND, parse_fault_entry
+from bmg160_emu.traffic.fault_entry import parse_fault_entry
+from bmg160_emu.traffic.kinds import FAULT_KIND_PREFIX, TRUE_RATE_KIND
+from bmg160_emu.traffic.transaction import bytes_from_json
 
 FIFO_DATA = registers.address_of("FIFO_DATA")  # the pointer does not advance here (spec 2.4)
 
