@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bmg160_emu.bus.transactions import Transaction
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.io.trace import read_trace
 from bmg160_emu.serve import zephyr_app as za
+from bmg160_emu.traffic.transaction import Transaction
 
 pytestmark = pytest.mark.slow
 

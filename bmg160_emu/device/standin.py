@@ -190,7 +190,7 @@ class StandinDevice:
         self.regs = spec.reset_image()
         self.pointer = 0
         self.spi_mode = not spec.spi.starts_in_i2c  # False: I2C mode, SPI frames ignored
-        self.last_shifted_out = 0x00  # the byte the SPI output register holds
+        self.last_shifted_out = 0  # the byte the SPI output register holds
 
     # ----------------------------------------------------------------- time
 
@@ -290,7 +290,7 @@ class StandinDevice:
             self.regs[:] = self.spec.reset_image()
             self.pointer = 0
             self.spi_mode = not self.spec.spi.starts_in_i2c
-            self.last_shifted_out = 0x00
+            self.last_shifted_out = 0
 
     # ----------------------------------------------------------------- SPI
 

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from typing import Any
 
 from bmg160_emu.bus.spi import chip_select_of
-from bmg160_emu.bus.transactions import bytes_from_json
 from bmg160_emu.device import registers
 from bmg160_emu.device.fields import (
     decode_register,
@@ -23,7 +22,9 @@ from bmg160_emu.device.fields import (
 from bmg160_emu.device.registers import REGISTER_COUNT, REGISTERS, Register
 from bmg160_emu.device.spec_choices import REGISTER_ADDRESS_MASK
 from bmg160_emu.io.dump import RegisterDump
-from bmg160_emu.io.trace import FAULT_KIND_PREFIX, TRUE_RATE_KIND, parse_fault_entry
+from bmg160_emu.traffic.fault_entry import parse_fault_entry
+from bmg160_emu.traffic.kinds import FAULT_KIND_PREFIX, TRUE_RATE_KIND
+from bmg160_emu.traffic.transaction import bytes_from_json
 
 FIFO_DATA = registers.address_of("FIFO_DATA")  # the pointer does not advance here (spec 2.4)
 
@@ -48,8 +49,8 @@ Table = Sequence[Register]  # a register table: the BMG160's, or a part's (devic
 
 
 def _field_text(register: int, value: int, table: Table = REGISTERS) -> str:
-    if not 0 <= register < len(table):  # outside the map: no fields (spec 2.4)
-        return " (outside the map, ignored)" if register < 0x80 else ""
+    if not 0 <= register < len(table):  # outside the map: no fields, a write is lost (2.4)
+        return " (outside the map, ignored)"
     parts = [f.text for f in decode_register(register, value, table=table) if f.text]
     return f" ({'; '.join(parts)})" if parts else ""
 
