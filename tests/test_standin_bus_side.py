@@ -295,3 +295,26 @@ def test_spi_records_are_the_device_on_their_chip_select_in_replay_and_in_trace(
     # without the devices' tables a write outside the BMG160's map is said, not a traceback
     assert "write 0x7E (outside the map) <- 0xb6 (outside the map, ignored)" in (
         describe_transaction(records[0]))
+
+
+def test_a_micropython_driver_on_machine_spi_meets_the_dummy_byte_and_the_i2c_start():
+    from bmg160_emu.bus.machine import micropython_machine
+
+    chip = device("bmi088_accel")
+    with micropython_machine(spi={1: {5: chip}}) as machine:
+        cs = machine.Pin(5, machine.Pin.OUT, value=1)
+        spi = machine.SPI(1, baudrate=1_000_000, polarity=0, phase=0)
+
+        def read(reg: int, n: int) -> bytes:
+            cs(0)
+            spi.write(bytes([READ | reg]))
+            data = spi.read(1 + n)  # the dummy byte, then the data
+            cs(1)
+            return data[1:]
+
+        assert read(ACC_CHIP_ID, 1) == b"\x00"  # power-on: still in I2C mode, nothing driven
+        assert read(ACC_CHIP_ID, 1) == b"\x1e"  # the first frame's rising CS selected SPI
+        cs(0)
+        spi.write(bytes([ACC_RANGE, 0x02]))
+        cs(1)
+        assert read(ACC_CONF, 2) == b"\xa8\x02"
