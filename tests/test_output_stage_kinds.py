@@ -58,7 +58,7 @@ def test_broadband_response_recovered(name):
     assert found.bands == [] and found.lines == []
     assert np.max(np.abs(_acf(found.response) - _true_acf(b, a))) < 0.03
     assert abs(found.N_psd / N - 1) < 0.07  # the level read at DC (the Allan fit decides N)
-    whole, level = fit_fast_shape(f, s, segments, RATE)
+    whole, _level = fit_fast_shape(f, s, segments, RATE)
     assert np.max(np.abs(_acf(whole) - _true_acf(b, a))) < 0.03
     if name == "none":
         assert whole.order <= 2 and abs(whole.lag1) < 0.01

@@ -132,6 +132,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         text = str(exc)  # a rate the BW code has not is named as the option it came from
         raise CommandError(f"--{text}" if text.startswith("rate ") else text) from None
+    for note in gen.notes:  # what of the profile's output stage is left out, and why
+        print(f"bmg160-emu generate: note: {note}", file=sys.stderr)
     total = round(duration * gen.rate_hz)
     if total < 1:
         raise CommandError(f"duration {args.duration!r} is shorter than one sample period")
