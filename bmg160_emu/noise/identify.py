@@ -243,12 +243,34 @@ def identify_axis(
     if progress is not None:
         progress(f"{axis}: Allan deviation")
     spectrum = one_sided_psd(x, rate_hz, psd_segment)
-    stage = _sensor_output(x, rate_hz, spectrum) if output_stage else SensorOutput()
     if progress is not None:
         progress(f"{axis}: PSD")
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
-    fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options, method,
-                                         record=x, stage=stage)
+    record_stage = None
+    if output_stage and tau_range[0] is None and not with_q:
+        # (--with-q: angle quantization's PSD rises as f^2; a measured response would take it)
+        # the stage of any shape, read on the PSD, and the fit through it (issue 37)
+        from bmg160_emu.noise.stage_identification import fit_through_stage
+
+        grid = output_grid(x)
+
+        def fit_with(fit_range, **stage_options):
+            return _fit(method, curve, rate_hz, n, fit_range, {**options, **stage_options}, x)
+
+        through = fit_through_stage(
+            x, rate_hz, curve, grid.step if grid is not None else None, fit_with, tau_range[1],
+            spectrum)
+        if through is not None:
+            fit, record_stage, notes = through
+            reason = ("every tau fitted: the output filter is part of the white term (the "
+                      "measured response is that filter)" if record_stage.family is not None
+                      else "every tau fitted: white noise through the measured output response "
+                      "(the record's whole fast spectrum)")
+            notes += _fit_notes(fit, n / rate_hz)
+    if record_stage is None:
+        stage = _sensor_output(x, rate_hz, spectrum) if output_stage else SensorOutput()
+        fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options,
+                                             method, record=x, stage=stage)
     if progress is not None:
         progress(f"{axis}: fit")
     for check in (diagnostics.warmup_check, diagnostics.step_check):
@@ -259,7 +281,7 @@ def identify_axis(
     return AxisIdentification(
         axis=axis, fit=fit, mean=mean, std=std, readoffs=ieee_readoffs(fit.curve),
         tau_range_reason=reason, psd_white_N=white_density_from_psd(spectrum, band),
-        psd_band_hz=band, spectrum=spectrum, notes=notes, method=method,
+        psd_band_hz=band, spectrum=spectrum, notes=notes, method=method, stage=record_stage,
     )
 
 
