@@ -13,7 +13,8 @@ factor 2-4 from seed to seed):
   visible) in which the emulated median lies inside the recording's 95 % chi-square band;
 - Allan deviation at octave taus 0.2 s .. L/10: share of taus where the emulated median lies
   inside the recording's 95 % Greenhall band (forward), and where the recording lies inside
-  the emulated 2.5-97.5 % range (reverse).
+  the emulated 2.5-97.5 % range (reverse): the prediction interval of one more record from
+  the seeds' spread (``prediction_range``), not their bare percentiles.
 """
 
 from __future__ import annotations
@@ -104,6 +105,23 @@ class Verdict:
         return "\n".join(lines)
 
 
+def prediction_range(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The 2.5-97.5 % range of one more emulated record, per column of ``values`` (seeds x
+    points): in logs, mean +- t(0.975, s - 1) sd sqrt(1 + 1/s) (the prediction interval of a
+    normal sample; an Allan deviation point is close to log-normal). The plain percentiles of
+    s seeds are too narrow for few seeds: with 8 a new record falls outside their range with
+    chance 2/9, not 5 %."""
+    from scipy.stats import t
+
+    logs = np.log(np.maximum(values, 1e-300))
+    s = logs.shape[0]
+    if s < 2:
+        return values[0], values[0]
+    half = float(t.ppf(0.975, s - 1)) * np.std(logs, axis=0, ddof=1) * math.sqrt(1.0 + 1.0 / s)
+    centre = np.mean(logs, axis=0)
+    return np.exp(centre - half), np.exp(centre + half)
+
+
 def autocorrelation(x: np.ndarray, lags: int = ACF_LAGS) -> np.ndarray:
     """Sample autocorrelation at lags 1 .. lags (the mean removed; biased estimator)."""
     y = np.asarray(x, dtype=float) - float(np.mean(x))
@@ -167,7 +185,7 @@ def compare(record: np.ndarray, rate_hz: float, draw: Callable[[int], np.ndarray
         sel = (curve.taus >= TAU_MIN_S * (1 - 1e-9)) & (curve.taus <= length_s / 10 * (1 + 1e-9))
         a = np.array(adevs[i])
         med = np.median(a, axis=0)
-        lo, hi = np.percentile(a, [2.5, 97.5], axis=0)
+        lo, hi = prediction_range(a)
         fwd = (med >= curve.ci_low) & (med <= curve.ci_high)
         rev = (curve.adev >= lo) & (curve.adev <= hi)
         fc, ps, dof = _log_psd(x, rate_hz)
@@ -186,7 +204,7 @@ def compare(record: np.ndarray, rate_hz: float, draw: Callable[[int], np.ndarray
             taus=curve.taus, adev_recorded=curve.adev, adev_low95=curve.ci_low,
             adev_high95=curve.ci_high, adev_median=med, adev_range=(lo, hi),
             psd_f=fc, psd_recorded=ps, psd_median=pm,
-            psd_range=tuple(np.percentile(pe, [2.5, 97.5], axis=0)),
+            psd_range=prediction_range(pe),
         ))
     return Verdict(seeds, float(rate_hz), n, axes)
 
@@ -222,3 +240,49 @@ def verdict_figure(verdict: Verdict):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=3)
     return fig
+
+
+def compare_profile(record: np.ndarray, rate_hz: float, profile, seeds: int = DEFAULT_SEEDS,
+                    axis_names: tuple[str, ...] = ("x", "y", "z"),
+                    progress: Callable[[int], None] | None = None) -> Verdict:
+    """The verdict of ``profile`` (a name, path or Profile) drawn as ``generate`` writes it
+    (its output stage included) at the recording's rate, seeds 0 .. seeds - 1, against
+    ``record`` ((n,) or (n, k <= 3), deg/s): column i against the profile's axis i."""
+    from bmg160_emu.noise.sensor_noise import profile_noise
+
+    data = np.asarray(record, dtype=float)
+    if data.ndim == 1:
+        data = data[:, None]
+    n, k = data.shape
+
+    def draw(seed: int) -> np.ndarray:
+        return profile_noise(profile, rate_hz, seed=seed).generate(n)[:, :k]
+
+    return compare(data, rate_hz, draw, seeds, axis_names, progress)
+
+
+def verdict_dict(verdict: Verdict) -> dict:
+    """The verdict as strict JSON: per axis every figure, its threshold and pass/fail."""
+    def finite(v: float) -> float | None:
+        return float(v) if math.isfinite(v) else None
+
+    axes = {}
+    for a in verdict.axes:
+        axes[a.axis] = {
+            "passed": a.passed,
+            "checks": {name: {"text": text, "passed": ok}
+                       for name, (text, ok) in a.checks().items()},
+            "std_recorded": a.std_recorded, "std_ratio": a.std_ratio,
+            "autocorrelation_recorded": [float(v) for v in a.acf_recorded],
+            "autocorrelation_emulated": [float(v) for v in a.acf_emulated],
+            "psd_inside": finite(a.psd_inside), "adev_forward": finite(a.adev_forward),
+            "adev_reverse": finite(a.adev_reverse),
+            "taus_s": [float(v) for v in a.taus],
+            "adev_recorded": [float(v) for v in a.adev_recorded],
+            "adev_emulated_median": [float(v) for v in a.adev_median],
+        }
+    return {"seeds": verdict.seeds, "rate_hz": verdict.rate_hz, "samples": verdict.samples,
+            "thresholds": {"std": STD_TOLERANCE, "autocorrelation_lags_1_5": ACF_TOLERANCE,
+                           "psd_inside": PSD_INSIDE, "adev_forward": ADEV_FORWARD,
+                           "adev_reverse": ADEV_REVERSE, "tau_min_s": TAU_MIN_S},
+            "passed": verdict.passed, "axes": axes}
