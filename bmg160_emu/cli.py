@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from bmg160_emu import __version__, commands
-from bmg160_emu.commands._common import CommandError  # the commands raise it; old name here
+from bmg160_emu.commands._common import CommandError  # what the commands raise: one line
 from bmg160_emu.commands._extras import missing_message
 
 
@@ -50,7 +50,7 @@ def _stopped_while_exiting(number: int, frame: object) -> None:
 # Imported by a program (tests call main() in-process), the handlers are restored at the end.
 _AS_COMMAND = sys.argv[0].endswith(("bmg160-emu", "bmg160_emu/__main__.py"))
 
-__all__ = ["CommandError", "build_parser", "main"]
+__all__ = ["build_parser", "main"]
 
 
 class Terminated(KeyboardInterrupt):

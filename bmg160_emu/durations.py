@@ -1,4 +1,5 @@
-"""One parser for the durations people type: ``10s``, ``5min``, ``2h``, ``1d``, ``250ms``, ``100us``.
+"""One parser for the durations people type: ``10s``, ``5min``, ``2h``, ``1d``, ``250ms``, ``100us``,
+and the text durations are written back as (``duration_text``, ``exact_duration_text``).
 
 Every command-line option and the register-script language read durations through
 :func:`parse_duration`, so the same text means the same time everywhere. Callers choose
@@ -71,3 +72,24 @@ def check_simulated_time(seconds: float, shown: str, what: str = "duration") -> 
     if 0 < seconds < MIN_STEP_S:
         raise ValueError(f"{what} {shown} is shorter than the chip clock's 1 ns step")
     return seconds
+
+
+def duration_text(seconds: float, gap: str = " ") -> str:
+    """A duration for a report, to 3 significant digits in h, min or s (``1.5 h``,
+    ``20 min``, ``0.25 s``), in the units :func:`parse_duration` reads back; ``gap=""``
+    writes it as an option's value (``--skip 15min``)."""
+    if seconds >= 3600:
+        return f"{seconds / 3600:.3g}{gap}h"
+    if seconds >= 60:
+        return f"{seconds / 60:.3g}{gap}min"
+    return f"{seconds:.3g}{gap}s"
+
+
+def exact_duration_text(seconds: float) -> str:
+    """A duration as given, every digit kept, in s, ms or us (``2 s``, ``250 ms``,
+    ``100 us``): what a register script says it advanced."""
+    if seconds >= 1 or seconds == 0:
+        return f"{seconds:g} s"
+    if seconds >= 1e-3:
+        return f"{seconds * 1e3:g} ms"
+    return f"{seconds * 1e6:g} us"

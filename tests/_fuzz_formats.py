@@ -158,7 +158,7 @@ def _finite(values: Any, what: str) -> None:
 
 
 def load_script(path: Path) -> None:
-    from bmg160_emu.session.script import parse_script, read_script
+    from bmg160_emu.session.script_language import parse_script, read_script
 
     parse_script(read_script(path), source=str(path))
 
@@ -187,14 +187,14 @@ def load_rate_file(path: Path) -> None:
 
 
 def load_replay(path: Path) -> None:
-    from bmg160_emu.session.rate_replay import load_replay_data
+    from bmg160_emu.io.replay_data import load_replay_data
 
     data = load_replay_data(path)
     _finite(data.rate_dps, "replay data")
 
 
 def load_recording(path: Path) -> None:
-    from bmg160_emu.session.record import read_recording
+    from bmg160_emu.io.recording import read_recording
 
     rec = read_recording(path)
     _finite(rec.counts, "recording")
@@ -246,7 +246,7 @@ class FuzzFormat:
 
 FORMATS: tuple[FuzzFormat, ...] = (
     FuzzFormat("script", "bringup.script", load_script,
-               _errors("bmg160_emu.session.script.ScriptSyntaxError")),
+               _errors("bmg160_emu.session.script_language.ScriptSyntaxError")),
     FuzzFormat("trace", "session.jsonl", load_trace,
                _errors("bmg160_emu.io.trace.TraceFormatError")),
     FuzzFormat("dump-i2cdump", "dump.i2cdump", load_dump,

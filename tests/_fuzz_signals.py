@@ -191,7 +191,7 @@ def read_output(path: Path) -> object:
             from bmg160_emu.io.resd import read_angular_rate
 
             return read_angular_rate(path)[1]
-        from bmg160_emu.session.record import read_recording
+        from bmg160_emu.io.recording import read_recording
 
         return read_recording(path).counts
     if path.name.startswith("curves."):

@@ -7,9 +7,10 @@ relative imports are resolved. On it the test fails on
 - an import cycle between modules (type-only imports included: a circle is a circle to a
   reader of the imports, whether or not Python runs it),
 - an import of a higher layer, or a module in no layer,
-- a private name (``_name``) of one module used in another: imported from it, or read as an
-  attribute of something that is not ``self``/``cls`` when the module does not define that
-  name itself,
+- a private name (``_name``) of one module used in another: imported from it, or reached
+  as an attribute (``x._name``, or ``getattr(x, "_name")`` and its kin) of something that is
+  not ``self``/``cls`` when the module does not define that attribute on its own objects (a
+  local variable of the same name does not count),
 - a module over 600 lines.
 
 The checks run on small synthetic packages too, so that each one is seen to catch what it
@@ -29,7 +30,8 @@ ROOT = Path(__file__).resolve().parents[1] / PACKAGE
 MAX_LINES = 600
 
 LAYERS = {  # first name under bmg160_emu -> layer (a module may import its layer and lower)
-    "commands": 7, "cli": 7, "pytest_plugin": 7, "pytest_kernel": 7, "__main__": 7,
+    "cli": 8, "__main__": 8, "pytest_plugin": 8, "pytest_kernel": 8,
+    "commands": 7,
     "adcs": 6,
     "session": 5, "faults": 5, "firmware": 5, "watch": 5,
     "linux": 4, "io": 4,
@@ -73,20 +75,24 @@ def _resolve(node: ast.ImportFrom, me: str, is_package: bool) -> str:
 
 
 def _own_private_names(tree: ast.Module) -> set[str]:
-    """Private names a module defines: functions, classes, names it assigns, attributes it
-    sets on ``self``/``cls``, its ``__slots__`` and parameters. (Setting ``other._x`` does
-    not make ``_x`` the module's own.)"""
+    """Private attribute names a module defines on its own objects: attributes it sets on
+    ``self``/``cls``, the names of its class bodies (methods, class attributes, dataclass
+    fields) and its ``__slots__``. A local variable, a parameter or a module-level name is
+    no attribute of an object of this module: ``_pointer = s.chip._pointer`` does not make
+    ``_pointer`` the module's own (setting ``other._x`` does not either)."""
     names: set[str] = set()
     for node in ast.walk(tree):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-            names.add(node.name)
-        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
-            names.add(node.id)
+        if isinstance(node, ast.ClassDef):
+            for item in node.body:
+                if isinstance(item, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                    names.add(item.name)
+                elif isinstance(item, ast.Assign):
+                    names.update(t.id for t in item.targets if isinstance(t, ast.Name))
+                elif isinstance(item, ast.AnnAssign) and isinstance(item.target, ast.Name):
+                    names.add(item.target.id)
         elif (isinstance(node, ast.Attribute) and isinstance(node.ctx, (ast.Store, ast.Del))
               and isinstance(node.value, ast.Name) and node.value.id in ("self", "cls")):
             names.add(node.attr)
-        elif isinstance(node, ast.arg):
-            names.add(node.arg)
         elif (isinstance(node, (ast.Assign, ast.AnnAssign))
               and any(isinstance(t, ast.Name) and t.id == "__slots__"
                       for t in (node.targets if isinstance(node, ast.Assign) else [node.target]))
@@ -194,6 +200,14 @@ def upward_imports(modules: dict[str, Module], package: str = PACKAGE,
     return problems
 
 
+# getattr(obj, "_name") and its kin reach a private name as surely as obj._name does
+ATTRIBUTE_FUNCTIONS = ("getattr", "setattr", "hasattr", "delattr")
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
 def private_names_across_modules(modules: dict[str, Module],
                                  allowed: dict[str, str] = PUBLIC_UNDERSCORE) -> list[str]:
     problems = []
@@ -201,19 +215,26 @@ def private_names_across_modules(modules: dict[str, Module],
         for node in ast.walk(module.tree):
             if isinstance(node, ast.ImportFrom):
                 for alias in node.names:
-                    if alias.name.startswith("_") and not alias.name.startswith("__"):
+                    if _private(alias.name):
                         problems.append(f"{name}:{node.lineno}: imports {alias.name} from "
                                         f"{node.module}")
             elif isinstance(node, ast.Import):
                 for alias in node.names:
-                    if any(p.startswith("_") and not p.startswith("__")
-                           for p in alias.name.split(".")):
+                    if any(_private(p) for p in alias.name.split(".")):
                         problems.append(f"{name}:{node.lineno}: imports {alias.name}")
             elif isinstance(node, ast.Attribute):
-                attr = node.attr
-                if not attr.startswith("_") or attr.startswith("__") or attr in allowed:
+                target, attr = node.value, node.attr
+            elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                  and node.func.id in ATTRIBUTE_FUNCTIONS and len(node.args) >= 2
+                  and isinstance(node.args[1], ast.Constant)
+                  and isinstance(node.args[1].value, str)):
+                target, attr = node.args[0], node.args[1].value
+            else:
+                continue
+            if isinstance(node, (ast.Attribute, ast.Call)):
+                if not _private(attr) or attr in allowed:
                     continue
-                if isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"):
+                if isinstance(target, ast.Name) and target.id in ("self", "cls"):
                     continue
                 if attr in module.own_private:
                     continue  # the module's own name, on another instance of its own class
@@ -340,3 +361,48 @@ def test_a_private_name_used_across_modules_is_found(tmp_path):
 def test_a_long_module_is_found(tmp_path):
     modules = _package(tmp_path, {"device/long.py": "x = 1\n" * 601, "device/ok.py": "x = 1\n" * 600})
     assert long_modules(modules) == {"bmg160_emu.device.long": 601}
+
+
+def test_a_local_of_the_same_name_does_not_make_a_private_attribute_ones_own(tmp_path):
+    modules = _package(tmp_path, {
+        "device/chip.py": "class Chip:\n    def __init__(self):\n        self._pointer = 0\n",
+        "device/hooks.py": ("def f(s):\n    _pointer = s.chip._pointer\n    return _pointer\n"
+                            "def g(s, _k):\n    return s._k\n"),
+        "device/own.py": ("class Own:\n    _shared = 1\n    def peer(self, other):\n"
+                          "        return other._shared\n"),
+    })
+    assert private_names_across_modules(modules) == [
+        "bmg160_emu.device.hooks:2: s.chip._pointer",
+        "bmg160_emu.device.hooks:5: s._k",
+    ]
+
+
+def test_a_private_name_reached_by_getattr_and_its_kin_is_found(tmp_path):
+    modules = _package(tmp_path, {
+        "device/chip.py": "class Chip:\n    def __init__(self):\n        self._pointer = 0\n",
+        "device/peek.py": ("def f(s, name):\n    a = getattr(s.chip, '_pointer')\n"
+                           "    setattr(s.chip, '_pointer', 1)\n"
+                           "    return a, hasattr(s, '_k'), getattr(s, name), getattr(s, 'k')\n"),
+        "device/own.py": ("class Own:\n    def __init__(self):\n        self._n = 0\n"
+                          "    def peer(self, other):\n        return getattr(other, '_n')\n"),
+    })
+    assert private_names_across_modules(modules) == [
+        "bmg160_emu.device.peek:2: getattr(s.chip, '_pointer')",
+        "bmg160_emu.device.peek:3: setattr(s.chip, '_pointer', 1)",
+        "bmg160_emu.device.peek:4: hasattr(s, '_k')",
+    ]
+
+
+def test_a_command_importing_the_dispatcher_is_found(tmp_path):
+    modules = _package(tmp_path, {
+        "cli.py": "from bmg160_emu.commands import run\n",
+        "pytest_plugin.py": "from bmg160_emu.commands._common import CommandError\n",
+        "commands/__init__.py": "",
+        "commands/_common.py": "class CommandError(Exception):\n    pass\n",
+        "commands/run.py": ("from bmg160_emu.cli import build_parser\n"
+                            "def f():\n    from bmg160_emu import pytest_plugin\n"),
+    })
+    assert sorted(upward_imports(modules)) == [
+        "run.py:1: bmg160_emu.commands.run (layer 7) imports bmg160_emu.cli (layer 8)",
+        "run.py:3: bmg160_emu.commands.run (layer 7) imports bmg160_emu.pytest_plugin (layer 8)",
+    ]

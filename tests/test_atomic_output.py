@@ -118,14 +118,14 @@ def test_every_cut_output_says_it_is_partial_and_a_complete_one_does_not(tmp_pat
 
     import numpy as np
 
+    from bmg160_emu.io.formats import block_writer_for
     from bmg160_emu.io.partial import npy_trailer, partial_note, write_sidecar
-    from bmg160_emu.io.rate_stream import RateStreamWriter
 
     for suffix in (".npy", ".csv"):
         for cut in (False, True):
             path = tmp_path / f"r{int(cut)}{suffix}"
             with open(path, "w+b") as handle:
-                writer = RateStreamWriter(handle, suffix, 10, 100.0, ["made here"])
+                writer = block_writer_for("rate stream", path)(handle, 10, 100.0, ["made here"])
                 writer.write(0, np.ones((4, 3)))
                 if cut:
                     writer.end_short("interrupted after 4 of 10 samples")

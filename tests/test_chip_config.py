@@ -9,8 +9,11 @@ import json
 import numpy as np
 import pytest
 
-from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands.trace import header_from_chip_args
+from bmg160_emu.commands._chip_options import (
+    add_chip_options,
+    chips_from_args,
+    header_from_chip_args,
+)
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.device.config import SESSION_OPTIONS, SETTING_KEYS, ChipConfig
 from bmg160_emu.io.trace import TraceHeader

@@ -37,3 +37,18 @@ def test_an_object_missing_a_primitive_is_not_a_register_device():
 
     assert not isinstance(NoPeek(), RegisterDevice)
     assert not isinstance(object(), RegisterDevice)
+
+
+def test_the_gyros_are_rate_sensors_and_a_stand_in_is_not():
+    # what run --watch, a script's default chip, dump --format json and the kernel route ask
+    from bmg160_emu.device.contract import RateSensor
+    from bmg160_emu.device.parts import PART_NAMES, make_chip
+    from bmg160_emu.device.standin import StandinDevice
+    from bmg160_emu.io.standin_file import load_standin
+
+    for part in PART_NAMES:
+        assert isinstance(make_chip(part, seed=1), RateSensor), part
+    assert callable(SimulatedFirmwareChip.set_true_rate)  # the firmware (without simavr)
+    standin = StandinDevice(load_standin("bmm150"), address=0x10)
+    assert isinstance(standin, RegisterDevice) and not isinstance(standin, RateSensor)
+    assert not isinstance(RegisterFileChip(), RateSensor)

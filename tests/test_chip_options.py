@@ -47,7 +47,7 @@ def test_realtime_option_uses_a_real_time_clock():
 
 
 def test_unknown_profile_is_a_command_error():
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
 
     with pytest.raises(CommandError):
         chips_from_args(_parse("--profile", "no-such-profile"))

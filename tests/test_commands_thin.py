@@ -7,7 +7,6 @@ import ast
 from pathlib import Path
 
 from bmg160_emu import cli
-from bmg160_emu.commands import _common
 
 COMMANDS = Path(__file__).resolve().parents[1] / "bmg160_emu" / "commands"
 
@@ -34,6 +33,3 @@ def test_every_command_has_a_summary_a_description_and_examples_as_written():
         assert sub.description and sub.epilog, name
         assert sub.formatter_class is argparse.RawDescriptionHelpFormatter, name
 
-
-def test_command_error_is_one_type_under_both_names():
-    assert cli.CommandError is _common.CommandError

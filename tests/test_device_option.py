@@ -15,9 +15,9 @@ from bmg160_emu.commands._chip_options import (
     buses_from_args,
     chips_from_args,
     configs_from_args,
+    header_from_chip_args,
 )
 from bmg160_emu.commands._common import CommandError
-from bmg160_emu.commands.trace import header_from_chip_args
 from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.device.parts import PART_NAMES
 from bmg160_emu.device.standin import StandinConfig, StandinDevice

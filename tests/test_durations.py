@@ -67,8 +67,21 @@ def test_a_non_text_argument_is_a_type_error():
 
 def test_every_front_end_uses_the_same_parser():
     from bmg160_emu.commands import generate
-    from bmg160_emu.session.script import parse_script
+    from bmg160_emu.session.script_language import parse_script
 
     assert generate.parse_duration is parse_duration
     script = parse_script("advance 1d\nadvance 250ms\nadvance 0s\n")
     assert [st.seconds for st in script] == [86400.0, 0.25, 0.0]
+
+
+@pytest.mark.parametrize(("seconds", "report", "exact"), [
+    (5400.0, "1.5 h", "5400 s"), (1200.0, "20 min", "1200 s"), (0.25, "0.25 s", "250 ms"),
+    (1e-4, "0.0001 s", "100 us"), (0.0, "0 s", "0 s"),
+])
+def test_durations_are_written_in_the_units_the_parser_reads_back(seconds, report, exact):
+    from bmg160_emu.durations import duration_text, exact_duration_text
+
+    assert duration_text(seconds) == report
+    assert exact_duration_text(seconds) == exact
+    assert parse_duration(duration_text(seconds, gap=""), allow_zero=True) == pytest.approx(seconds)
+    assert parse_duration(exact.replace(" ", ""), allow_zero=True) == pytest.approx(seconds)

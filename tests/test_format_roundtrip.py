@@ -19,7 +19,7 @@ import pytest
 from bmg160_emu.bus.transactions import Transaction
 from bmg160_emu.io import FormatError, format_for
 from bmg160_emu.io.dump import RegisterDump, format_dump, parse_dump
-from bmg160_emu.io.rate_stream import RateStreamWriter
+from bmg160_emu.io.formats import block_writer_for
 from bmg160_emu.io.rates import load_rate_record, write_rates
 from bmg160_emu.io.recording import Recording, read_recording, write_recording
 from bmg160_emu.io.trace import TraceHeader, TraceWriter, read_trace
@@ -60,7 +60,7 @@ def _same_rates(sample, record) -> bool:
 def _write_stream(path: Path, sample) -> None:
     _, rate = sample
     with open(path, "wb") as handle:  # in two blocks, as generate streams a long record
-        writer = RateStreamWriter(handle, path.suffix, len(rate), 200.0, ["stream"])
+        writer = block_writer_for("rate stream", path)(handle, len(rate), 200.0, ["stream"])
         writer.write(0, rate[:120])
         writer.write(120, rate[120:])
 
@@ -126,10 +126,10 @@ def _dump_case(fmt: str) -> FormatCase:
 CASES = [
     *(FormatCase(f"rates{s}", s, _rates_sample, _write_rates, _read_rates, _same_rates,
                  deterministic=s != ".npz", kind="rates") for s in (".csv", ".npz", ".npy")),
-    *(FormatCase(f"rate-stream{s}", s, _rates_sample, _write_stream, _read_rates, _same_streamed)
-      for s in (".csv", ".npy")),
+    *(FormatCase(f"rate-stream{s}", s, _rates_sample, _write_stream, _read_rates, _same_streamed,
+                 kind="rate stream") for s in (".csv", ".npy")),
     *(FormatCase(f"recording{s}", s, _recording_sample, lambda p, r: write_recording(r, p),
-                 read_recording, _same_recording, deterministic=s != ".npz")
+                 read_recording, _same_recording, deterministic=s != ".npz", kind="recording")
       for s in (".csv", ".npz")),
     FormatCase("trace", ".jsonl", _trace_sample, _write_trace, read_trace, _same_trace,
                kind="trace"),
@@ -184,18 +184,45 @@ def test_a_file_of_another_kind_is_a_format_error_naming_the_file(case, tmp_path
 def test_the_registry_gives_the_reader_and_writer_of_the_suffix(case):
     if case.kind is None:
         pytest.skip("read and written by name, not looked up by suffix")
-    fmt = format_for(case.kind, Path(f"any{case.suffix}"))
-    assert fmt.read is not None and fmt.write is not None and fmt.suffix == case.suffix
+    fmt = format_for(case.kind, Path(f"any{case.suffix}"), writing=True)
+    assert fmt.writer is not None and fmt.suffix == case.suffix
+    if case.kind != "rate stream":  # a stream is read back as rates (the case's reader)
+        assert fmt.reader is not None
 
 
 def test_an_unknown_suffix_names_the_known_ones():
-    with pytest.raises(FormatError, match=r"rates file must end in \.csv, \.npz, \.npy or \.resd, not 'a\.txt'"):
-        format_for("rates", Path("a.txt"))
+    with pytest.raises(FormatError, match=r"rates file must end in \.csv, \.npy, \.npz or \.resd, not 'a\.txt'"):
+        format_for("rates", Path("a.txt"), writing=True)
+    with pytest.raises(FormatError, match=r"output must end in \.npy, \.csv or \.resd, not 'a\.h5'"):
+        format_for("rate stream", Path("a.h5"), writing=True, what="output")
+    assert format_for("rates", Path("a.txt"), reading=True).writer is None  # UART or CSV
+
+
+def test_every_kind_is_served_by_the_registry_over_the_common_bases():
+    # python-can's LogReader/Logger idea: by kind and suffix, one registry; every reader a
+    # FileReader, every whole-file writer a FileWriter, every stream a BlockWriter
+    from bmg160_emu.io.formats import BlockWriter, FileReader, FileWriter, suffixes
+
+    expected = {"rates": (".csv", ".npy", ".npz", ".resd", ".txt", ".log"),
+                "rate table": (".csv", ".npy"), "rate stream": (".npy", ".csv", ".resd"),
+                "recording": (".csv", ".npz", ".resd"),
+                "replay": (".csv", ".txt", ".log", ".npz"), "trace": (".jsonl",)}
+    for kind, known in expected.items():
+        assert suffixes(kind) == known, kind
+        for suffix in known:
+            fmt = format_for(kind, Path(f"f{suffix}"))
+            if kind == "trace":
+                continue  # a JSON Lines sink of its own (TraceWriter), read by read_trace
+            if fmt.reader is not None:
+                assert issubclass(fmt.reader, FileReader), (kind, suffix)
+            if fmt.writer is not None:
+                base = BlockWriter if kind == "rate stream" else FileWriter
+                assert issubclass(fmt.writer, base), (kind, suffix)
 
 
 def test_every_format_error_is_a_value_error():
     from bmg160_emu.io.dump import DumpFormatError
-    from bmg160_emu.io.rates import RateFileError
+    from bmg160_emu.io.rate_table import RateFileError
     from bmg160_emu.io.trace import TraceFormatError
 
     for error in (DumpFormatError, RateFileError, TraceFormatError):
@@ -203,7 +230,7 @@ def test_every_format_error_is_a_value_error():
 
 
 def test_csv_blank_lines_comments_and_lines_of_spaces_are_skipped_and_lines_still_named(tmp_path):
-    from bmg160_emu.io.rates import RateFileError
+    from bmg160_emu.io.rate_table import RateFileError
 
     path = tmp_path / "r.csv"
     path.write_text("t,x\n0,1\n \t \n0.005,2 # a note\n# a comment\n\n0.01,3\n0.015,x\n")

@@ -14,7 +14,7 @@ from bmg160_emu.noise.allan import (
     gauss_markov_avar_unit,
     overlapping_adev,
 )
-from bmg160_emu.noise.identify import ieee_readoffs
+from bmg160_emu.noise.readoffs import ieee_readoffs
 
 
 def test_flicker_factor_is_sqrt_2ln2_over_pi():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.io.rates import RateFileError as RecordError
+from bmg160_emu.io.rate_table import RateFileError as RecordError
 from bmg160_emu.io.rates import load_rate_record
 from bmg160_emu.noise.identify import IdentificationError, identify
 

@@ -14,8 +14,9 @@ import pytest
 from _firmware_backends import firmware_skip_reason
 
 from bmg160_emu import cli
-from bmg160_emu.io.errors import format_for
-from bmg160_emu.io.rates import RateFileError, load_rate_record
+from bmg160_emu.io.formats import format_for
+from bmg160_emu.io.rate_table import RateFileError
+from bmg160_emu.io.rates import load_rate_record
 from bmg160_emu.io.resd import DPS_PER_UNIT, read_angular_rate
 from bmg160_emu.io.uart_stream import looks_like_uart_stream, parse_uart_stream
 

@@ -81,7 +81,8 @@ def test_a_cr_only_csv_is_read_like_the_same_csv_with_lf(tmp_path):
 
 
 def test_an_npy_header_claiming_more_than_the_file_holds_is_refused_before_allocating(tmp_path):
-    from bmg160_emu.io.rates import RateFileError, read_npy
+    from bmg160_emu.io.array_files import read_npy
+    from bmg160_emu.io.rate_table import RateFileError
 
     header = "{'descr': '<f8', 'fortran_order': False, 'shape': (100000000000, 3), }"
     header += " " * (63 - (len(header) + 10) % 64) + "\n"
@@ -132,7 +133,7 @@ def test_a_scenario_path_is_named_once(tmp_path, capsys):
     ("rate 1 nan 3\n", "1:8: angular rate must be a number"),
 ])
 def test_a_script_that_would_run_for_ever_is_refused_before_it_runs(tmp_path, body, message):
-    from bmg160_emu.session.script import ScriptSyntaxError, parse_script
+    from bmg160_emu.session.script_language import ScriptSyntaxError, parse_script
 
     with pytest.raises(ScriptSyntaxError, match=re.escape(message)):
         parse_script(body, source="s.script")

@@ -111,7 +111,7 @@ def test_an_interrupted_record_keeps_the_samples_so_far(tmp_path, monkeypatch, s
     # record used to leave no file at all: every sample lost
     from bmg160_emu.cli import main
     from bmg160_emu.device.chip import BMG160
-    from bmg160_emu.session.record import read_recording
+    from bmg160_emu.io.recording import read_recording
 
     reads = {"n": 0}
     real_read = BMG160.read

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from bmg160_emu.device.chip import BMG160
-from bmg160_emu.session.record import read_recording, record, write_recording
+from bmg160_emu.io.recording import read_recording, write_recording
+from bmg160_emu.session.record import record
 
 TRUE_RATE = (10.0, -5.0, 2.5)
 

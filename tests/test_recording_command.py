@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bmg160_emu.cli import main
-from bmg160_emu.session.record import read_recording
+from bmg160_emu.io.recording import read_recording
 
 
 @pytest.mark.parametrize("command", ["record", "replay"])

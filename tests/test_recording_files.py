@@ -5,13 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.session.rate_replay import load_replay_data
-from bmg160_emu.session.record import (
-    Recording,
-    RecordingFormatError,
-    read_recording,
-    write_recording,
-)
+from bmg160_emu.io.rate_table import RateFileError
+from bmg160_emu.io.recording import Recording, read_recording, write_recording
+from bmg160_emu.io.replay_data import load_replay_data
 
 
 def _recording(with_truth: bool = True) -> Recording:
@@ -76,10 +72,12 @@ def test_a_damaged_csv_row_is_named(tmp_path):
     lines = path.read_text().splitlines()
     lines[10] = lines[10].rsplit(",", 1)[0]
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(RecordingFormatError, match=r"out.csv:11: 9 columns, expected 10"):
+    with pytest.raises(RateFileError, match=r"out.csv:11: 9 columns, expected 10"):
         read_recording(path)
 
 
 def test_unknown_suffix_is_refused(tmp_path):
-    with pytest.raises(ValueError, match=r"\.csv or \.npz"):
+    with pytest.raises(RateFileError, match=r"recording file must end in \.csv, \.npz or \.resd, "
+                                            r"not 'out\.txt'"):
         write_recording(_recording(), tmp_path / "out.txt")
+    assert not (tmp_path / "out.txt").exists()

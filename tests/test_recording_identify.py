@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from bmg160_emu.device.chip import BMG160
+from bmg160_emu.io.recording import read_recording, write_recording
 from bmg160_emu.noise import load_profile
 from bmg160_emu.noise.identify import identify
 from bmg160_emu.noise.profile import AxisNoise, Profile
-from bmg160_emu.session.record import read_recording, record, write_recording
+from bmg160_emu.session.record import record
 
 # The noise issue's round trip identifies 6 h at 200 Hz of the paper profile. A record 12x
 # shorter carries the same information when the profile's time scale is 12x shorter:

@@ -7,17 +7,16 @@ import json
 import pytest
 
 from bmg160_emu.device import registers
+from bmg160_emu.device.fields import decode_register, resolve_register_name
 from bmg160_emu.io.dump import (
     DumpFormatError,
     RegisterDump,
-    decode_register,
     detect_format,
     format_dump,
     format_i2cdump,
     format_json,
     format_table,
     parse_dump,
-    resolve_register_name,
 )
 from bmg160_emu.session.decode import diff_dumps, format_diff
 

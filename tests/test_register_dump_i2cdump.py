@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
+from bmg160_emu.device.registers import REGISTER_COUNT
 from bmg160_emu.io.dump import (
     I2CDUMP_HEADER,
-    REGISTER_COUNT,
     DumpFormatError,
     format_i2cdump,
     parse_i2cdump,

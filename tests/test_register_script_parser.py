@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from bmg160_emu.device import registers
-from bmg160_emu.session.script import ScriptSyntaxError, parse_script
+from bmg160_emu.session.script_language import ScriptSyntaxError, parse_script
 
 GOOD = """\
 # bring-up as the Linux driver does it

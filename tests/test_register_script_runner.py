@@ -6,7 +6,8 @@ import pytest
 
 from bmg160_emu.device import spec_choices
 from bmg160_emu.device.chip import BMG160
-from bmg160_emu.session.script import ScriptFailure, parse_script, run_script
+from bmg160_emu.session.script import run_script
+from bmg160_emu.session.script_language import ScriptFailure, parse_script
 
 BRING_UP = """\
 read CHIP_ID == 0x0F

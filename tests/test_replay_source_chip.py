@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from bmg160_emu.device.chip import BMG160
-from bmg160_emu.session.rate_replay import ReplaySource, load_replay_data
-from bmg160_emu.session.record import record, write_recording
+from bmg160_emu.io.recording import write_recording
+from bmg160_emu.io.replay_data import load_replay_data
+from bmg160_emu.session.rate_replay import ReplaySource
+from bmg160_emu.session.record import record
 
 BW_200HZ, BW_100HZ = 0x04, 0x05  # spec 5.3
 

@@ -5,12 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bmg160_emu.session.rate_replay import (
-    ReplayData,
-    ReplayDataError,
-    ReplaySource,
-    load_replay_data,
-)
+from bmg160_emu.io.rate_table import RateFileError
+from bmg160_emu.io.replay_data import ReplayData, load_replay_data
+from bmg160_emu.session.rate_replay import ReplaySource
 
 
 def _csv(tmp_path, text: str, name: str = "flight.csv"):
@@ -36,61 +33,61 @@ def test_counts_are_converted_with_the_given_sensitivity(tmp_path):
     path = _csv(tmp_path, "t_s,x_counts,y_counts,z_counts\n0,164,0,-164\n0.005,0,0,0\n")
     data = load_replay_data(path, unit="counts", lsb_per_dps=16.4)
     assert data.rate_dps[0] == pytest.approx([10.0, 0.0, -10.0])
-    with pytest.raises(ReplayDataError, match="need the sensitivity"):
+    with pytest.raises(RateFileError, match="need the sensitivity"):
         load_replay_data(path, unit="counts")
 
 
 def test_wrong_column_count_names_the_line(tmp_path):
     path = _csv(tmp_path, "0.0,1,2,3\n0.1,1,2\n")
-    with pytest.raises(ReplayDataError, match=r"flight.csv:2: 3 columns, expected 4"):
+    with pytest.raises(RateFileError, match=r"flight.csv:2: 3 columns, expected 4"):
         load_replay_data(path)
     path = _csv(tmp_path, "0.0,1,2,3,4\n", name="five.csv")
-    with pytest.raises(ReplayDataError, match=r"five.csv:1: 5 columns without a header"):
+    with pytest.raises(RateFileError, match=r"five.csv:1: 5 columns without a header"):
         load_replay_data(path)
 
 
 def test_non_monotonic_time_names_the_line(tmp_path):
     path = _csv(tmp_path, "t,x,y,z\n0.00,0,0,0\n0.01,0,0,0\n0.01,0,0,0\n0.03,0,0,0\n")
-    with pytest.raises(ReplayDataError, match=r"flight.csv:4: time 0.01 s is not after"):
+    with pytest.raises(RateFileError, match=r"flight.csv:4: time 0.01 s is not after"):
         load_replay_data(path)
 
 
 def test_gap_names_the_line_after_it(tmp_path):
     rows = [f"{0.01 * k:.2f},0,0,0" for k in range(10)] + ["0.50,0,0,0"]
     path = _csv(tmp_path, "\n".join(rows) + "\n")
-    with pytest.raises(ReplayDataError, match=r"flight.csv:11: gap of 0.41 s"):
+    with pytest.raises(RateFileError, match=r"flight.csv:11: gap of 0.41 s"):
         load_replay_data(path)
     assert len(load_replay_data(path, max_gap_factor=100).t_s) == 11
 
 
 def test_unit_mismatch_in_header_is_refused(tmp_path):
     path = _csv(tmp_path, "t,x_counts,y_counts,z_counts\n0,1,2,3\n1,1,2,3\n")
-    with pytest.raises(ReplayDataError, match="unit mismatch: column 'x_counts' holds counts"):
+    with pytest.raises(RateFileError, match="unit mismatch: column 'x_counts' holds counts"):
         load_replay_data(path, unit="dps")
 
 
 def test_counts_given_as_dps_are_caught_by_their_size(tmp_path):
     path = _csv(tmp_path, "0,1,2,3\n0.01,16384,0,0\n")
-    with pytest.raises(ReplayDataError, match=r"flight.csv:2: .* beyond the widest range.*use unit counts"):
+    with pytest.raises(RateFileError, match=r"flight.csv:2: .* beyond the widest range.*use unit counts"):
         load_replay_data(path, unit="dps")
 
 
 def test_dps_given_as_counts_are_caught_by_their_fractions(tmp_path):
     path = _csv(tmp_path, "0,1,2,3\n0.01,0.25,0,0\n")
-    with pytest.raises(ReplayDataError, match=r"flight.csv:2: raw counts must be whole numbers"):
+    with pytest.raises(RateFileError, match=r"flight.csv:2: raw counts must be whole numbers"):
         load_replay_data(path, unit="counts", lsb_per_dps=16.384)
 
 
 def test_not_a_number_names_the_line(tmp_path):
     path = _csv(tmp_path, "0,1,2,3\n0.01,abc,0,0\n")
-    with pytest.raises(ReplayDataError, match=r"flight.csv:2: not a number: 'abc'"):
+    with pytest.raises(RateFileError, match=r"flight.csv:2: not a number: 'abc'"):
         load_replay_data(path)
 
 
 def test_npz_with_counts_when_dps_were_asked_is_a_unit_mismatch(tmp_path):
     path = tmp_path / "bench.npz"
     np.savez(path, t_s=np.arange(3) * 0.01, counts=np.zeros((3, 3)))
-    with pytest.raises(ReplayDataError, match="unit mismatch"):
+    with pytest.raises(RateFileError, match="unit mismatch"):
         load_replay_data(path, unit="dps")
     assert load_replay_data(path, unit="counts", lsb_per_dps=16.384).rate_dps.shape == (3, 3)
 
@@ -98,7 +95,7 @@ def test_npz_with_counts_when_dps_were_asked_is_a_unit_mismatch(tmp_path):
 def test_npz_rows_are_named_in_errors(tmp_path):
     path = tmp_path / "bench.npz"
     np.savez(path, t=np.array([0.0, 0.01, 0.005]), rate_dps=np.zeros((3, 3)))
-    with pytest.raises(ReplayDataError, match=r"bench.npz: row 2: time"):
+    with pytest.raises(RateFileError, match=r"bench.npz: row 2: time"):
         load_replay_data(path)
 
 

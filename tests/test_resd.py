@@ -119,7 +119,7 @@ def test_generate_writes_resd_equal_to_its_npy(tmp_path):
 
 
 def test_record_writes_output_and_truth_channels(tmp_path, capsys):
-    from bmg160_emu.session.record import read_recording
+    from bmg160_emu.io.recording import read_recording
 
     csv, resd = tmp_path / "r.csv", tmp_path / "r.resd"
     for out in (csv, resd):

@@ -207,7 +207,7 @@ def test_a_table_file_with_text_in_its_rows_is_refused(tmp_path):
     (tmp_path / "bad.csv").write_text("t,x,y,z\n0,0,0,0\n1,0,zero,0\n")
     (tmp_path / "s.toml").write_text(
         'duration_s = 1.0\n[[motion]]\nkind = "table"\nfile = "bad.csv"\n')
-    with pytest.raises(ScenarioError, match="line 3: not numbers"):
+    with pytest.raises(ScenarioError, match=r"motion 1: .*bad\.csv:3: not a number: 'zero'"):
         load_scenario(tmp_path / "s.toml")
 
 

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bmg160_emu.io.rates import load_rate_record, write_npz
+from bmg160_emu.io.array_files import write_npz
+from bmg160_emu.io.rates import load_rate_record
 
 
 def _write(path: Path, n: int, rate_hz: float) -> None:

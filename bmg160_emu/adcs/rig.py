@@ -25,7 +25,7 @@ from bmg160_emu.adcs.attitude import IDENTITY, integrate_attitude
 from bmg160_emu.adcs.scenarios import Scenario, ScenarioError
 from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.device.registers import address_of
-from bmg160_emu.device.spec_choices import VALID_ADDRESSES
+from bmg160_emu.device.spec_choices import DEFAULT_PART, VALID_ADDRESSES
 
 CHIP_ID = address_of("CHIP_ID")
 from bmg160_emu.faults import Fault, FaultEvent, FaultSchedule, describe_flags
@@ -81,18 +81,16 @@ class GyroSpec:
     unit: Any = None  # k: unit k of lot ``lot``; "per-run": a new unit of the lot every run
     lot: int = 0  # the production lot's seed (device.unit_population.draw_unit)
     acceleration_g: Any = (0.0, 0.0, 0.0)  # g in the sensor frame (g-sensitivity)
-    part: str = "bmg160"  # a device.parts.PART_NAMES entry
+    part: str = DEFAULT_PART  # a device.parts.PART_NAMES entry
 
     def __post_init__(self) -> None:
-        from bmg160_emu.device.parts import PART_NAMES
+        from bmg160_emu.device.parts import PART_NAMES, UnknownPartError, part_profile
 
-        if self.part not in PART_NAMES:
+        try:  # None: the part's data-sheet profile (paper for the bmg160)
+            self.profile = part_profile(self.part, self.profile)
+        except UnknownPartError:
             raise ScenarioError(f"{self.name}: part must be one of {', '.join(PART_NAMES)}, "
-                                f"not {self.part!r}")
-        if self.profile is None:  # the part's data-sheet profile (paper for the bmg160)
-            from bmg160_emu.device.parts import part_table
-
-            self.profile = part_table(self.part).noise_profile
+                                f"not {self.part!r}") from None
         if not _is_whole(self.address) or self.address not in VALID_ADDRESSES:
             shown = f"0x{self.address:02x}" if _is_whole(self.address) else repr(self.address)
             raise ScenarioError(f"{self.name}: address must be 0x68 or 0x69 (the BMG160 answers "

@@ -37,6 +37,7 @@ import numpy as np
 
 from bmg160_emu.durations import MAX_SIMULATED_S, MAX_TEXT
 from bmg160_emu.io.errors import FormatError, loads_toml, read_text
+from bmg160_emu.io.formats import read_file
 from bmg160_emu.limits import RATE_DPS
 
 # WGS-84 / EGM-96 constants for the orbital period of a circular orbit.
@@ -398,28 +399,6 @@ def _inertia(value: Any, where: str) -> np.ndarray:
     return array
 
 
-def _read_csv_table(path: Path, where: str) -> np.ndarray:
-    """Rows of numbers; '#' comments, blank lines and one header line of names are skipped."""
-    rows: list[list[float]] = []
-    header_skipped = False
-    for number, line in enumerate(read_text(path, ScenarioError).splitlines(), 1):
-        text = line.split("#", 1)[0].strip()
-        if not text:
-            continue
-        try:
-            rows.append([float(cell) for cell in text.split(",")])
-        except ValueError:
-            if rows or header_skipped:
-                raise ScenarioError(
-                    f"{where}: {path.name} line {number}: not numbers: {text!r}") from None
-            header_skipped = True
-    if not rows:
-        raise ScenarioError(f"{where}: {path.name} holds no rows of numbers")
-    if len({len(r) for r in rows}) != 1:
-        raise ScenarioError(f"{where}: {path.name}: rows of different lengths")
-    return np.array(rows)
-
-
 def _load_table(entry: dict[str, Any], where: str, base: Path | None) -> np.ndarray:
     if "samples" in entry:
         try:
@@ -433,10 +412,10 @@ def _load_table(entry: dict[str, Any], where: str, base: Path | None) -> np.ndar
             path = base / path
         if not path.exists():
             raise ScenarioError(f"{where}: rate table file not found: {path}")
-        if path.suffix == ".npy":
-            data = np.load(path)
-        else:
-            data = _read_csv_table(path, where)
+        try:  # the registry's rate table formats (io/rates.py): .csv, .npy
+            data = read_file("rate table", path)
+        except FormatError as exc:
+            raise ScenarioError(f"{where}: {exc}") from None
     else:
         raise ScenarioError(f"{where}: a table needs 'samples' or 'file'")
     if data.ndim != 2 or data.shape[1] != 4:

@@ -20,13 +20,21 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bmg160_emu import limits
 from bmg160_emu.commands._common import bounded_option
-from bmg160_emu.device.config import DEFAULT_PART, ChipConfig
+from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.device.registers import address_of
-from bmg160_emu.device.spec_choices import DEFAULT_ADDRESS, RANGE_CODE_BY_DPS, VALID_ADDRESSES
+from bmg160_emu.device.spec_choices import (
+    DEFAULT_ADDRESS,
+    DEFAULT_PART,
+    RANGE_CODE_BY_DPS,
+    VALID_ADDRESSES,
+)
+
+if TYPE_CHECKING:
+    from bmg160_emu.io.trace import TraceHeader, TraceWriter
 
 RANGE = address_of("RANGE")  # --range is written here at start (spec 4.8)
 BW = address_of("BW")  # --bandwidth is written here at start (spec 5.3)
@@ -258,14 +266,9 @@ def configs_from_args(args: argparse.Namespace) -> list[Any]:
         [DEFAULT_ADDRESS] if not devices or part is not None else [])
 
     def gyro(address: int, part: str, bus: int | None) -> ChipConfig:
-        profile = getattr(args, "profile", None)
-        if profile is None:  # the part's own, named in the config so a trace carries it
-            from bmg160_emu.device.parts import part_table
-
-            profile = part_table(part).noise_profile
         return ChipConfig(
             address=address,
-            profile=profile,
+            profile=getattr(args, "profile", None),  # None: the part's own (ChipConfig)
             noise=not getattr(args, "no_noise", False),
             noise_mode=getattr(args, "noise_mode", "physical"),
             sensitivity=getattr(args, "sensitivity", "binary"),
@@ -364,6 +367,39 @@ def chips_from_args(args: argparse.Namespace, default_bus: int | None = None,
 
         raise CommandError(f"this command drives one bus: a --device on bus "
                            f"{', '.join(others)} has nowhere to go (drop its :BUS)")
+    from bmg160_emu.device.contract import RateSensor
+
     chips = buses_from_args(args, bus, announce, clock).get(bus, {})
     # gyros first: the first device is a command's default chip (a script's, dump --after's)
-    return dict(sorted(chips.items(), key=lambda item: hasattr(item[1], "spec")))
+    return dict(sorted(chips.items(), key=lambda item: not isinstance(item[1], RateSensor)))
+
+
+def header_from_chip_args(args: Any) -> TraceHeader:
+    """The trace header for chips built by ``chips_from_args`` from the same options."""
+    from bmg160_emu.session.session_trace import session_header
+
+    return session_header(getattr(args, "seed", None), configs_from_args(args))
+
+
+def trace_writer_from_args(args: Any) -> TraceWriter:
+    """``--trace FILE`` opened with the session's header; an unwritable path is the
+    command's one-line error (run, script and vhost-user-i2c share it)."""
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.session.session_trace import open_session_trace
+
+    try:
+        return open_session_trace(args.trace, getattr(args, "seed", None), configs_from_args(args))
+    except OSError as exc:
+        raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
+
+
+def close_trace(writer: TraceWriter, path: Any) -> None:
+    """Close a session's trace (``session_trace.close_session_trace``); a write error is the
+    command's one-line error."""
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.session.session_trace import close_session_trace
+
+    try:
+        close_session_trace(writer, path)
+    except OSError as exc:
+        raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None

@@ -150,7 +150,8 @@ def run_script_file(
     printed to stderr after ``failed_prefix`` and gives exit status 1, else 0.
     """
     from bmg160_emu.bus.i2c import I2CBus
-    from bmg160_emu.session.script import ScriptFailure, ScriptSyntaxError, read_script, run_script
+    from bmg160_emu.session.script import run_script
+    from bmg160_emu.session.script_language import ScriptFailure, ScriptSyntaxError, read_script
 
     chip = next(iter(chips.values()))
     try:

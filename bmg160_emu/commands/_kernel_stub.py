@@ -20,6 +20,7 @@ from typing import Any
 
 def serve(options: Path, bus: int, ready: Path) -> int:
     from bmg160_emu.commands._chip_options import chips_from_args
+    from bmg160_emu.device.contract import RateSensor
     from bmg160_emu.linux.i2c_stub import I2CStubAdapter
     from bmg160_emu.linux.i2c_stub_standin import StandinStubAdapter
 
@@ -28,7 +29,7 @@ def serve(options: Path, bus: int, ready: Path) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     adapters: list[Any] = [
-        StandinStubAdapter(chip, bus, address) if hasattr(chip, "spec")  # a stand-in
+        StandinStubAdapter(chip, bus, address) if not isinstance(chip, RateSensor)  # a stand-in
         else I2CStubAdapter(chip, bus, address) for address, chip in chips.items()]
     for adapter in adapters:
         adapter.preload()

@@ -63,6 +63,7 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.device.contract import RateSensor
     from bmg160_emu.io.dump import DUMP_TITLE, RegisterDump, format_dumps, format_i2cdump
 
     chips = chips_from_args(args)
@@ -71,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"--chip 0x{args.chip:02x} is not an emulated chip ({emulated}); "
                            "add it with --address or --device")
     chosen = {a: c for a, c in chips.items() if args.chip is None or a == args.chip}
-    standins = {a: c for a, c in chosen.items() if hasattr(c, "spec")}
+    standins = {a: c for a, c in chosen.items() if not isinstance(c, RateSensor)}
     if standins and args.format == "json":
         raise CommandError("--format json holds BMG160-family registers; a stand-in dumps as "
                            "i2cdump only (give --format i2cdump, or --chip for a gyro)")

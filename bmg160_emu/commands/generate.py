@@ -106,13 +106,15 @@ def run(args: argparse.Namespace) -> int:
         check_writable,
         held_signals,
     )
+    from bmg160_emu.io.errors import FormatError
+    from bmg160_emu.io.formats import block_writer_for
     from bmg160_emu.io.partial import clear_sidecar, write_sidecar
-    from bmg160_emu.io.rate_stream import RateStreamWriter
     from bmg160_emu.noise.sensor_noise import ProfileNoise, profile_noise
 
-    suffix = args.output.suffix.lower()
-    if suffix not in (".npy", ".csv", ".resd"):
-        raise CommandError(f"output must end in .npy, .csv or .resd, not {args.output.name!r}")
+    try:  # the registry's formats of a rate stream (io/rate_stream.py)
+        stream = block_writer_for("rate stream", args.output, what="output")
+    except FormatError as exc:
+        raise CommandError(str(exc)) from None
     chosen_seed = args.seed is None
     if chosen_seed:
         args.seed = secrets.randbits(32)  # a record names its seed: a random run can be repeated
@@ -148,7 +150,7 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     try:  # before the work: a bad path, or a disk without room (a "1e9d" run streamed GBs)
         check_writable(args.output)
-        check_free_space(args.output, RateStreamWriter.size_bytes(suffix, total))
+        check_free_space(args.output, stream.size_bytes(total))
     except OutputError as exc:
         raise CommandError(str(exc)) from None
     bar = _progress(total)
@@ -156,30 +158,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         # under a temporary name: complete, or (interrupted) an honest shorter record
         with atomic_path(args.output) as partial, open(partial, "w+b") as handle:
-            if suffix == ".resd":  # Renode Sensor Data, angular rate channel 0 (docs/resd.md)
-                from bmg160_emu.io.resd import ResdFormatError, ResdWriter
-
-                try:  # the block states its count up front: an interruption rewrites it
-                    start_s = 1.0 / gen.rate_hz  # sample k at (k + 1) / rate, as in the CSV
-                    resd = ResdWriter(handle, rate_hz=gen.rate_hz, samples=total,
-                                      start_s=start_s)
-                    try:
-                        for _, block in _chunks(gen, total, bar):
-                            resd.write_dps(block)
-                    except KeyboardInterrupt as exc:
-                        if resd.written == 0:  # no sample: no file (it would look valid)
-                            exc.kept = f"no sample generated; {args.output} not written"  # type: ignore[attr-defined]
-                            raise
-                        stopped = exc
-                        resd.end_short()
-                        write_sidecar(args.output, f"interrupted after {resd.written} of "
-                                      f"{total} samples")
-                    resd.close()
-                except ResdFormatError as exc:
-                    raise CommandError(f"{args.output}: {exc}") from None
-                written = resd.written
-            else:
-                writer = RateStreamWriter(handle, suffix, total, gen.rate_hz, [header])
+            try:
+                writer = stream(handle, total, gen.rate_hz, [header])
                 try:
                     for start, block in _chunks(gen, total, bar):
                         writer.write(start, block)
@@ -188,10 +168,14 @@ def run(args: argparse.Namespace) -> int:
                         exc.kept = f"no sample generated; {args.output} not written"  # type: ignore[attr-defined]
                         raise
                     stopped = exc
+                    note = f"interrupted after {writer.samples} of {total} samples"
                     with held_signals():  # a second signal must not cut the honest file
-                        writer.end_short(f"interrupted after {writer.samples} of {total} "
-                                         "samples")
-                written = writer.samples
+                        writer.end_short(note)
+                        if not writer.notes_inside:  # RESD: said beside the file
+                            write_sidecar(args.output, note)
+            except FormatError as exc:
+                raise CommandError(f"{args.output}: {exc}") from None
+            written = writer.samples
             if stopped is None:
                 clear_sidecar(args.output)  # an earlier cut run's mark
     except OSError as exc:

@@ -221,7 +221,7 @@ def _options(args: argparse.Namespace) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.io.rates import RateFileError
+    from bmg160_emu.io.rate_table import RateFileError
     from bmg160_emu.noise.identify import IdentificationError
     from bmg160_emu.noise.interop import InteropError
 
@@ -343,7 +343,8 @@ def _identify_record(args: argparse.Namespace, options: dict):
 def _identify_curve(args: argparse.Namespace, options: dict):
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.noise.identify import Identification, identify_curve
+    from bmg160_emu.noise.identification_result import Identification
+    from bmg160_emu.noise.identify import identify_curve
     from bmg160_emu.noise.interop import read_adev_csv
 
     if args.rate is None:

@@ -90,7 +90,7 @@ def _progress(line: str) -> None:
 
 
 def run_prepare(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.linux.guest.engine import EngineError, engines
 
     available = engines()
@@ -113,7 +113,7 @@ def run_prepare(args: argparse.Namespace) -> int:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.linux.guest.drivers import bind_command, driver_name, load_order
     from bmg160_emu.linux.guest.engine import EngineError, choose
     from bmg160_emu.linux.guest.harness import Backend, Guest, GuestDied, temporary_work
@@ -189,7 +189,7 @@ def _start_stub(guest: Any, args: argparse.Namespace, addresses: list[int], work
     shell prefix that names its bus for later commands."""
     import pickle
 
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
 
     options = work / "chips.pickle"
     options.write_bytes(pickle.dumps(argparse.Namespace(

@@ -54,7 +54,8 @@ def register(subparsers: Subparsers) -> None:
         "--truth", type=Path, default=None, metavar="SCENARIO",
         help="true motion from a scenario file (TOML, docs/scenarios.md)",
     )
-    parser.add_argument("-o", "--output", type=Path, required=True, help="OUT.csv or OUT.npz")
+    parser.add_argument("-o", "--output", type=Path, required=True,
+                        help="OUT.csv, OUT.npz or OUT.resd (Renode)")
     add_chip_options(parser, realtime=False)
     parser.set_defaults(func=run)
 
@@ -63,10 +64,14 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.durations import parse_duration
     from bmg160_emu.io.atomic import held_signals
+    from bmg160_emu.io.errors import FormatError
+    from bmg160_emu.io.formats import format_for
     from bmg160_emu.session.record import BW_CODE_BY_ODR_HZ, RecordingInterrupted, record
 
-    if args.output.suffix.lower() not in (".csv", ".npz", ".resd"):
-        raise CommandError(f"output must end in .csv, .npz or .resd, not {args.output.name!r}")
+    try:  # the registry's formats of a recording (io/recording.py)
+        format_for("recording", args.output, writing=True, what="output")
+    except FormatError as exc:
+        raise CommandError(str(exc)) from None
     check_writable(args.output)
     if args.rate is not None and args.bandwidth is not None:
         raise CommandError("give --rate or --bandwidth, not both")
@@ -154,27 +159,12 @@ def run(args: argparse.Namespace) -> int:
 
 def _write(path: Path, rec) -> None:
     """The recording as CSV, NPZ or RESD (Renode: channel 0 the output, 1 the truth), whole or
-    not at all (io.atomic)."""
+    not at all (io.recording)."""
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.io.atomic import atomic_path
-    from bmg160_emu.session.record import write_recording
+    from bmg160_emu.io.errors import FormatError
+    from bmg160_emu.io.recording import write_recording
 
-    if path.suffix.lower() == ".resd":
-        from bmg160_emu.io.partial import clear_sidecar, write_sidecar
-        from bmg160_emu.io.resd import ResdFormatError, write_resd
-
-        channels = {0: rec.rate_dps}
-        if rec.true_rate_dps is not None:
-            channels[1] = rec.true_rate_dps
-        if rec.metadata.get("interrupted"):  # RESD has no field for it: said beside the file
-            write_sidecar(path, f"interrupted after {len(rec)} of "
-                          f"{rec.metadata.get('samples_planned')} samples")
-        try:
-            write_resd(path, rec.t_s, channels)  # written atomically by io.resd
-        except ResdFormatError as exc:
-            raise CommandError(f"{path}: {exc}") from None
-        if not rec.metadata.get("interrupted"):
-            clear_sidecar(path)  # an earlier cut run's mark
-    else:
-        with atomic_path(path) as partial:
-            write_recording(rec, partial)
+    try:
+        write_recording(rec, path)
+    except FormatError as exc:
+        raise CommandError(str(exc)) from None

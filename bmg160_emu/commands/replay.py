@@ -53,7 +53,7 @@ def register(subparsers: Subparsers) -> None:
                         help="a time step over F times the median step is a gap (default 3)")
     parser.add_argument("--loop", action="store_true", help="start over at the end (default: hold)")
     parser.add_argument("-o", "--output", type=Path, default=None,
-                        help="record the chip's output during the replay to OUT.csv/.npz")
+                        help="record the chip's output during the replay to OUT.csv, .npz or .resd")
     parser.add_argument("--script", type=Path, default=None, help="run a register script instead")
     add_chip_options(parser)
     parser.set_defaults(func=run)
@@ -63,13 +63,19 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.device import spec_choices
     from bmg160_emu.durations import check_simulated_time
-    from bmg160_emu.session.rate_replay import ReplayDataError, ReplaySource, load_replay_data
+    from bmg160_emu.io.errors import FormatError
+    from bmg160_emu.io.formats import format_for
+    from bmg160_emu.io.rate_table import RateFileError
+    from bmg160_emu.io.replay_data import load_replay_data
+    from bmg160_emu.session.rate_replay import ReplaySource
 
     if (args.output is None) == (args.script is None):
         raise CommandError("give -o OUT (record the chip's output) or --script FILE, one of them")
-    if args.output is not None and args.output.suffix.lower() not in (".csv", ".npz"):
-        raise CommandError(f"output must end in .csv or .npz, not {args.output.name!r}")
     if args.output is not None:
+        try:  # the registry's formats of a recording (io/recording.py)
+            format_for("recording", args.output, writing=True, what="output")
+        except FormatError as exc:
+            raise CommandError(str(exc)) from None
         check_writable(args.output)
     if not args.max_gap_factor > 1:
         raise CommandError("--max-gap-factor must be greater than 1")
@@ -79,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         lsb = table[RANGE_CODE_BY_DPS[args.data_range]]
     try:
         data = load_replay_data(args.data, args.unit, lsb, args.max_gap_factor)
-    except ReplayDataError as exc:  # the library's parameter, named as this command spells it
+    except RateFileError as exc:  # the library's parameter, named as this command spells it
         raise CommandError(str(exc).replace("(max_gap_factor)", "(--max-gap-factor)")) from None
     chips = chips_from_args(args, announce=False)  # the data replaces the output: no seed to repeat
     chip = next(iter(chips.values()))
@@ -102,8 +108,9 @@ def _record_to(path: Path, chip: Any, data: Any, source: Path) -> int:
     temporary name with the signals held (io.atomic), so a full disk or a ^C keeps the old
     file (it used to leave a truncated one under the target's name)."""
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.io.atomic import atomic_path, held_signals
-    from bmg160_emu.session.record import RecordingInterrupted, record, write_recording
+    from bmg160_emu.io.atomic import held_signals
+    from bmg160_emu.io.recording import write_recording
+    from bmg160_emu.session.record import RecordingInterrupted, record
 
     stopped: KeyboardInterrupt | None = None
     try:
@@ -116,8 +123,8 @@ def _record_to(path: Path, chip: Any, data: Any, source: Path) -> int:
     rec.metadata["replayed"] = str(source)
     rec.true_rate_dps = None  # the truth behind real data is unknown
     try:
-        with held_signals(), atomic_path(path) as partial:
-            write_recording(rec, partial)
+        with held_signals():  # complete or not at all (io.recording writes atomically)
+            write_recording(rec, path)
     except KeyboardInterrupt as exc:  # held while writing: the file is whole
         stopped = stopped or exc
     except OSError as exc:

@@ -74,8 +74,9 @@ def _is_static(path: str) -> bool:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
+    from bmg160_emu.commands._chip_options import close_trace
     from bmg160_emu.commands._common import CommandError, check_writable
-    from bmg160_emu.commands.trace import close_trace
+    from bmg160_emu.device.contract import RateSensor
     from bmg160_emu.io.atomic import atomic_open
     from bmg160_emu.linux.umockdev import (
         RequestClock,
@@ -109,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
         for address, chip in on_bus.items():
             with chip.lock:
                 chip.clock = clock
-            if not hasattr(chip, "spec"):  # a stand-in has no rate to watch
+            if isinstance(chip, RateSensor):  # a stand-in has no rate to watch
                 chips.setdefault(address, chip)
     buses = [I2CBus(number, on_bus) for number, on_bus in sorted(placed.items())]
     try:
@@ -152,7 +153,7 @@ def _trace_writer(args: argparse.Namespace, buses: list[Any]) -> Any:
     """A TraceWriter fed by every bus's log (None without --trace)."""
     if args.trace is None:
         return None
-    from bmg160_emu.commands.trace import trace_writer_from_args
+    from bmg160_emu.commands._chip_options import trace_writer_from_args
 
     writer = trace_writer_from_args(args)
     for bus in buses:

@@ -64,11 +64,12 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
+    from bmg160_emu.commands._chip_options import close_trace, trace_writer_from_args
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.commands.trace import close_trace, trace_writer_from_args
-    from bmg160_emu.session.script import (
+    from bmg160_emu.device.contract import RateSensor
+    from bmg160_emu.session.script import ScriptRunner
+    from bmg160_emu.session.script_language import (
         ScriptFailure,
-        ScriptRunner,
         ScriptSyntaxError,
         parse_script,
         read_script,
@@ -88,11 +89,12 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError("--spi drives one chip (one chip select): give --address or "
                            "--device once")
     chips = chips_from_args(args, default_bus=SCRIPT_BUS)
-    chip = next((c for c in chips.values() if not hasattr(c, "spec")), None)
-    if chip is None:
+    first = next((a for a, c in chips.items() if isinstance(c, RateSensor)), None)
+    if first is None:
         raise CommandError("a script drives a gyro part: give --address or --device "
                            "PART@ADDRESS besides the stand-ins")
-    chips = {chip.address: chip, **chips}  # the script's default chip is the first gyro
+    chip = chips[first]
+    chips = {first: chip, **chips}  # the script's default chip is the first gyro
     i2c_bus = I2CBus(SCRIPT_BUS, chips)
     bus: I2CBus | None = i2c_bus
     if args.spi:

@@ -91,7 +91,9 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.durations import parse_duration
     from bmg160_emu.io.atomic import atomic_open
-    from bmg160_emu.io.rates import RateFileError, check_time_column, read_csv_table
+    from bmg160_emu.io.csv_table import read_csv_table
+    from bmg160_emu.io.rate_table import RateFileError
+    from bmg160_emu.io.time_column import check_time_column
     from bmg160_emu.noise.identify import IdentificationError
     from bmg160_emu.noise.thermal_fit import ThermalFitError, fit_bias_temperature
 

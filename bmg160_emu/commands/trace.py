@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu.commands._common import Subparsers, add_command_parser
-from bmg160_emu.io.trace import TraceHeader, TraceWriter
+from bmg160_emu.io.trace import TraceHeader
 
 EPILOG = """\
 examples:
@@ -42,7 +42,9 @@ def register(subparsers: Subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.device.config import ChipConfig
     from bmg160_emu.device.parts import part_table
+    from bmg160_emu.device.standin import StandinConfig
     from bmg160_emu.io.trace import TraceFormatError, read_trace
     from bmg160_emu.session.decode import describe_transaction
     from bmg160_emu.session.trace_replay import replay_trace
@@ -63,9 +65,9 @@ def run(args: argparse.Namespace) -> int:
             configs = TraceHeader.from_dict(header).configs()
         except (TraceFormatError, ValueError) as exc:
             raise CommandError(f"{args.file}: {exc}") from None
-        standins = {c.address: c.spec for c in configs if hasattr(c, "spec")}
+        standins = {c.address: c.spec for c in configs if isinstance(c, StandinConfig)}
         parts: dict[int, Any] = {c.address: part_table(c.part).registers
-                                 for c in configs if hasattr(c, "part")}
+                                 for c in configs if isinstance(c, ChipConfig)}
         for record in records:
             try:
                 text = describe_transaction(record, standins, parts)
@@ -99,41 +101,3 @@ def run(args: argparse.Namespace) -> int:
     print(f"divergence at {args.file}:{result.divergence}", file=sys.stderr)
     return 1
 
-
-def header_from_chip_args(args: Any) -> TraceHeader:
-    """The trace header for chips built by ``chips_from_args`` from the same options."""
-    from bmg160_emu.commands._chip_options import configs_from_args
-
-    header = TraceHeader(getattr(args, "seed", None))
-    for config in configs_from_args(args):
-        header.add_config(config)
-    return header
-
-
-def trace_writer_from_args(args: Any) -> TraceWriter:
-    """``--trace FILE`` opened with the session's header; an unwritable path is the
-    command's one-line error (run, script and vhost-user-i2c share it)."""
-    from bmg160_emu.commands._common import CommandError
-
-    try:
-        return TraceWriter(args.trace, header_from_chip_args(args))
-    except OSError as exc:
-        raise CommandError(f"cannot write {args.trace}: {exc.strerror}") from None
-
-
-def close_trace(writer: TraceWriter, path: Any) -> None:
-    """Close a session's trace: complete (its end line) when the session ended by itself,
-    marked partial (no end line) when an exception (a signal, an error) is on its way out;
-    a write error (a full disk) is the command's one-line error, and no temporary file is
-    left. On a signal the exception carries what the file keeps, for cli's one line."""
-    from bmg160_emu.commands._common import CommandError
-
-    stopping = sys.exc_info()[1]
-    try:
-        writer.close(complete=stopping is None)
-    except OSError as exc:
-        raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None
-    if isinstance(stopping, KeyboardInterrupt) and not getattr(stopping, "kept", None):
-        stopping.kept = (  # type: ignore[attr-defined]
-            f"{path} holds the {writer.count} transactions so far, marked partial (no end line)"
-            if writer.count else f"no transaction recorded; {path} not written")

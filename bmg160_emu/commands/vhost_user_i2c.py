@@ -140,8 +140,8 @@ class _RateFile:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.bus.i2c import I2CBus
+    from bmg160_emu.commands._chip_options import close_trace
     from bmg160_emu.commands._common import CommandError, check_writable
-    from bmg160_emu.commands.trace import close_trace
     from bmg160_emu.io.atomic import held_signals
     from bmg160_emu.linux.vhost_user_server import Server, SocketPathError
     from bmg160_emu.linux.virtio_gpio import VirtioGPIODevice
@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
             if args.gpio_socket is not None else None)
     writer = None
     if args.trace is not None:
-        from bmg160_emu.commands.trace import trace_writer_from_args
+        from bmg160_emu.commands._chip_options import trace_writer_from_args
         from bmg160_emu.io.trace import TraceWriter
 
         writer = trace_writer_from_args(args)

@@ -42,7 +42,7 @@ def register(subparsers: Subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from bmg160_emu.cli import CommandError
+    from bmg160_emu.commands._common import CommandError
     from bmg160_emu.watch.session import WatchError, live_sockets
 
     try:

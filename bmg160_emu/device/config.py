@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from bmg160_emu.device import spec_choices as choice
+from bmg160_emu.device.spec_choices import DEFAULT_PART
 
 # Written into every trace header entry, in this order, whatever their value (the header
 # layout since format v1); the other options only when they differ from the default.
@@ -23,7 +24,6 @@ SESSION_OPTIONS = ("seed", "clock")  # BMG160 options a config leaves to the ses
 START_STATE = ("true_rate_dps", "setup_writes")  # not constructor options
 PLACEMENT = ("part", "bus")  # which part, on which bus: not constructor options either
 NOT_SETTINGS = START_STATE + PLACEMENT
-DEFAULT_PART = "bmg160"  # device.parts.DEFAULT_PART (not imported: it imports the chip model)
 
 
 @dataclass
@@ -31,7 +31,7 @@ class ChipConfig:
     """The options of one chip (BMG160 keyword arguments) and its start-up state."""
 
     address: int = choice.DEFAULT_ADDRESS
-    profile: Any = "paper"
+    profile: Any = None  # None: the part's own (parts.part_profile), named on construction
     noise: bool = True
     noise_mode: str = "physical"
     sensitivity: Any = choice.DEFAULT_SENSITIVITY
@@ -52,6 +52,13 @@ class ChipConfig:
     setup_writes: list[tuple[int, bytes]] = field(default_factory=list)  # written at start
     part: str = DEFAULT_PART  # a device.parts.PART_NAMES entry
     bus: int | None = None  # the I2C bus number, None: the command's own bus
+
+    def __post_init__(self) -> None:
+        """The part checked and its profile named, once, so a trace carries what the chip
+        takes (the parts module is imported here: it imports the chip model)."""
+        from bmg160_emu.device.parts import part_profile
+
+        self.profile = part_profile(self.part, self.profile)
 
     def chip_options(self) -> dict[str, Any]:
         """The BMG160 keyword arguments (defaults left out, so the chip's own apply)."""
@@ -107,14 +114,15 @@ class ChipConfig:
         rate = entry.get("true_rate_dps")
         writes = [(int(reg), bytes(data)) for reg, data in entry.get("setup_writes", [])]
         part = entry.get("part", DEFAULT_PART)
-        from bmg160_emu.device.parts import PART_NAMES
-
-        if part not in PART_NAMES:
-            raise ValueError(f"the trace's chip is a {part!r}, a part this version does not "
-                             f"know (known: {', '.join(PART_NAMES)})")
         bus = entry.get("bus")
-        return cls(**settings, true_rate_dps=None if rate is None else tuple(rate),
-                   setup_writes=writes, part=part, bus=None if bus is None else int(bus))
+        from bmg160_emu.device.parts import PART_NAMES, UnknownPartError
+
+        try:
+            return cls(**settings, true_rate_dps=None if rate is None else tuple(rate),
+                       setup_writes=writes, part=part, bus=None if bus is None else int(bus))
+        except UnknownPartError:
+            raise ValueError(f"the trace's chip is a {part!r}, a part this version does not "
+                             f"know (known: {', '.join(PART_NAMES)})") from None
 
     @classmethod
     def from_settings(cls, settings: dict[str, Any] | None = None,

@@ -1,5 +1,6 @@
 """The chip contract (docs/architecture.md): the primitives every device behind the buses
-offers (:class:`RegisterDevice`), and their argument rules, shared by the Python model and
+offers (:class:`RegisterDevice`), what a gyro offers besides (:class:`RateSensor`), and
+their argument rules, shared by the Python model and
 the simulated firmware so both refuse the same arguments with the same errors."""
 
 from __future__ import annotations
@@ -40,6 +41,22 @@ class RegisterDevice(Protocol):
     def dump(self) -> bytes: ...
 
     def advance(self, seconds: float) -> None: ...
+
+
+@runtime_checkable
+class RateSensor(RegisterDevice, Protocol):
+    """A register device that measures angular rate: a gyro part (``BMG160`` and the parts
+    of ``device.parts``, ``SimulatedFirmwareChip``). Besides the primitives it takes the
+    true rate it senses, in deg/s (a 3-tuple, a function of time, samples; ``BMG160``'s
+    ``set_true_rate`` documents them). A register-file stand-in (``device.standin``) is a
+    ``RegisterDevice`` only: it holds registers and makes no data.
+
+    As every Zephyr emulator offers its bus API and a sensor's also the sensor backend API,
+    front ends ask ``isinstance(device, RateSensor)`` (the gyro to watch, a script's default
+    chip, the adapter a kernel route gives it), never which attributes a device happens to
+    have."""
+
+    def set_true_rate(self, rate: Any) -> None: ...
 
 
 PRIMITIVES = ("write", "read", "i2c_write", "i2c_read", "peek", "dump", "advance")

@@ -15,6 +15,7 @@ from typing import Any
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.device.part_bmi088_gyro import BMI088_GYRO
 from bmg160_emu.device.part_spec import BMG160_PART, Part, derive
+from bmg160_emu.device.spec_choices import DEFAULT_PART
 
 # The BMI055 and BMX055 gyroscopes are the BMG160 die (chip ID 0x0F, the same register map:
 # PX4's BMI055 gyroscope header, the Linux bmg160 driver's ID table; docs/parts.md). What
@@ -25,18 +26,29 @@ BMI055_GYRO = derive("bmi055_gyro", "BMI055 gyroscope", pins=("INT3", "INT4"),
 BMX055_GYRO = derive("bmx055_gyro", "BMX055 gyroscope", pins=("INT3", "INT4"),
                      noise_profile="bmx055_datasheet")
 
-DEFAULT_PART = "bmg160"
 PARTS: MappingProxyType[str, Part] = MappingProxyType({
     p.name: p for p in (BMG160_PART, BMI055_GYRO, BMX055_GYRO, BMI088_GYRO)})
 PART_NAMES: tuple[str, ...] = tuple(PARTS)
 
 
+class UnknownPartError(ValueError):
+    """A part name that is none of ``PART_NAMES``."""
+
+
 def part_table(name: str) -> Part:
-    """The part table of ``name`` (one of ``PART_NAMES``)."""
+    """The part table of ``name`` (one of ``PART_NAMES``): where every way to a chip (options,
+    a trace header, a rig, ``make_chip``) checks the name."""
     try:
         return PARTS[name]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown part {name!r}: choose from {', '.join(PART_NAMES)}") from None
+        raise UnknownPartError(f"unknown part {name!r}: choose from {', '.join(PART_NAMES)}") \
+            from None
+
+
+def part_profile(part: str, profile: Any = None) -> Any:
+    """The noise profile a chip of ``part`` takes: ``profile`` when one is given, else the
+    part's data-sheet profile (``paper`` for the BMG160, issue 7)."""
+    return part_table(part).noise_profile if profile is None else profile
 
 
 def _chip_class(p: Part) -> type[BMG160]:
@@ -55,8 +67,6 @@ Bmi055Gyro, Bmx055Gyro, Bmi088Gyro = (_CLASSES[n] for n in ("bmi055_gyro", "bmx0
 
 def make_chip(part: str = DEFAULT_PART, /, **options: Any) -> BMG160:
     """A chip of the named part with the BMG160 keyword ``options``; without ``profile``
-    the part's data-sheet noise profile (the BMG160 keeps its own default)."""
-    table = part_table(part)
-    if table is not BMG160_PART:
-        options.setdefault("profile", table.noise_profile)
+    the part's data-sheet noise profile (``part_profile``)."""
+    options["profile"] = part_profile(part, options.get("profile"))
     return _CLASSES[part](**options)

@@ -14,6 +14,7 @@ from bmg160_emu.noise import bandwidths
 # 2.1: the I2C address is 0x68 with SDO low, 0x69 with SDO high; the chip answers nowhere else.
 VALID_ADDRESSES = (0x68, 0x69)
 DEFAULT_ADDRESS = 0x68
+DEFAULT_PART = "bmg160"  # the part of a chip when none is named (device.parts.PART_NAMES)
 # 4.8: full scale of RANGE codes 0..4 in deg/s (codes 5..7 are reserved: RESERVED_RANGE_AS_CODE).
 RANGE_FULL_SCALE_DPS = (2000, 1000, 500, 250, 125)
 RANGE_CODE_BY_DPS = {dps: code for code, dps in enumerate(RANGE_FULL_SCALE_DPS)}

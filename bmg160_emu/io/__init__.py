@@ -1,9 +1,12 @@
-"""File formats as reader/writer pairs: traces, register dumps, rate files.
+"""File formats as readers and writers over common bases, found by kind and suffix in one
+registry (io/formats.py): rate records, recordings, replay data, rate streams, rate tables,
+traces; register dumps and stand-in declarations by their own readers.
 
-Every format's error derives from :class:`FormatError`; :func:`format_for` finds the
-reader and writer of a file by its suffix (``io.rates`` registers .csv, .npz and .npy).
+Every format's error derives from :class:`FormatError`, whose message names the file and
+the place (io/errors.py).
 """
 
-from bmg160_emu.io.errors import FileFormat, FormatError, format_for, register_format, suffixes
+from bmg160_emu.io.errors import FormatError
+from bmg160_emu.io.formats import FileFormat, format_for, read_file, suffixes, write_file
 
-__all__ = ["FileFormat", "FormatError", "format_for", "register_format", "suffixes"]
+__all__ = ["FileFormat", "FormatError", "format_for", "read_file", "suffixes", "write_file"]

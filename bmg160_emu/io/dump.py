@@ -17,15 +17,10 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu.device import registers, spec_choices
-from bmg160_emu.device.fields import (  # noqa: F401  (the table format prints them; old names)
-    DecodedField,
-    ascii_text,
+from bmg160_emu.device.fields import (
     decode_register,
     describe_register,
-    describe_value_difference,
-    register_label,
     register_name,
-    resolve_register_name,
 )
 from bmg160_emu.device.registers import REGISTER_COUNT
 from bmg160_emu.io.errors import FormatError, loads_json, read_text

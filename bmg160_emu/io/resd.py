@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
@@ -29,6 +29,7 @@ import numpy as np
 
 from bmg160_emu.io.atomic import atomic_open
 from bmg160_emu.io.errors import FormatError
+from bmg160_emu.io.formats import BlockWriter
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -151,6 +152,30 @@ class ResdWriter:
     def __exit__(self, exc_type: object, *rest: object) -> None:
         if exc_type is None:
             self.close()
+
+
+class ResdRateStream(BlockWriter):
+    """A rate stream (generate's output) as one constant-frequency block of channel 0, sample
+    k at (k + 1) / rate_hz as in the CSV. RESD has no field for a note: ``end_short`` makes
+    the block the samples written, and the note goes beside the file (io.partial)."""
+
+    notes_inside = False
+
+    def __init__(self, handle: IO[bytes], total: int, rate_hz: float,
+                 comments: Sequence[str] = ()) -> None:
+        super().__init__(handle, total, rate_hz, comments)
+        self._writer = ResdWriter(handle, rate_hz=rate_hz, samples=total, start_s=1.0 / rate_hz)
+
+    def write(self, start: int, block: np.ndarray) -> None:
+        self._writer.write_dps(block)
+        self.samples = self._writer.written
+
+    @staticmethod
+    def size_bytes(total: int) -> int:
+        return 45 + 12 * total  # exact: RESD v1's file and block headers, 12 bytes a sample
+
+    def end_short(self, note: str) -> None:
+        self._writer.end_short()
 
 
 def write_resd(

@@ -20,15 +20,10 @@ from typing import IO, Any
 
 from bmg160_emu.bus.i2c import KIND_FUNCS
 from bmg160_emu.bus.transactions import Transaction, bytes_from_json
-from bmg160_emu.device.config import SETTING_KEYS, ChipConfig
+from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.io.atomic import AtomicFile
-from bmg160_emu.io.errors import (
-    FileFormat,
-    FormatError,
-    loads_json,
-    read_text,
-    register_format,
-)
+from bmg160_emu.io.errors import FormatError, loads_json, read_text
+from bmg160_emu.io.formats import FileFormat, register_format
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
@@ -88,10 +83,6 @@ def parse_fault_entry(written: bytes | str) -> tuple[str, dict[str, Any] | None]
 
 
 # --------------------------------------------------------------------------- JSON Lines
-
-
-# Chip constructor settings a trace header may carry: every ChipConfig option.
-CHIP_SETTING_KEYS = SETTING_KEYS
 
 
 @dataclass

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bmg160_emu.durations import duration_text
 from bmg160_emu.noise.allan import AllanCurve, octave_oadev
 
 WHITE_SLOPE_TOLERANCE = 0.05  # |slope + 1/2| of an octave segment in the white region
@@ -96,10 +97,11 @@ def warmup_check(x: np.ndarray, rate_hz: float) -> str | None:
         return None
     span = first_t[:k][bad]
     worst = float(ratio[bad].max())
+    quarter = duration_text(n / 4 / rate_hz, gap="")  # as --skip takes it
     return (
-        f"non-stationary start: the first quarter ({_text(n / 4 / rate_hz)}) has up to "
+        f"non-stationary start: the first quarter ({quarter}) has up to "
         f"{worst:.2f}x the Allan deviation of the rest at tau {span.min():.3g} .. "
-        f"{span.max():.3g} s (warm-up?); try --skip {_text(n / 4 / rate_hz)}, or record "
+        f"{span.max():.3g} s (warm-up?); try --skip {quarter}, or record "
         "after the sensor has settled"
     )
 
@@ -120,18 +122,9 @@ def step_check(x: np.ndarray, rate_hz: float) -> str | None:
     j = int(np.argmax(z))
     if z[j] < STEP_Z:
         return None
-    t = (j + 1) * m / rate_hz
+    at = duration_text((j + 1) * m / rate_hz, gap="")  # as --skip takes it
     return (
-        f"the bias jumps by {d[j]:+.3g} deg/s around t = {_text(t)} ({z[j]:.0f} times the "
+        f"the bias jumps by {d[j]:+.3g} deg/s around t = {at} ({z[j]:.0f} times the "
         "typical block-to-block change): a step is not noise; split the record there or "
         "--skip past it"
     )
-
-
-def _text(seconds: float) -> str:
-    if seconds >= 3600:
-        return f"{seconds / 3600:.3g}h"
-    if seconds >= 60:
-        return f"{seconds / 60:.3g}min"
-    return f"{seconds:.3g}s"
-

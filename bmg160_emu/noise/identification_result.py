@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from bmg160_emu.durations import duration_text
 from bmg160_emu.noise.allan import AllanCurve
 from bmg160_emu.noise.fit import CI_LEVEL, CurveFit, Estimate, Term
 from bmg160_emu.noise.output_stage import FilterFit
@@ -347,14 +348,6 @@ class Identification:
                 lines.append(f"  note: {note}")
         return "\n".join(lines)
 
-
-
-def duration_text(seconds: float) -> str:
-    if seconds >= 3600:
-        return f"{seconds / 3600:.3g} h"
-    if seconds >= 60:
-        return f"{seconds / 60:.3g} min"
-    return f"{seconds:.3g} s"
 
 
 def _json_float(value: float) -> float | None:

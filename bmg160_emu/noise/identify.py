@@ -25,15 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bmg160_emu.durations import duration_text
 from bmg160_emu.noise import diagnostics
 from bmg160_emu.noise.allan import AllanCurve, allan_confidence, noise_alpha_from_slope
-from bmg160_emu.noise.fit import CI_LEVEL, CurveFit, Estimate, FitError, Term, fit_curve
-from bmg160_emu.noise.identification_result import (
-    UNIT_SCALES,
-    AxisIdentification,
-    Identification,
-    duration_text,
-)
+from bmg160_emu.noise.fit import CurveFit, FitError, fit_curve
+from bmg160_emu.noise.identification_result import AxisIdentification, Identification
 from bmg160_emu.noise.output_stage import (
     FilterFit,
     Line,
@@ -46,11 +42,8 @@ from bmg160_emu.noise.profile import AXES
 from bmg160_emu.noise.readoffs import ieee_readoffs
 from bmg160_emu.noise.spectrum import one_sided_psd, white_density_from_psd, white_level_band
 
-__all__ = [
-    "CI_LEVEL", "FIT_METHODS", "UNIT_SCALES", "AxisIdentification", "Estimate",
-    "Identification", "IdentificationError", "Term", "identify", "identify_axis",
-    "identify_curve", "ieee_readoffs",
-]
+__all__ = ["FIT_METHODS", "IdentificationError", "check_record", "identify", "identify_axis",
+           "identify_curve"]
 
 STAGES_PER_AXIS = 3  # progress calls per axis: Allan deviation, fit, PSD
 MIN_SAMPLES = 1000  # enough octave taus (9) to fit the white level and see its slope

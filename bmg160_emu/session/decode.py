@@ -14,14 +14,10 @@ from typing import Any
 from bmg160_emu.bus.transactions import bytes_from_json
 from bmg160_emu.device import registers
 from bmg160_emu.device.fields import (
-    DecodedField,
-    ascii_text,
     decode_register,
-    describe_register,
     describe_value_difference,
     register_label,
     register_name,
-    resolve_register_name,
 )
 from bmg160_emu.device.registers import REGISTER_COUNT, REGISTERS, Register
 from bmg160_emu.io.dump import RegisterDump
@@ -30,9 +26,8 @@ from bmg160_emu.io.trace import FAULT_KIND_PREFIX, TRUE_RATE_KIND, parse_fault_e
 FIFO_DATA = registers.address_of("FIFO_DATA")  # the pointer does not advance here (spec 2.4)
 
 __all__ = [
-    "DecodedField", "RegisterDifference", "ascii_text", "decode_register", "describe_read",
-    "describe_register", "describe_transaction", "describe_value_difference", "describe_write",
-    "diff_dumps", "format_diff", "record_value", "register_label", "register_name", "resolve_register_name",
+    "RegisterDifference", "describe_read", "describe_transaction", "describe_write",
+    "diff_dumps", "format_diff", "record_value",
 ]
 
 

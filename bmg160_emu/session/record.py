@@ -3,8 +3,7 @@
 A recording holds, per output sample: the chip's sample time, the three rate words as the
 driver reads them (raw counts from RATE_X/Y/Z), the same in deg/s with the range's
 sensitivity, and the true body rate the chip was fed (from ``chip.truth_hooks``). It is
-written as CSV or NPZ by :mod:`bmg160_emu.io.recording` (``docs/commands/record.md``),
-whose names this module re-exports.
+written as CSV, NPZ or RESD by :mod:`bmg160_emu.io.recording` (``docs/commands/record.md``).
 """
 
 from __future__ import annotations
@@ -16,15 +15,7 @@ import numpy as np
 
 from bmg160_emu.device import spec_choices
 from bmg160_emu.device.registers import address_of
-from bmg160_emu.io.recording import (  # noqa: F401  (the file format's names, re-exported)
-    CSV_COLUMNS,
-    RECORDING_FORMAT_TAG,
-    RECORDING_FORMAT_VERSION,
-    Recording,
-    RecordingFormatError,
-    read_recording,
-    write_recording,
-)
+from bmg160_emu.io.recording import Recording
 
 RATE_X_LSB = address_of("RATE_X_LSB")  # a 6-byte burst from here gives x, y, z LSB first (4.2)
 RANGE, BW = address_of("RANGE"), address_of("BW")
