@@ -123,7 +123,7 @@ class CurveFit:
         if self.rate_hz:
             out = out + quantization_avar(self.lsb_dps, self.rate_hz, tau)
         for amplitude, frequency in self.sines:
-            out = out + amplitude.value**2 * sine_avar_unit(tau, frequency)
+            out = out + amplitude.value**2 * sine_avar_unit(tau, frequency, self.rate_hz or None)
         if self.known_avar is not None:
             out = out + self.known_avar(tau)
         for B, T in self.gauss_markov_terms():
@@ -145,6 +145,7 @@ class _Design:
     white: np.ndarray | None = None  # the white column (None: 1 / tau)
     fixed: np.ndarray | None = None  # the known part of the Allan variance (rounding, lines)
     free_sines: tuple[float, ...] = ()  # lines of these frequencies (Hz), amplitude fitted
+    rate_hz: float = 0.0  # the samples' rate (the free lines' Allan variance is of samples)
 
     def extras(self) -> list[str]:
         """Names of the columns after the Gauss-Markov ones, in order."""
@@ -161,7 +162,7 @@ class _Design:
         if self.bank is not None:
             extra["F"] = self.bank
         for i, frequency in enumerate(self.free_sines):
-            extra[f"S{i}"] = sine_avar_unit(tau, frequency)
+            extra[f"S{i}"] = sine_avar_unit(tau, frequency, self.rate_hz or None)
         cols += [extra[name] for name in self.extras()]
         return np.column_stack(cols)
 
@@ -256,6 +257,7 @@ def _select(design, avar, w, bounds, poles: int | None) -> dict[str, Any]:
     for row in table:
         row["chosen"] = row["terms"] == best["terms"]
     best["table"] = table
+    best["forced"] = poles is not None
     return best
 
 
@@ -354,8 +356,9 @@ def _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, ls
     if lsb_dps or sines:
         fixed = quantization_avar(lsb_dps, rate_hz, tau) + (0.0 if fixed is None else fixed)
         for amplitude, frequency in sines:
-            fixed = fixed + amplitude.value**2 * sine_avar_unit(tau, frequency)
-    return _Design(tau, with_q, with_r, bank, roll_off, white, fixed, tuple(free_sines))
+            fixed = fixed + amplitude.value**2 * sine_avar_unit(tau, frequency, rate_hz or None)
+    return _Design(tau, with_q, with_r, bank, roll_off, white, fixed, tuple(free_sines),
+                   float(rate_hz))
 
 
 def _design_all(taus: np.ndarray, design: _Design, best: dict[str, Any],
@@ -456,7 +459,7 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         tau_range_s=(float(tau[0]), float(tau[-1])), points=int(tau.size),
         chi2_reduced=float(chi2_red), T_search_range_s=(float(bounds[0]), float(bounds[1])),
         selection={"criterion": "AICc", "candidates": best["table"], "terms": best["terms"],
-                   "zero_terms_left_out": zero},
+                   "zero_terms_left_out": zero, "asked": bool(best.get("forced"))},
         sines=fitted_sines,
     )
 

@@ -309,11 +309,14 @@ def identify_curve(
     method: str = "wls",
     mean: float = 0.0,
     overlapping: bool = True,
+    periodic: bool = True,
 ) -> AxisIdentification:
     """Identify from an Allan deviation curve (deg/s) instead of samples: the sample count
     (or the record length times the rate) sets each point's degrees of freedom, of the
     overlapping estimator or (``overlapping`` False) of disjoint clusters; a given interval
     (ci low, high at 68.3 %) is kept for the plots, the fit weights come from edf.
+
+    ``periodic``: look for lines in the curve's shoulders and ripple (curve_periodic.py).
 
     A dense curve (allan_variance_ros writes 9,999 taus 0.1 s apart) is thinned to taus a
     factor 2 apart first: neighbouring points share nearly all their data, so weighting
@@ -340,6 +343,23 @@ def identify_curve(
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
     fit, reason, fit_notes = _fit_curve_axis(axis, curve, rate_hz, n_samples, tau_range,
                                              options, method)
+    if periodic:
+        from bmg160_emu.noise.curve_periodic import find_periodic_terms
+
+        base = fit
+
+        def fit_with(frequencies: tuple[float, ...]) -> CurveFit:
+            return _fit(method, curve, rate_hz, n_samples, base.tau_range_s,
+                        {**options, "poles": len(base.terms) if poles is None else poles,
+                         "output_filter": base.output_filter, "free_sines": frequencies})
+
+        fit, periodic_notes = find_periodic_terms(fit_with, base, rate_hz, float(taus[-1]))
+        if periodic_notes:  # the count of terms chosen again with the lines in the model
+            fit = _fit(method, curve, rate_hz, n_samples, base.tau_range_s,
+                       {**options, "output_filter": base.output_filter,
+                        "free_sines": tuple(f for _, f in fit.sines)})
+            fit_notes = _fit_notes(fit, n_samples / rate_hz)
+        fit_notes += periodic_notes
     if ci is not None:
         fit.curve = AllanCurve(fit.curve.taus, fit.curve.adev, fit.curve.n_terms, fit.curve.edf,
                                np.asarray(ci[0], float), np.asarray(ci[1], float), fit.curve.ci,
@@ -425,10 +445,20 @@ def _selection_notes(fit: CurveFit) -> list[str]:
     kept = other.get("T_s", [])
     extra = [t for t in fit.terms
              if not any(abs(math.log(t.T.value / T)) < math.log(2.0) for T in kept)]
-    plural = "s are" if taken["terms"] != 1 else " is"
-    text = (f"{taken['terms']} Gauss-Markov term{plural} taken by {gap:.1f} AICc over "
-            f"{other['terms']} (a difference under {AICC_NO_EVIDENCE:g} is no evidence either "
-            "way): the simpler model is as plausible")
+    plural = "s" if taken["terms"] != 1 else ""
+    if gap < 0:  # a count asked for (--poles) that AICc does not prefer: say so the right way
+        best = min(rows, key=lambda r: r["aicc"])
+        dropped = fit.selection.get("zero_terms_left_out", 0)
+        text = (f"{taken['terms']} Gauss-Markov term{plural} asked for (--poles); AICc prefers "
+                f"{best['terms']} by {taken['aicc'] - best['aicc']:.1f} (AICc {best['aicc']:.1f} "
+                f"against {taken['aicc']:.1f}); kept: {len(fit.terms)} term"
+                f"{'s' if len(fit.terms) != 1 else ''}"
+                + (f" ({dropped} came out of size 0)" if dropped else ""))
+        return [text]
+    text = (f"{taken['terms']} Gauss-Markov term{plural} {'is' if not plural else 'are'} taken "
+            f"by {gap:.1f} AICc over {other['terms']} (a difference under "
+            f"{AICC_NO_EVIDENCE:g} is no evidence either way): the simpler model is as "
+            "plausible")
     firm = [t for t in extra if t.B.ci_low > 0]  # intervals that leave out the simpler model
     if firm:
         parts = [f"T = {t.T.value:.3g} s (B [{t.B.ci_low:.3g}, {t.B.ci_high:.3g}], "
