@@ -106,3 +106,11 @@ def test_generate_leaves_the_bands_to_the_response():
     p = _profile(band=((15.0, 1.0, 0.5),), response=(1.0,))  # a flat measured response
     x = profile_noise(p, seed=2).generate(50_000)[:, 0]
     assert abs(x.std() / 0.2 - 1) < 0.03  # white only: the band is inside the response
+
+
+def test_the_response_gives_the_same_samples_however_the_record_is_cut():
+    p = _profile(response=(0.6, 0.15, 0.05))
+    whole = profile_noise(p, seed=5).generate(20_000)
+    gen = profile_noise(p, seed=5)
+    cut = np.concatenate([gen.generate(n) for n in (1, 3, 700, 9_296, 10_000)])
+    assert np.array_equal(whole, cut)

@@ -240,6 +240,7 @@ def identify_axis(
         progress(f"{axis}: PSD")
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
     record_stage = None
+    flat = False
     if output_stage and tau_range[0] is None and not with_q:
         # (--with-q: angle quantization's PSD rises as f^2; a measured response would take it)
         # the stage of any shape, read on the PSD, and the fit through it (issue 37)
@@ -253,7 +254,8 @@ def identify_axis(
         through = fit_through_stage(
             x, rate_hz, curve, grid.step if grid is not None else None, fit_with, tau_range[1],
             spectrum)
-        if through is not None:
+        flat = isinstance(through, str)
+        if through is not None and not isinstance(through, str):
             fit, record_stage, notes = through
             reason = ("every tau fitted: the output filter is part of the white term (the "
                       "measured response is that filter)" if record_stage.family is not None
@@ -261,7 +263,10 @@ def identify_axis(
                       "(the record's whole fast spectrum)")
             notes += _fit_notes(fit, n / rate_hz)
     if record_stage is None:
-        stage = _sensor_output(x, rate_hz, spectrum) if output_stage else SensorOutput()
+        if output_stage and flat:  # the PSD is flat: no filter to search for
+            stage = _sensor_output(x, rate_hz, spectrum, with_filter=False)
+        else:
+            stage = _sensor_output(x, rate_hz, spectrum) if output_stage else SensorOutput()
         fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options,
                                              method, record=x, stage=stage)
     if progress is not None:
@@ -278,14 +283,15 @@ def identify_axis(
     )
 
 
-def _sensor_output(x: np.ndarray, rate_hz: float, spectrum) -> SensorOutput:
+def _sensor_output(x: np.ndarray, rate_hz: float, spectrum, with_filter: bool = True
+                   ) -> SensorOutput:
     """The output stage the record shows: its LSB grid, its filter (on the PSD), its lines."""
     grid = output_grid(x)
     lsb = grid.step if grid is not None else None
     step = spectrum.segment_samples - spectrum.segment_samples // 2
     segments = max((x.shape[0] - spectrum.segment_samples) / step + 1, 1.0)
-    return SensorOutput(fit_filter_psd(spectrum, rate_hz, lsb), lsb,
-                        tuple(find_lines(spectrum, rate_hz, segments)))
+    flt = fit_filter_psd(spectrum, rate_hz, lsb) if with_filter else None
+    return SensorOutput(flt, lsb, tuple(find_lines(spectrum, rate_hz, segments)))
 
 
 def _curve_from_record(x: np.ndarray, rate_hz: float) -> AllanCurve:

@@ -238,8 +238,7 @@ def _shape_fit(u, sb, dof, keep, floor, ratio, model, largest, orders=ORDERS):
         w = np.sqrt(dof) / np.maximum(model, STOPBAND * float(np.max(model)))
         for _ in range(2):
             ar = a * ratio[:, None]
-            c, *_ = np.linalg.lstsq(ar[keep] * w[keep, None], (sb[keep] - floor) * w[keep],
-                                    rcond=None)
+            c = _weighted_solve(ar[keep] * w[keep, None], (sb[keep] - floor) * w[keep])
             total = np.maximum(ar @ c, 1e-9 * float(np.abs(ar @ c).max())) + floor
             w = np.sqrt(dof) / np.maximum(total, STOPBAND * float(np.max(total)))
         cost = float(np.sum(((sb[keep] - total[keep]) * w[keep]) ** 2))
@@ -252,6 +251,19 @@ def _shape_fit(u, sb, dof, keep, floor, ratio, model, largest, orders=ORDERS):
     lowest = min(item[0] for item in scored)
     best = next(item for item in scored if item[0] <= lowest + STRONG_EVIDENCE)
     return best[1], best[2], best[3], best[0]
+
+
+def _weighted_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Least squares by the normal equations on unit columns: the cosine columns are near
+    orthogonal (condition below 1e3 with the weights), and LAPACK's SVD solver took 40 ms a
+    call on the shared 2-core machine against 4 ms for this."""
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    an = a / scale
+    try:
+        return np.linalg.solve(an.T @ an, an.T @ b) / scale
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(an, b, rcond=None)[0] / scale
 
 
 def _joint_fit(u, fb, sb, dof, keep, floor, rate_hz, starts, spans, fine_f, fine_s,

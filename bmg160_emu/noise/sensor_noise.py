@@ -247,7 +247,10 @@ class ProfileNoise:
         self._k = 0
         self.responses = responses if responses and any(
             h is not None and h.size > 1 for h in responses) else None
-        self._fir_state: list[np.ndarray | None] = []
+        # each FIR's memory: the last len(taps) - 1 inputs (numpy's direct convolution:
+        # output k is the same dot product however the record is cut, and 5-25 ns a sample
+        # for 2-65 taps, against 8-55 for lfilter)
+        self._fir_memory: list[np.ndarray | None] = []
         if self.responses is not None:
             # the FIRs start settled: their memory filled with the stream's first samples
             # (the realisation moves on by them, as SensorNoise's filter start does)
@@ -255,14 +258,9 @@ class ProfileNoise:
             _, first = self._noise.take(0, longest - 1)
             self._k = longest - 1
             for i, h in enumerate(self.responses):
-                if h is None or h.size < 2:
-                    self._fir_state.append(None)
-                    continue
-                from scipy.signal import lfilter, lfilter_zi
-
-                zi = lfilter_zi(h, [1.0]) * 0.0
-                _, zi = lfilter(h, [1.0], first[:, i], zi=zi)
-                self._fir_state.append(zi)
+                keep = h.size - 1 if h is not None else 0
+                self._fir_memory.append(np.array(first[first.shape[0] - keep:, i])
+                                        if keep > 0 else None)
 
     @property
     def rate_hz(self) -> float:
@@ -291,14 +289,15 @@ class ProfileNoise:
     def generate(self, n: int) -> np.ndarray:
         _, out = self._noise.take(self._k, n)
         self._k += n
-        if self.responses is not None:
-            from scipy.signal import lfilter
-
+        if self.responses is not None and n:
             out = np.array(out)
-            for i, zi in enumerate(self._fir_state):
-                if zi is not None and n:
-                    h = self.responses[i]
-                    out[:, i], self._fir_state[i] = lfilter(h, [1.0], out[:, i], zi=zi)
+            for i, memory in enumerate(self._fir_memory):
+                h = self.responses[i]
+                if memory is None or h is None:
+                    continue
+                joined = np.concatenate([memory, out[:, i]])
+                self._fir_memory[i] = joined[joined.size - memory.size:]
+                out[:, i] = np.convolve(joined, h, "valid")
         if self.lsb_dps:
             return np.rint(out / self.lsb_dps) * self.lsb_dps
         return out  # rows handed out once: the buffer never writes them nor uses them again

@@ -46,6 +46,7 @@ FAMILY_ACF = 0.01  # a Butterworth within this of the measured autocorrelation (
 BAND_SHARE = 0.25  # of the white term's Allan variance: where the first fit starts
 STAGE_SEGMENT = 4096  # samples per Welch segment of the stage's PSD (0.024 Hz at 100 Hz)
 SHAPE_PASSES = 2
+FLAT = "flat"  # fit_through_stage's answer for a record whose PSD shows no stage
 MIN_SEGMENTS = 16  # Welch segments below which the PSD cannot tell a shape (the firmware's
 # 6 s capture: 8 segments of 256 read a spurious shape that took N 22 % low)
 
@@ -97,9 +98,10 @@ def stage_spectrum(x: np.ndarray, rate_hz: float):
 
 def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps: float | None,
                       fit: Callable[..., CurveFit], tau_max: float | None, fine: Any = None
-                      ) -> tuple[CurveFit, RecordStage, list[str]] | None:
-    """The final Allan fit through the record's output stage, the stage, and notes; None
-    when the PSD shows no stage (flat, no band): the caller fits white noise as before.
+                      ) -> tuple[CurveFit, RecordStage, list[str]] | str | None:
+    """The final Allan fit through the record's output stage, the stage, and notes; FLAT
+    when the PSD shows no stage (flat, no band: the caller fits white noise, no filter
+    searched), None when the record is too short to tell (the caller's former route).
     ``fit(tau_range, **stage options)`` is the identification's fit method; ``fine``, the
     record's long-segment PSD (spectrum.one_sided_psd), locates lines to its finer bins
     (output_stage.find_lines: A and f of a 1.3 Hz line to 10 % and 0.003 Hz on 20 min)."""
@@ -122,7 +124,7 @@ def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps:
             if line.frequency_hz >= rate_hz / 100.0
             and not any(lo <= line.frequency_hz <= hi for lo, hi in spans)]
     if found.response.order == 0 and not found.bands:
-        return None
+        return FLAT
     stage = RecordStage(found, found.response, lsb_dps)
     sines = stage.sines
     if not found.bands and found.response.order > 0:
