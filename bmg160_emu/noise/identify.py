@@ -352,20 +352,35 @@ def identify_curve(
     if periodic:
         from bmg160_emu.noise.curve_periodic import find_periodic_terms
 
-        base = fit
+        def search(base: CurveFit, fit_range, notes_so_far):
+            def fit_with(frequencies: tuple[float, ...]) -> CurveFit:
+                return _fit(method, curve, rate_hz, n_samples, fit_range,
+                            {**options, "poles": len(base.terms) if poles is None else poles,
+                             "output_filter": base.output_filter, "free_sines": frequencies})
 
-        def fit_with(frequencies: tuple[float, ...]) -> CurveFit:
-            return _fit(method, curve, rate_hz, n_samples, base.tau_range_s,
-                        {**options, "poles": len(base.terms) if poles is None else poles,
-                         "output_filter": base.output_filter, "free_sines": frequencies})
+            lined, found_notes = find_periodic_terms(fit_with, base, rate_hz, float(taus[-1]))
+            if not found_notes:
+                return base, notes_so_far, False
+            # the count of terms chosen again with the lines in the model
+            lined = _fit(method, curve, rate_hz, n_samples, fit_range,
+                         {**options, "output_filter": base.output_filter,
+                          "free_sines": tuple(f for _, f in lined.sines)})
+            return lined, _fit_notes(lined, n_samples / rate_hz) + found_notes, True
 
-        fit, periodic_notes = find_periodic_terms(fit_with, base, rate_hz, float(taus[-1]))
-        if periodic_notes:  # the count of terms chosen again with the lines in the model
-            fit = _fit(method, curve, rate_hz, n_samples, base.tau_range_s,
-                       {**options, "output_filter": base.output_filter,
-                        "free_sines": tuple(f for _, f in fit.sines)})
-            fit_notes = _fit_notes(fit, n_samples / rate_hz)
-        fit_notes += periodic_notes
+        fit, fit_notes, lined = search(fit, fit.tau_range_s, fit_notes)
+        first = float(curve.taus[0])
+        if not lined and fit.tau_range_s[0] > first * 1.01 and tau_range[0] is None:
+            # a start left out as a filter may be a line's ripple (near the Nyquist frequency
+            # it ripples the first taus): the whole curve with lines, kept if it fits
+            try:
+                whole = _fit(method, curve, rate_hz, n_samples, (first, tau_range[1]), options)
+                whole, whole_notes, lined = search(whole, whole.tau_range_s, [])
+            except IdentificationError:
+                lined = False
+            if lined and whole.chi2_reduced < POOR_FIT_CHI2:
+                fit, fit_notes = whole, whole_notes
+                reason = ("every tau fitted: the start below the white line is the ripple of "
+                          "periodic terms")
     if ci is not None:
         fit.curve = AllanCurve(fit.curve.taus, fit.curve.adev, fit.curve.n_terms, fit.curve.edf,
                                np.asarray(ci[0], float), np.asarray(ci[1], float), fit.curve.ci,
