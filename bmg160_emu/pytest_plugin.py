@@ -6,9 +6,10 @@ Registered as the ``pytest11`` entry point ``bmg160_emu``, so installing the pac
         from mydriver import Gyro            # builds smbus2.SMBus(1) itself
         assert Gyro(bus=1).chip_id() == 0x0F
 
-Fixtures (docs/pytest-plugin.md): ``bmg160_chip`` (a fresh chip), ``bmg160_i2c_bus`` (the
-emulated adapter with the chip at its address on bus 1, an ``I2CBus`` with its transaction
-log and the marker's faults), ``bmg160_i2c_dev`` (``patch_i2c_dev`` on it: the in-process
+Fixtures (docs/pytest-plugin.md): ``bmg160_chip`` (a fresh chip), ``bmg160_devices`` (every
+device on the bus: the chip and the marker's ``devices``), ``bmg160_i2c_bus`` (the emulated
+adapter with them on bus 1, an ``I2CBus`` with its transaction log, ``assert_wrote`` and the
+marker's faults), ``bmg160_i2c_dev`` (``patch_i2c_dev`` on it: the in-process
 /dev/i2c-1 for smbus2, smbus3, Adafruit_PureIO, periphery ...), ``bmg160_smbus``
 (``patch_smbus``: the same plus the legacy smbus module; yields the ``I2CBus``),
 ``bmg160_faults`` (bus, chip and sample faults on that bus from the rigs' FaultSchedule),
@@ -21,10 +22,14 @@ chip's virtual clock) and ``bmg160_virtual_time`` (so do ``time.monotonic``,
 ``time.perf_counter`` and ``time.time``).
 
 Chip options come from the ``bmg160`` marker, ``@pytest.mark.bmg160(seed=3, noise=False,
-bus=2, faults=[{"kind": "nack", "on_transaction": 3}], fault_seed=1)``: every keyword except
-``bus``, ``faults`` and ``fault_seed`` goes to ``BMG160``; an unknown one, or a fault that
-cannot be built, is a usage error naming the test. The ini options ``bmg160_seed`` and ``bmg160_profile`` set the
-suite's default seed and noise profile; the marker overrides them.
+bus=2, part="bmi088_gyro", devices=["bmi088_accel@0x18"], faults=[{"kind": "nack",
+"on_transaction": 3}], fault_seed=1)``: ``part`` chooses the chip's part, ``devices`` puts
+more parts or register-file stand-ins on its bus (``bmg160_devices``), every other keyword
+except ``bus``, ``faults`` and ``fault_seed`` goes to the chip; an unknown one, or a fault or
+device that cannot be built, is a usage error naming the test. Markers on the module, the
+class and the test merge, the closest winning per key. The ini options ``bmg160_seed``,
+``bmg160_profile``, ``bmg160_part`` and ``bmg160_devices`` set the suite's defaults; a marker
+overrides them.
 """
 
 from __future__ import annotations
@@ -39,7 +44,8 @@ import pytest
 DEFAULT_BUS = 1
 DEFAULT_SEED = 7
 SPI_NODE = (0, 0)  # /dev/spidev0.0
-PLUGIN_KEYS = ("bus", "faults", "fault_seed")  # marker keys the plugin uses; the others: BMG160
+# marker keys the plugin uses; the others go to the chip
+PLUGIN_KEYS = ("bus", "faults", "fault_seed", "part", "devices")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -55,13 +61,27 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "(relative to the ini file); the marker's profile= overrides it",
         default=None,
     )
+    parser.addini(
+        "bmg160_part",
+        "part of the bmg160_emu fixtures' chip (bmg160, bmi055_gyro, bmx055_gyro, "
+        "bmi088_gyro); the marker's part= overrides it",
+        default=None,
+    )
+    parser.addini(
+        "bmg160_devices",
+        "more devices on the fixtures' bus, one NAME@ADDRESS a line (a part, or a stand-in: "
+        "bmi088_accel, bma2x2_accel, bmm150, a TOML or dump file relative to the ini file); "
+        "the marker's devices= overrides it",
+        type="linelist",
+        default=[],
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
         "bmg160(**options): options of the emulated BMG160 for the bmg160_emu fixtures "
-        "(BMG160 keywords, plus bus= for the I2C bus number)",
+        "(BMG160 keywords, plus bus=, part=, devices=, faults=, fault_seed=)",
     )
     config.stash[_DEFAULTS] = _ini_defaults(config)
 
@@ -101,7 +121,69 @@ def _ini_defaults(config: pytest.Config) -> dict[str, Any]:
         except ValueError as exc:
             raise pytest.UsageError(f"{_ini_name(config)}: bmg160_profile: {exc}") from None
         defaults["profile"] = name
+    part = config.getini("bmg160_part")
+    if part not in (None, ""):
+        defaults["part"] = _checked_part(str(part).strip(), _ini_name(config))
+    devices = [line.strip() for line in config.getini("bmg160_devices") if line.strip()]
+    if devices:
+        base = config.inipath.parent if config.inipath else config.rootpath
+        defaults["devices"] = _checked_devices(devices, f"{_ini_name(config)}: bmg160_devices",
+                                               base)
     return defaults
+
+
+def _checked_part(name: Any, where: str) -> str:
+    from bmg160_emu.device.parts import PART_NAMES
+
+    __tracebackhide__ = True
+    if name not in PART_NAMES:
+        raise pytest.UsageError(f"{where}: part must be one of {', '.join(PART_NAMES)}, "
+                                f"not {name!r}")
+    return str(name)
+
+
+def _checked_devices(entries: Any, where: str, base: Path) -> list[tuple[str, int, Any]]:
+    """``["NAME@ADDRESS", ...]`` as (text, address, what: a part name or a stand-in's
+    declaration), each checked: a part at 0x68/0x69, a stand-in at one of its addresses."""
+    from bmg160_emu.device.parts import PART_NAMES
+    from bmg160_emu.device.spec_choices import VALID_ADDRESSES
+    from bmg160_emu.io.errors import FormatError
+    from bmg160_emu.io.standin_file import builtin_names, load_standin
+
+    __tracebackhide__ = True
+    if isinstance(entries, str) or not isinstance(entries, (list, tuple)):
+        raise pytest.UsageError(f"{where}: devices= takes a list of NAME@ADDRESS, such as "
+                                "['bmi088_accel@0x18']")
+    devices: list[tuple[str, int, Any]] = []
+    for text in entries:
+        name, at, place = str(text).rpartition("@")
+        try:
+            address = int(place, 0) if at and name else -1
+        except ValueError:
+            address = -1
+        if not 0x03 <= address <= 0x77:
+            raise pytest.UsageError(f"{where}: {text!r}: give NAME@ADDRESS with a 7-bit "
+                                    "address, e.g. bmi088_accel@0x18")
+        if name in PART_NAMES:
+            if address not in VALID_ADDRESSES:
+                raise pytest.UsageError(f"{where}: {text!r}: a {name} answers at 0x68 or 0x69")
+            devices.append((str(text), address, name))
+            continue
+        path = name if name in builtin_names() or Path(name).is_absolute() else str(base / name)
+        if name not in builtin_names() and not Path(path).exists():
+            raise pytest.UsageError(
+                f"{where}: {text!r}: unknown device {name!r}: a part ({', '.join(PART_NAMES)}), "
+                f"a stand-in ({', '.join(builtin_names())}) or a stand-in TOML or dump file")
+        try:
+            spec = load_standin(path)
+        except FormatError as exc:
+            raise pytest.UsageError(f"{where}: {text!r}: {exc}") from None
+        if spec.addresses and address not in spec.addresses:
+            allowed = ", ".join(f"0x{a:02x}" for a in spec.addresses)
+            raise pytest.UsageError(f"{where}: {text!r}: a {spec.name} answers at {allowed} "
+                                    "only")
+        devices.append((str(text), address, spec))
+    return devices
 
 
 def _ini_name(config: pytest.Config) -> str:
@@ -119,25 +201,35 @@ def chip_option_names() -> tuple[str, ...]:
 
 
 def _check_marker(item: pytest.Item) -> dict[str, Any]:
-    """The marker's options of ``item`` ({} without a marker); a UsageError names the test
-    and lists the valid keys when one is misspelled."""
+    """The merged options of ``item``'s bmg160 markers ({} without one): module, class and
+    test markers together, the closest winning per key. A UsageError names the test and
+    lists the valid keys when one is misspelled."""
     __tracebackhide__ = True
-    marker = item.get_closest_marker("bmg160")
-    if marker is None:
+    markers = list(item.iter_markers("bmg160"))  # closest first
+    if not markers:
         return {}
-    if marker.args:
-        raise pytest.UsageError(f"{item.nodeid}: @pytest.mark.bmg160 takes keyword options only")
     valid = chip_option_names() + PLUGIN_KEYS
-    unknown = sorted(set(marker.kwargs) - set(valid))
-    if unknown:
-        raise pytest.UsageError(
-            f"{item.nodeid}: unknown @pytest.mark.bmg160 option"
-            f"{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
-            f"valid: {', '.join(sorted(valid))}"
-        )
-    options = dict(marker.kwargs)
+    options: dict[str, Any] = {}
+    for marker in reversed(markers):
+        if marker.args:
+            raise pytest.UsageError(f"{item.nodeid}: @pytest.mark.bmg160 takes keyword "
+                                    "options only")
+        unknown = sorted(set(marker.kwargs) - set(valid))
+        if unknown:
+            raise pytest.UsageError(
+                f"{item.nodeid}: unknown @pytest.mark.bmg160 option"
+                f"{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
+                f"valid: {', '.join(sorted(valid))}"
+            )
+        options.update(marker.kwargs)
+    where = f"{item.nodeid}: @pytest.mark.bmg160"
     if "faults" in options:
         options["faults"] = _marker_faults(item.nodeid, options["faults"])
+    if "part" in options:
+        options["part"] = _checked_part(options["part"], where)
+    if "devices" in options:
+        options["devices"] = _checked_devices(options["devices"], where,
+                                              Path(str(item.path)).parent)
     return options
 
 
@@ -174,19 +266,43 @@ def _options(request: pytest.FixtureRequest) -> dict[str, Any]:
 
 @pytest.fixture
 def bmg160_chip(request: pytest.FixtureRequest) -> Any:
-    """A fresh BMG160 (seed 7, or the ini file's ``bmg160_seed``, unless the marker says)."""
-    from bmg160_emu.device.chip import BMG160
+    """A fresh chip of the marker's ``part`` (a BMG160 by default; seed 7, or the ini file's
+    ``bmg160_seed``, unless the marker says)."""
+    from bmg160_emu.device.parts import DEFAULT_PART, make_chip
 
     __tracebackhide__ = True
     options = _options(request)
+    part = options.get("part", DEFAULT_PART)
     for key in PLUGIN_KEYS:
         options.pop(key, None)
     try:
-        return BMG160(**options)
+        return make_chip(part, **options)
     except (TypeError, ValueError) as exc:
         raise pytest.UsageError(
-            f"{request.node.nodeid}: @pytest.mark.bmg160 options rejected by BMG160: {exc}"
+            f"{request.node.nodeid}: @pytest.mark.bmg160 options rejected by the {part}: {exc}"
         ) from None
+
+
+@pytest.fixture
+def bmg160_devices(request: pytest.FixtureRequest, bmg160_chip: Any) -> dict[int, Any]:
+    """Every device on the plugin's bus, {address: device}: the chip first, then the
+    marker's ``devices`` (parts and stand-ins, on the chip's clock, with its seed)."""
+    from bmg160_emu.device.parts import make_chip
+    from bmg160_emu.device.standin import StandinDevice
+
+    __tracebackhide__ = True
+    options = _options(request)
+    devices = {bmg160_chip.address: bmg160_chip}
+    for text, address, what in options.get("devices", []):
+        if address in devices:
+            raise pytest.UsageError(f"{request.node.nodeid}: @pytest.mark.bmg160 devices: "
+                                    f"{text!r}: 0x{address:02x} is taken")
+        if isinstance(what, str):
+            devices[address] = make_chip(what, address=address, clock=bmg160_chip.clock,
+                                         seed=options.get("seed"))
+        else:
+            devices[address] = StandinDevice(what, address, bmg160_chip.clock)
+    return devices
 
 
 class BusFaults:
@@ -226,14 +342,16 @@ class BusFaults:
 
 
 @pytest.fixture
-def bmg160_i2c_bus(request: pytest.FixtureRequest, bmg160_chip: Any) -> Iterator[Any]:
+def bmg160_i2c_bus(request: pytest.FixtureRequest, bmg160_chip: Any,
+                   bmg160_devices: dict[int, Any]) -> Iterator[Any]:
     """The emulated I2C adapter /dev/i2c-N (N = the marker's ``bus``, 1 by default) with the
-    chip at its address, an ``I2CBus`` (``.log``, ``.devices``, ``.transaction_hooks``);
-    the marker's ``faults=`` act on it. Nothing is patched: the stack fixtures build on it."""
+    chip and the marker's ``devices`` at their addresses, an ``I2CBus`` (``.log``,
+    ``.devices``, ``.transaction_hooks``, ``.assert_wrote``); the marker's ``faults=`` act on
+    it. Nothing is patched: the stack fixtures build on it."""
     from bmg160_emu.bus.i2c import I2CBus
 
     options = _options(request)
-    bus = I2CBus(options.get("bus", DEFAULT_BUS), {bmg160_chip.address: bmg160_chip})
+    bus = I2CBus(options.get("bus", DEFAULT_BUS), bmg160_devices)
     faults = BusFaults(bmg160_chip, bus, options.get("fault_seed", 0))
     if options.get("faults"):
         faults.schedule(options["faults"])
@@ -279,7 +397,10 @@ def bmg160_machine(bmg160_i2c_bus: Any) -> Iterator[Any]:
     plugin's bus number) and every ``SoftI2C`` reach the chip; yields the module."""
     from bmg160_emu.bus.machine import micropython_machine
 
-    with micropython_machine({bmg160_i2c_bus.number: bmg160_i2c_bus}) as machine:
+    number = bmg160_i2c_bus.number
+    where = (f"the chip is on I2C({number}); to reach it as I2C({{id}}), mark the test "
+             f"@pytest.mark.bmg160(bus={{id}})")
+    with micropython_machine({number: bmg160_i2c_bus}, where=where) as machine:
         yield machine
 
 

@@ -34,11 +34,11 @@ LAYERS = {  # first name under bmg160_emu -> layer (a module may import its laye
     "commands": 7,
     "adcs": 6,
     "session": 5, "faults": 5, "firmware": 5, "watch": 5,
-    "linux": 4, "io": 4,
+    "linux": 4, "io": 4, "serve": 4,
     "bus": 3,
     "device": 2,
-    "clock": 1, "durations": 1, "noise": 1,
-    "limits": 0,
+    "clock": 1, "durations": 1, "noise": 1, "traffic": 1, "progress": 1,
+    "limits": 0, "startup": 0,
 }
 
 # Names with a leading underscore that are public by their owner's documentation, used
@@ -47,6 +47,8 @@ PUBLIC_UNDERSCORE = {
     "_exit": "os._exit: documented; a forked child leaves without running the parent's handlers",
     "_negative_number_matcher": "argparse has no public hook for what counts as a negative "
                                 "number; CPython's argparse has kept this attribute since 2.7",
+    "_objects": "ctypes: documented (_CData._objects, the objects that keep a structure's "
+                "pointed-to memory alive); read only, by bus.user_memory",
 }
 
 

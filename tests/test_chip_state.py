@@ -21,7 +21,8 @@ from bmg160_emu.device.state import ChipState
 # tests). A name added here is a change of the chip's API: document it first.
 PUBLIC = {
     "address", "advance", "clock", "dump", "hold_data_int", "i2c_read", "i2c_write",
-    "inject_bist_failure", "int1", "int2", "int_pin_level", "lock", "nvm_image", "odr_hz",
+    "inject_bist_failure", "int1", "int2", "int_pin_level", "lock", "next_pin_change_ns",
+    "nvm_image", "odr_hz",
     "offset_lsb_dps", "offsets_lsb", "part", "peek", "pointer", "poke", "power_mode",
     "power_on_reset", "queue_true_rate", "read", "sample_hooks", "seed", "sensitivity",
     "sensitivity_table", "sensor_errors", "set_acceleration", "set_temperature",

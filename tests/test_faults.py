@@ -203,9 +203,8 @@ def test_temperature_ramp_moves_the_die_temperature_and_the_bias_with_its_coeffi
 
 def test_faults_from_scenario_tables_and_their_errors():
     assert fault_from_dict({"kind": "stuck_axis", "at_s": 1.0, "axis": "z"}).axis == 2
-    with pytest.raises(FaultError, match="exactly one trigger"):
-        Fault("nack")
-    with pytest.raises(FaultError, match="exactly one trigger"):
+    assert Fault("nack").at_s == 0.0  # no trigger: from the start
+    with pytest.raises(FaultError, match="give one trigger .* on_register and address narrow"):
         Fault("nack", at_s=1.0, probability=0.5)
     with pytest.raises(FaultError, match="needs an axis"):
         Fault("stuck_axis", at_s=1.0)
@@ -215,8 +214,14 @@ def test_faults_from_scenario_tables_and_their_errors():
         Fault("nack", probability=2.0)
     with pytest.raises(FaultError, match="register must be"):
         Fault("seu", at_s=0.0, register=0x40)
-    with pytest.raises(FaultError, match="fault 2: unknown keys"):
+    with pytest.raises(FaultError, match="fault 2: unknown key when; a nack fault takes kind, "
+                                         "at_s, on_transaction, probability, on_register"):
         fault_from_dict({"kind": "nack", "at_s": 1, "when": 3}, "fault 2")
+    with pytest.raises(FaultError, match="a nack fault takes no register .to select "
+                                         "transactions naming a register, give on_register"):
+        fault_from_dict({"kind": "nack", "register": 0x0F})
+    with pytest.raises(FaultError, match="a brownout fault takes no axis; it takes kind"):
+        fault_from_dict({"kind": "brownout", "axis": "x"})
     with pytest.raises(FaultError, match="gyro 3 does not exist"):
         _rig([Fault("nack", at_s=1.0, gyro=3)])
 

@@ -16,13 +16,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bmg160_emu.bus.transactions import Transaction
 from bmg160_emu.io import FormatError, format_for
 from bmg160_emu.io.dump import RegisterDump, format_dump, parse_dump
 from bmg160_emu.io.formats import block_writer_for
 from bmg160_emu.io.rates import load_rate_record, write_rates
 from bmg160_emu.io.recording import Recording, read_recording, write_recording
 from bmg160_emu.io.trace import TraceHeader, TraceWriter, read_trace
+from bmg160_emu.traffic.transaction import Transaction
 
 
 @dataclass(frozen=True)

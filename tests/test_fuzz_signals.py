@@ -39,8 +39,8 @@ def test_the_plan_is_seeded_and_four_consecutive_trials_cover_every_phase_of_a_r
 def test_the_judge_catches_an_unmarked_cut_output_and_a_marked_one_that_lies(tmp_path):
     # the oracle itself can fail: a trace cut short whose mark is lost (the end line
     # written on a cut session, by hand here) and a partial trace whose records differ
-    from bmg160_emu.bus.transactions import Transaction
     from bmg160_emu.io.trace import TraceHeader, TraceWriter
+    from bmg160_emu.traffic.transaction import Transaction
 
     def trace(path, records, complete):
         writer = TraceWriter(path, TraceHeader(seed=1))

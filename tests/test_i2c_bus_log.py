@@ -8,7 +8,7 @@ import pytest
 from _standin_chip import RegisterFileChip
 
 from bmg160_emu.bus.i2c import I2CBus
-from bmg160_emu.bus.transactions import Transaction, TransactionLog
+from bmg160_emu.traffic.transaction import Transaction, TransactionLog
 
 
 def test_each_transaction_is_recorded_with_time_address_kind_register_and_bytes():
@@ -97,7 +97,7 @@ def test_a_trace_writer_sink_gets_every_transaction_as_a_json_line(tmp_path):
 
 
 def test_printed_log_shows_session_events_by_their_description():
-    from bmg160_emu.bus.transactions import Transaction
+    from bmg160_emu.traffic.transaction import Transaction
 
     fault = Transaction(0.5, 1, 0x68, "fault:stuck_axis", written=b"stuck axis x\n{\"axis\": 0}")
     assert str(fault).endswith("fault:stuck_axis: stuck axis x")

@@ -8,7 +8,8 @@ import errno
 import pytest
 from _standin_chip import RegisterFileChip
 
-from bmg160_emu.bus.i2c import DEFAULT_FUNCS, I2C_FUNC_SMBUS_QUICK, I2CBus, I2CMessage, smbus_pec
+from bmg160_emu.bus.i2c import DEFAULT_FUNCS, I2CBus, I2CMessage, smbus_pec
+from bmg160_emu.traffic.kinds import I2C_FUNC_SMBUS_QUICK
 
 
 @pytest.fixture
@@ -154,10 +155,25 @@ def test_smbus_pec_matches_the_crc8_check_value():
     assert smbus_pec(b"123456789") == 0xF4
 
 
-def test_i2c_transfer_write_then_read_is_a_combined_read(bus):
+def test_i2c_transfer_write_then_read_is_one_register_read(bus):
+    indices = []
+    bus.transaction_hooks.append(lambda b, index, a, kind: indices.append((index, kind)))
     messages = bus.i2c_transfer([I2CMessage.write(0x68, [0x02]), I2CMessage.read_message(0x68, 4)])
     assert messages[1].data == bytes([2, 3, 4, 5])
-    assert bus.log.kinds()[-2:] == ["i2c_write", "i2c_read"]
+    # one transaction, as the same bytes on the wire are from smbus2's read_i2c_block_data
+    assert indices == [(0, "i2c_read")]
+    [entry] = bus.log
+    assert (entry.kind, entry.register, entry.written, entry.read) == (
+        "i2c_read", 0x02, b"", bytes([2, 3, 4, 5]))
+
+
+def test_i2c_transfer_splits_into_register_reads_and_lone_messages(bus):
+    bus.i2c_transfer([I2CMessage.write(0x68, [0x20, 0x99]),  # a write: its own transaction
+                      I2CMessage.write(0x68, [0x02, 0x07]),  # a write then a read: one,
+                      I2CMessage.read_message(0x68, 2),      # written bytes kept
+                      I2CMessage.read_message(0x68, 1)])     # a read from the pointer
+    assert [(t.kind, t.register, t.written.hex(), len(t.read)) for t in bus.log] == [
+        ("i2c_write", 0x20, "99", 0), ("i2c_read", 0x02, "07", 2), ("i2c_read", None, "", 1)]
 
 
 def test_i2c_transfer_stops_at_a_missing_device_after_earlier_messages_took_effect(bus, chip):

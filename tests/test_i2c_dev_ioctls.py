@@ -164,7 +164,10 @@ def test_scalar_requests(node):
     funcs = ctypes.c_uint64()
     assert ioctl(fd, I2C_FUNCS, funcs) == 0 and funcs.value == bus.funcs
     assert ioctl(fd, I2C_PEC, 1) == 0
-    assert ioctl(fd, I2C_RETRIES, 3) == 0 and ioctl(fd, I2C_TIMEOUT, 0x7FFFFFFF) == 0
+    assert ioctl(fd, I2C_RETRIES, 3) == 0 and ioctl(fd, I2C_RETRIES, 0x7FFFFFFF) == 0
+    # the timeout is in units of 10 ms: INT_MAX / 10 at most (drivers/i2c/i2c-dev.c, 6.1)
+    assert ioctl(fd, I2C_TIMEOUT, 0x7FFFFFFF // 10) == 0
+    assert errno_of(ioctl, fd, I2C_TIMEOUT, 0x7FFFFFFF // 10 + 1) == errno.EINVAL
     assert errno_of(ioctl, fd, I2C_RETRIES, -1) == errno.EINVAL  # above INT_MAX unsigned
     assert errno_of(ioctl, fd, 0x0799, 0) == errno.ENOTTY
     with pytest.raises(OverflowError):  # fcntl passes an integer argument as a C int
@@ -191,19 +194,23 @@ def test_rdwr_combined_transfer_returns_the_message_count(node):
 
 
 @pytest.mark.parametrize(
-    ("count", "flags", "length", "expected"),
+    ("count", "flags", "length", "first", "expected"),
     [
-        (43, I2C_M_RD, 1, errno.EINVAL),  # I2C_RDWR_IOCTL_MAX_MSGS is 42
-        (0, I2C_M_RD, 1, errno.EINVAL),
-        (1, I2C_M_RD, 8193, errno.EINVAL),  # messages are capped at 8192 bytes
-        (1, I2C_M_RECV_LEN, 40, errno.EINVAL),  # a receive-length message must be a read
-        (1, I2C_M_RD | I2C_M_RECV_LEN, 40, errno.EOPNOTSUPP),  # well formed: adapter lacks it
-        (1, I2C_M_RD | I2C_M_TEN, 1, errno.ENXIO),
+        (43, I2C_M_RD, 1, 0, errno.EINVAL),  # I2C_RDWR_IOCTL_MAX_MSGS is 42
+        (0, I2C_M_RD, 1, 0, errno.EINVAL),
+        (1, I2C_M_RD, 8193, 0, errno.EINVAL),  # messages are capped at 8192 bytes
+        (1, I2C_M_RECV_LEN, 40, 1, errno.EINVAL),  # a receive-length message must be a read
+        # its first byte counts the bytes after the length byte: at least 1, and the buffer
+        # holds that many plus 32 (i2cdev_ioctl_rdwr, 6.1)
+        (1, I2C_M_RD | I2C_M_RECV_LEN, 40, 0, errno.EINVAL),
+        (1, I2C_M_RD | I2C_M_RECV_LEN, 40, 9, errno.EINVAL),
+        (1, I2C_M_RD | I2C_M_RECV_LEN, 40, 1, errno.EOPNOTSUPP),  # well formed: adapter lacks it
+        (1, I2C_M_RD | I2C_M_TEN, 1, 0, errno.ENXIO),
     ],
 )
-def test_rdwr_argument_checks(node, count, flags, length, expected):
+def test_rdwr_argument_checks(node, count, flags, length, first, expected):
     fd, ioctl, _, bus = node
-    buffer = (ctypes.c_uint8 * 8200)()
+    buffer = (ctypes.c_uint8 * 8200)(first)
     table = (i2c_msg * 43)(*[i2c_msg(0x68, flags, length, buffer) for _ in range(43)])
     request = rdwr_keepalive(table, i2c_rdwr_ioctl_data(table, count))
     assert errno_of(ioctl, fd, I2C_RDWR, request) == expected
@@ -237,7 +244,7 @@ def test_read_and_write_are_plain_i2c_capped_at_8192_bytes():
 def test_adapter_without_plain_i2c_refuses_read_write_and_rdwr():
     from bmg160_emu.bus.i2c import DEFAULT_FUNCS
     from bmg160_emu.bus.i2c_dev import I2CDevFile
-    from bmg160_emu.bus.kernel_abi import I2C_FUNC_I2C
+    from bmg160_emu.traffic.kinds import I2C_FUNC_I2C
 
     bus = I2CBus(1, {0x68: RegisterFileChip()}, funcs=DEFAULT_FUNCS & ~I2C_FUNC_I2C)
     file = I2CDevFile(bus)

@@ -52,7 +52,7 @@ def test_the_low_pass_filter_needs_no_scipy() -> None:
 def test_the_bus_layer_needs_nothing_heavy() -> None:
     modules = _imported_after(
         """
-        import bmg160_emu.bus.i2c, bmg160_emu.bus.smbus, bmg160_emu.bus.transactions
+        import bmg160_emu.bus.i2c, bmg160_emu.bus.smbus, bmg160_emu.traffic.transaction
         """
     )
     assert _heavy(modules) == []

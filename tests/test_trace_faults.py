@@ -167,8 +167,10 @@ def test_a_script_session_with_faults_replays(tmp_path, capsys):
          "duration_s": 0.05, "at_s": 0.02},
         {"kind": "stuck_axis", "axis": "z", "duration_s": 0.008, "probability": 0.1},
         {"kind": "brownout", "on_transaction": 12},
+        {"kind": "corrupt_byte", "byte": 1, "bit": 3, "on_transaction": 9},  # a read's byte
+        {"kind": "corrupt_byte", "bit": 0, "on_transaction": 11},  # the written RANGE
     ],
-    ids=lambda f: f["kind"],
+    ids=lambda f: f"{f['kind']}-{f['on_transaction']}" if f["kind"] == "corrupt_byte" else f["kind"],
 )
 def test_every_fault_kind_replays_and_is_needed_for_it(tmp_path, fault):
     chip = BMG160(SEED, clock=VirtualClock(), address=0x68)
@@ -184,6 +186,7 @@ def test_every_fault_kind_replays_and_is_needed_for_it(tmp_path, fault):
             chip.advance(0.005)
             bus.read_i2c_block_data(0x68, 0x02, 6)
             bus.read_byte_data(0x68, 0x0F)
+            bus.write_byte_data(0x68, 0x0F, 0x00)  # RANGE: a corrupted write shows in the read
     header_dict, records = read_trace(path)
     assert any(r["kind"] == f"fault:{fault['kind']}" for r in records)
     result = replay_trace(header_dict, records)

@@ -6,10 +6,10 @@ import json
 
 import pytest
 
-from bmg160_emu.bus.transactions import Transaction, TransactionLog
 from bmg160_emu.io.trace import TraceFormatError, TraceHeader, TraceWriter, read_trace
 from bmg160_emu.session.decode import describe_read, describe_transaction, describe_write
 from bmg160_emu.session.trace_replay import replay_trace
+from bmg160_emu.traffic.transaction import Transaction, TransactionLog
 
 
 def _session() -> list[Transaction]:

@@ -148,15 +148,15 @@ def test_zero_length_message_probes_the_address(rig):
 def test_a_fault_hook_fails_the_request_through_the_same_bus(rig):
     fe, device, _, bus = rig
 
-    def nack_third(_bus, index, _address, _kind):
-        if index == 2:
+    def nack_second(_bus, index, _address, _kind):
+        if index == 1:
             raise OSError(errno.EREMOTEIO, "injected")
 
-    bus.transaction_hooks.append(nack_third)
+    bus.transaction_hooks.append(nack_second)
     first = register_read(fe, device, 0x68, 0x00, 1)
     second = register_read(fe, device, 0x68, 0x00, 1)
     assert (first[2], first[3]) == (0, 0)
-    assert (second[2], second[3]) == (1, 1)  # transaction 2 fails, its group with it
+    assert (second[2], second[3]) == (1, 1)  # transaction 1 (a register read) fails whole
 
 
 def test_fifo_read_pops_frames(rig):
@@ -202,15 +202,19 @@ def test_a_register_read_too_long_for_a_block_read_is_plain_i2c(rig):
     fe, device, chip, bus = rig
     _, _, status_w, status_r, data = register_read(fe, device, 0x68, 0x00, 40)
     assert (status_w, status_r) == (0, 0) and data == chip.dump()[:40]
-    assert [e.kind for e in bus.log] == ["i2c_write", "i2c_read"]
+    # one register read (I2CBus: a write then a read of one address is one transaction)
+    assert [(e.kind, e.register) for e in bus.log] == [("i2c_read", 0x00)]
 
 
-def test_a_fault_hook_sees_each_message_as_its_own_transaction(rig):
+def test_a_fault_hook_sees_a_register_read_as_one_transaction(rig):
+    # as from i2c-dev and every other stack: the write of the register and the read after
+    # it are one transaction (an on_register fault selects it, on_transaction counts it once)
     fe, device, _, bus = rig
     seen = []
     bus.transaction_hooks.append(lambda _b, i, a, kind: seen.append(kind))
     register_read(fe, device, 0x68, 0x02, 6)
-    assert seen == ["i2c_write", "i2c_read"]
+    assert seen == ["i2c_read"]
+    assert [(e.kind, e.register, len(e.read)) for e in bus.log] == [("i2c_read", 0x02, 6)]
 
 
 def test_event_idx_avail_event_and_call_suppression(rig):
@@ -323,9 +327,9 @@ def test_several_transfers_on_one_kick_are_answered_in_order_with_one_call(rig):
     assert fe.read_back(0, heads[3], [1, 1]) == [b"\x00", b"\x00"]  # RANGE at reset
     assert fe.read_back(0, heads[6], [1, 1])[1] == b"\x01"  # its group fails with it
     assert chip.peek(0x0F) == 0x02
-    assert [(e.kind, e.address) for e in bus.log] == [
-        ("read_i2c_block_data", 0x68), ("read_i2c_block_data", 0x68), ("i2c_write", 0x68),
-        ("i2c_write", 0x50)]
+    assert [(e.kind, e.address, e.error) for e in bus.log] == [
+        ("read_i2c_block_data", 0x68, None), ("read_i2c_block_data", 0x68, None),
+        ("i2c_write", 0x68, None), ("i2c_read", 0x50, "EREMOTEIO")]  # a register read
     assert device.stats.failed == 2
 
 

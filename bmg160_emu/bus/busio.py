@@ -8,7 +8,11 @@ transfer (``RuntimeError: Function requires lock`` otherwise); ``start``/``end``
 buffers without copying; ``writeto_then_readfrom`` is one combined transfer (a repeated
 start); a pin serves one bus at a time (``ValueError: SCL in use`` until ``deinit``).
 Errors are ``OSError`` with CircuitPython's errno: ENODEV (19) when nobody acknowledges
-the address, ETIMEDOUT (110) for a timeout, EIO (5) for any other bus failure.
+the address, ETIMEDOUT (110) for a timeout, EIO (5) for any other bus failure (the RP2040
+port's common-hal/busio/I2C.c). Arguments follow shared-bindings/busio/I2C.c: ``start`` and
+``end`` count the buffer's elements (normalize_buffer_bounds), a read needs at least one
+byte (``ValueError: buffer length must be >= 1``), a ``str`` is a buffer to write from
+(its UTF-8 bytes) and an address must be an int (:mod:`.micropython_rules`).
 
 SPI: a chip wired to a chip-select pin takes part in a transfer while that pin is driven low
 through ``digitalio.DigitalInOut`` (each low period is one frame, bmg160_emu.bus.spi), in
@@ -21,7 +25,12 @@ import threading
 from typing import Any
 
 from bmg160_emu.bus.i2c import I2CBus, I2CMessage
-from bmg160_emu.bus.machine import SCAN_FIRST, SCAN_LAST, micropython_error
+from bmg160_emu.bus.micropython_rules import (
+    get_int,
+    micropython_error,
+    read_buffer,
+    write_buffer,
+)
 from bmg160_emu.bus.spi import UNDRIVEN_BYTE, SpiFrame
 
 __all__ = ["I2C", "SPI", "Wiring", "chip_select", "wiring"]
@@ -63,12 +72,39 @@ def _claim(*pins: Any) -> None:
     wiring.in_use.update(p for p in pins if p is not None)
 
 
-def _bounds(buffer: Any, start: int, end: int | None) -> memoryview:
-    view = memoryview(buffer).cast("B")
-    length = len(view)
-    end = length if end is None else end
-    start, end = max(0, min(start, length)), max(0, min(end, length))
-    return view[start:max(start, end)]
+INT_MAX = 0x7FFFFFFF  # the default ``end`` of every slice (CircuitPython's INT_MAX)
+
+
+def _bounds(buffer: Any, start: Any, end: Any, writable: bool = False) -> memoryview:
+    """``buffer[start:end]`` as CircuitPython slices it (shared/runtime/buffer_helper.c,
+    normalize_buffer_bounds): ``start`` and ``end`` count elements of the buffer's type (2
+    bytes for an ``array('h')``), a negative one from the end, ``end`` clipped to the
+    length, ``start`` not clipped; the bytes of that slice. A slice that reaches outside
+    the buffer makes the board read or write beyond it: the emulator stops there."""
+    if writable:
+        raw = write_buffer(buffer)
+        stride = memoryview(buffer).itemsize
+    elif isinstance(buffer, str):
+        raw, stride = memoryview(read_buffer(buffer)), 1
+    else:
+        try:
+            stride = memoryview(buffer).itemsize
+        except TypeError:
+            raise TypeError("object with buffer protocol required") from None
+        raw = memoryview(read_buffer(buffer))
+    length = len(raw) // stride
+    first, last = get_int(start), INT_MAX if end is None else get_int(end)
+    if last < 0:
+        last += length
+    elif last > length:
+        last = length
+    if first < 0:
+        first += length
+    count = 0 if last < first else last - first
+    if count and (first < 0 or first + count > length):
+        raise ValueError(f"start={start!r}, end={end!r} on a buffer of {length} elements reach "
+                         "outside it: CircuitPython would read or write past the buffer")
+    return raw[first * stride:(first + count) * stride]
 
 
 class _Lockable:
@@ -123,61 +159,67 @@ class I2C(_Lockable):
 
     def __init__(self, scl: Any, sda: Any, *, frequency: int = 100000, timeout: int = 255) -> None:
         super().__init__()
+        for name, pin in (("scl", scl), ("sda", sda)):
+            if not hasattr(pin, "name"):  # validate_obj_is_pin
+                raise TypeError(f"{name} must be of type Pin, not {type(pin).__name__}")
         bus = wiring.i2c.get((scl, sda))
         if bus is None:
             raise ValueError("Invalid pins")
         _claim(scl, sda)
         self._pins = (scl, sda)
         self._bus = bus
-        self.frequency = frequency
+        self.frequency = get_int(frequency)
+        self.timeout = get_int(timeout)
 
     def _transfer(self, messages: list[I2CMessage]) -> list[I2CMessage]:
         try:
-            return self._bus.i2c_transfer(messages)
+            return self._bus.i2c_transfer(messages, kernel_limits=False)
         except OSError as exc:
             raise micropython_error(exc) from None
 
-    def probe(self, address: int) -> bool:
+    @staticmethod
+    def _address(address: Any) -> int:
+        """The address as the port sends it: an int (TypeError otherwise); one beyond 7 bits
+        is not acknowledged (ENODEV)."""
+        value = get_int(address)
+        if not 0 <= value <= 0x7F:
+            raise micropython_error(OSError(19, "ENODEV"))
+        return value
+
+    def probe(self, address: Any) -> bool:
         """Whether a device acknowledges ``address`` (a write of no data)."""
         self._check()
-        try:
-            self._bus.i2c_transfer([I2CMessage.write(address, b"")])
-        except OSError:
-            return False
-        return True
+        value = get_int(address)
+        return 0 <= value <= 0x7F and self._bus.probe(value)
 
     def scan(self) -> list[int]:
         self._check()
-        found = []
-        for address in range(SCAN_FIRST, SCAN_LAST + 1):
-            try:
-                self._bus.i2c_transfer([I2CMessage.write(address, b"")])
-            except OSError:
-                continue
-            found.append(address)
-        return found
+        return self._bus.scan()
 
-    def writeto(self, address: int, buffer: Any, *, start: int = 0, end: int | None = None) -> None:
+    def writeto(self, address: Any, buffer: Any, *, start: Any = 0, end: Any = None) -> None:
         self._check()
-        self._transfer([I2CMessage.write(address, _bounds(buffer, start, end).tobytes())])
+        data = _bounds(buffer, start, end).tobytes()
+        self._transfer([I2CMessage.write(self._address(address), data)])
 
-    def readfrom_into(self, address: int, buffer: Any, *, start: int = 0,
-                      end: int | None = None) -> None:
+    def readfrom_into(self, address: Any, buffer: Any, *, start: Any = 0,
+                      end: Any = None) -> None:
         self._check()
-        view = _bounds(buffer, start, end)
+        view = _bounds(buffer, start, end, writable=True)
         if not len(view):
-            raise ValueError("Buffer must be at least length 1")
-        view[:] = self._transfer([I2CMessage.read_message(address, len(view))])[0].data
+            raise ValueError("buffer length must be >= 1")
+        messages = [I2CMessage.read_message(self._address(address), len(view))]
+        view[:] = self._transfer(messages)[0].data
 
-    def writeto_then_readfrom(self, address: int, out_buffer: Any, in_buffer: Any, *,
-                              out_start: int = 0, out_end: int | None = None,
-                              in_start: int = 0, in_end: int | None = None) -> None:
+    def writeto_then_readfrom(self, address: Any, out_buffer: Any, in_buffer: Any, *,
+                              out_start: Any = 0, out_end: Any = None,
+                              in_start: Any = 0, in_end: Any = None) -> None:
         self._check()
         out = _bounds(out_buffer, out_start, out_end).tobytes()
-        into = _bounds(in_buffer, in_start, in_end)
-        if not len(into):
-            raise ValueError("Buffer must be at least length 1")
-        messages = [I2CMessage.write(address, out), I2CMessage.read_message(address, len(into))]
+        into = _bounds(in_buffer, in_start, in_end, writable=True)
+        if not len(into):  # the port names the wrong buffer in this message
+            raise ValueError("out_buffer length must be >= 1")
+        target = self._address(address)
+        messages = [I2CMessage.write(target, out), I2CMessage.read_message(target, len(into))]
         into[:] = self._transfer(messages)[1].data
 
 
@@ -216,7 +258,7 @@ class SPI(_Lockable):
     def readinto(self, buffer: Any, *, start: int = 0, end: int | None = None,
                  write_value: int = 0) -> None:
         self._check()
-        view = _bounds(buffer, start, end)
+        view = _bounds(buffer, start, end, writable=True)
         view[:] = self._clock(bytes([write_value & 0xFF]) * len(view))
 
     def write_readinto(self, out_buffer: Any, in_buffer: Any, *, out_start: int = 0,
@@ -224,7 +266,7 @@ class SPI(_Lockable):
                        in_end: int | None = None) -> None:
         self._check()
         out = _bounds(out_buffer, out_start, out_end).tobytes()
-        into = _bounds(in_buffer, in_start, in_end)
+        into = _bounds(in_buffer, in_start, in_end, writable=True)
         if len(out) != len(into):
             raise ValueError("buffer slices must be of equal length")
         into[:] = self._clock(out)

@@ -22,42 +22,31 @@ from typing import Any
 
 from bmg160_emu.bus.kernel_abi import (
     I2C_DEV_MAX_TRANSFER,
-    I2C_FUNC_I2C,
-    I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
     I2C_FUNC_SMBUS_EMUL,
-    I2C_FUNC_SMBUS_PROC_CALL,
-    I2C_FUNC_SMBUS_QUICK,
-    I2C_FUNC_SMBUS_READ_BLOCK_DATA,
-    I2C_FUNC_SMBUS_READ_BYTE,
-    I2C_FUNC_SMBUS_READ_BYTE_DATA,
-    I2C_FUNC_SMBUS_READ_I2C_BLOCK,
-    I2C_FUNC_SMBUS_READ_WORD_DATA,
-    I2C_FUNC_SMBUS_WRITE_BLOCK_DATA,
-    I2C_FUNC_SMBUS_WRITE_BYTE,
-    I2C_FUNC_SMBUS_WRITE_BYTE_DATA,
-    I2C_FUNC_SMBUS_WRITE_I2C_BLOCK,
-    I2C_FUNC_SMBUS_WRITE_WORD_DATA,
     I2C_RDWR_IOCTL_MAX_MSGS,
     I2C_SMBUS_BLOCK_MAX,
 )
-from bmg160_emu.bus.transactions import TransactionLog, errno_name
+from bmg160_emu.bus.wire import WiredChip, WireFault
+from bmg160_emu.bus.wrote import check_wrote
+from bmg160_emu.traffic.kinds import (
+    I2C_FUNC_I2C,
+    I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
+    I2C_FUNC_SMBUS_READ_BLOCK_DATA,
+    KIND_FUNCS,
+)
+from bmg160_emu.traffic.transaction import TransactionLog, errno_name
 
 __all__ = [
     "DEFAULT_FUNCS",
-    "I2C_FUNC_SMBUS_QUICK",
     "I2C_SMBUS_BLOCK_MAX",
     "I2CBus",
     "I2CMessage",
-    "WireFilter",
-    "emulated_bus",
-    "emulated_bus_for_path",
     "os_error",
-    "register_bus",
     "smbus_pec",
-    "unregister_bus",
 ]
 
 I2C_RDWR_MAX_MSG_LEN = I2C_DEV_MAX_TRANSFER  # i2c-dev refuses longer messages
+SCAN_FIRST, SCAN_LAST = 0x08, 0x77  # the addresses a scan probes
 
 # A plain-I2C adapter with the core's SMBus emulation plus receive-length support (so SMBus
 # block reads and block process calls work, as the spec's mapping asks).
@@ -68,30 +57,7 @@ DEFAULT_FUNCS = (
     | I2C_FUNC_SMBUS_BLOCK_PROC_CALL
 )
 
-# transaction kind -> functionality bit it needs
-KIND_FUNCS = {
-    "write_quick": I2C_FUNC_SMBUS_QUICK,
-    "read_quick": I2C_FUNC_SMBUS_QUICK,
-    "read_byte": I2C_FUNC_SMBUS_READ_BYTE,
-    "write_byte": I2C_FUNC_SMBUS_WRITE_BYTE,
-    "read_byte_data": I2C_FUNC_SMBUS_READ_BYTE_DATA,
-    "write_byte_data": I2C_FUNC_SMBUS_WRITE_BYTE_DATA,
-    "read_word_data": I2C_FUNC_SMBUS_READ_WORD_DATA,
-    "write_word_data": I2C_FUNC_SMBUS_WRITE_WORD_DATA,
-    "process_call": I2C_FUNC_SMBUS_PROC_CALL,
-    "read_block_data": I2C_FUNC_SMBUS_READ_BLOCK_DATA,
-    "write_block_data": I2C_FUNC_SMBUS_WRITE_BLOCK_DATA,
-    "block_process_call": I2C_FUNC_SMBUS_BLOCK_PROC_CALL,
-    "read_i2c_block_data": I2C_FUNC_SMBUS_READ_I2C_BLOCK,
-    "write_i2c_block_data": I2C_FUNC_SMBUS_WRITE_I2C_BLOCK,
-    "i2c_read": I2C_FUNC_I2C,
-    "i2c_write": I2C_FUNC_I2C,
-}
-
 TransactionHook = Callable[["I2CBus", int, int, str], None]
-# What a hook with ``takes_register`` may return: a change to the bytes the host receives,
-# ``wire(offset, data) -> data`` with ``offset`` the place of ``data[0]`` in the transaction.
-WireFilter = Callable[[int, bytes], bytes]
 
 
 def os_error(code: int) -> OSError:
@@ -154,8 +120,17 @@ class I2CBus:
     hook fails the transaction as a real adapter would (NACK = EREMOTEIO, timeout = ETIMEDOUT).
     A hook whose attribute ``takes_register`` is true is called as ``hook(bus, index, address,
     kind, register)`` (the register the transaction names, or None) and may return a
-    :data:`WireFilter`: the bytes the host reads pass through it (a corrupted byte on the
-    wire; the PEC is checked after it, as the host's adapter checks it).
+    :class:`~bmg160_emu.bus.wire.WireFault`: the bytes the host reads and the data bytes the
+    device receives pass through it (a corrupted byte on the wire; the PEC is checked after
+    it, as the host's adapter checks it).
+
+    A transaction is what an SMBus call is on the wire: one kind, one index, one log entry.
+    In a plain-I2C transfer (``i2c_transfer``) a write followed by a read of the same
+    address is one transaction too, of kind ``i2c_read`` naming the register its write
+    set (``register``, the write's other bytes in ``written``): a register read, the same
+    whether smbus2, Blinka, periphery or MicroPython sent it. Every other message is a
+    transaction of its own (``i2c_write``, or ``i2c_read`` from the current pointer,
+    ``register`` None).
     ``claimed``: addresses a kernel driver has bound; ``I2C_SLAVE`` on them gives EBUSY unless
     forced. ``funcs``: the adapter's functionality mask; a kind whose bit is missing fails with
     EOPNOTSUPP. ``nack_errno``: the errno of an address nobody acknowledges (EREMOTEIO).
@@ -240,6 +215,8 @@ class I2CBus:
         read: bytes = b"",
         error: str | None = None,
     ) -> None:
+        if chip.__class__ is WiredChip:
+            chip.finish()  # its faults report before the transaction's entry
         if self.log.enabled:
             self.log.record(
                 self._time(chip), self.number, address, kind, register, written, read, error
@@ -267,7 +244,7 @@ class I2CBus:
             raise os_error(errno.EOPNOTSUPP)
         chip = self.devices.get(address)
         if self.transaction_hooks:
-            wires: list[WireFilter] = []
+            wires: list[WireFault] = []
             for hook in list(self.transaction_hooks):
                 try:
                     if getattr(hook, "takes_register", False):
@@ -282,7 +259,7 @@ class I2CBus:
                     )
                     raise
             if wires and chip is not None:
-                return _Wire(chip, wires)
+                return WiredChip(chip, wires)
         if chip is None:
             raise self._fail(None, address, kind, register, self.nack_errno, written)
         return chip
@@ -458,32 +435,74 @@ class I2CBus:
 
     # ------------------------------------------------------------------ plain I2C
 
-    def i2c_transfer(self, messages: Sequence[I2CMessage]) -> list[I2CMessage]:
+    def i2c_transfer(self, messages: Sequence[I2CMessage], *,
+                     kernel_limits: bool = True) -> list[I2CMessage]:
         """A combined transfer (``I2C_RDWR``): messages separated by repeated starts, one stop
         at the end. Read messages get their ``data`` filled in. A message to an address
-        without a device stops the transfer with EREMOTEIO; earlier messages took effect."""
-        if not 1 <= len(messages) <= I2C_RDWR_IOCTL_MAX_MSGS:
+        without a device stops the transfer with EREMOTEIO; earlier messages took effect
+        (the error's ``messages_done`` counts them).
+        ``kernel_limits``: i2c-dev's 1..42 messages of at most 8192 bytes (EINVAL); a
+        microcontroller's bus (MicroPython, CircuitPython) has none of them."""
+        if kernel_limits and not 1 <= len(messages) <= I2C_RDWR_IOCTL_MAX_MSGS:
             raise os_error(errno.EINVAL)
         for message in messages:
-            if message.length > I2C_RDWR_MAX_MSG_LEN or not 0 <= message.address <= 0x7F:
+            if ((kernel_limits and message.length > I2C_RDWR_MAX_MSG_LEN)
+                    or not 0 <= message.address <= 0x7F):
                 raise os_error(errno.EINVAL)
         chips = {id(c): c for m in messages if (c := self.devices.get(m.address)) is not None}
         with ExitStack() as stack:  # one transfer: no other thread between its messages
             for key in sorted(chips):
                 stack.enter_context(chips[key].lock)
-            for message in messages:
-                if message.read:
-                    chip = self._begin(message.address, "i2c_read")
-                    message.data = chip.i2c_read(message.length) if message.length else b""
-                    self._record(chip, message.address, "i2c_read", None, b"", message.data)
-                else:
-                    data = message.data
-                    register = data[0] if data else None
-                    chip = self._begin(message.address, "i2c_write", register, data[1:])
-                    if data:
-                        chip.i2c_write(data)
-                    self._record(chip, message.address, "i2c_write", register, data[1:])
+            i = 0
+            try:
+                while i < len(messages):
+                    message = messages[i]
+                    following = messages[i + 1] if i + 1 < len(messages) else None
+                    if (not message.read and message.data and following is not None
+                            and following.read and following.address == message.address):
+                        self._register_read(message, following)  # write, restart, read
+                        i += 2
+                        continue
+                    if message.read:
+                        chip = self._begin(message.address, "i2c_read")
+                        message.data = chip.i2c_read(message.length) if message.length else b""
+                        self._record(chip, message.address, "i2c_read", None, b"", message.data)
+                    else:
+                        data = message.data
+                        register = data[0] if data else None
+                        chip = self._begin(message.address, "i2c_write", register, data[1:])
+                        if data:
+                            chip.i2c_write(data)
+                        self._record(chip, message.address, "i2c_write", register, data[1:])
+                    i += 1
+            except OSError as exc:
+                exc.messages_done = i  # type: ignore[attr-defined]  # those took effect
+                raise
         return list(messages)
+
+    def _register_read(self, write: I2CMessage, read: I2CMessage) -> None:
+        """A write then (repeated start) a read of one address: one transaction, a register
+        read (kind ``i2c_read`` naming the register the write set)."""
+        address, data = write.address, write.data
+        register, written = data[0], data[1:]
+        chip = self._begin(address, "i2c_read", register, written)
+        chip.i2c_write(data)
+        read.data = chip.i2c_read(read.length) if read.length else b""
+        self._record(chip, address, "i2c_read", register, written, read.data)
+
+    def probe(self, address: int) -> bool:
+        """Whether a device acknowledges ``address``: a write of no data, its NACK caught
+        (MicroPython's and CircuitPython's ``scan``/``probe``)."""
+        try:
+            self.i2c_transfer([I2CMessage.write(address, b"")])
+        except OSError:
+            return False
+        return True
+
+    def scan(self) -> list[int]:
+        """The 7-bit addresses 0x08..0x77 that acknowledge (0b0000xxx and 0b1111xxx are
+        reserved; MicroPython's and CircuitPython's ``scan`` probe the same range)."""
+        return [address for address in range(SCAN_FIRST, SCAN_LAST + 1) if self.probe(address)]
 
     def i2c_write(self, address: int, data: bytes | Sequence[int]) -> None:
         """A plain I2C write (``write()`` on /dev/i2c-N): data[0] sets the pointer."""
@@ -493,64 +512,29 @@ class I2CBus:
         """A plain I2C read (``read()`` on /dev/i2c-N) from the chip's current pointer."""
         return self.i2c_transfer([I2CMessage.read_message(address, length)])[0].data
 
+    def writes(self, address: int | None = None) -> list[tuple[int, int]]:
+        """``(register, value)`` of every byte written into the device at ``address`` (the
+        first attached by default), one pair per register, whichever kind carried it."""
+        return self.log.register_writes(self._device_address(address))
+
+    def assert_wrote(self, before: str | None = None, address: int | None = None,
+                     **values: int) -> None:
+        """Assert the driver wrote each ``NAME=value`` (the device's register names) to the
+        device at ``address`` (the first attached by default) and, with ``before="NAME"``,
+        each before its first write of NAME; the failure lists every write."""
+        __tracebackhide__ = True
+        address = self._device_address(address)
+        check_wrote(self.writes(address), self.devices[address], values, before)
+
+    def _device_address(self, address: int | None) -> int:
+        if address is None:
+            if not self.devices:
+                raise ValueError(f"bus {self.number} has no device")
+            return next(iter(self.devices))
+        if address not in self.devices:
+            raise ValueError(f"no device at 0x{address:02x} on bus {self.number}")
+        return address
+
     def __repr__(self) -> str:
         devices = ", ".join(f"0x{a:02x}" for a in sorted(self.devices))
         return f"<I2CBus {self.number} devices [{devices}]>"
-
-
-class _Wire:
-    """The chip as the host hears it during one transaction whose read bytes a hook changes:
-    every read primitive's result goes through the wire filters, at its offset in the
-    transaction; everything else is the chip's."""
-
-    def __init__(self, chip: Any, wires: list[WireFilter]) -> None:
-        self.chip, self.wires, self.offset = chip, wires, 0
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.chip, name)
-
-    def _heard(self, data: bytes) -> bytes:
-        offset, self.offset = self.offset, self.offset + len(data)
-        for wire in self.wires:
-            data = wire(offset, data)
-        return data
-
-    def read(self, register: int, count: int) -> bytes:
-        return self._heard(self.chip.read(register, count))
-
-    def i2c_read(self, count: int) -> bytes:
-        return self._heard(self.chip.i2c_read(count))
-
-
-# --------------------------------------------------------------------------- registry
-
-_registry: dict[int, list[I2CBus]] = {}
-
-
-def register_bus(bus: I2CBus) -> None:
-    """Make ``bus`` the emulated bus for its number (what opening /dev/i2c-N reaches)."""
-    _registry.setdefault(bus.number, []).append(bus)
-
-
-def unregister_bus(bus: I2CBus) -> None:
-    stack = _registry.get(bus.number, [])
-    for i in range(len(stack) - 1, -1, -1):
-        if stack[i] is bus:
-            del stack[i]
-            break
-    if not stack:
-        _registry.pop(bus.number, None)
-
-
-def emulated_bus(number: int) -> I2CBus | None:
-    """The innermost registered bus with this number, or None."""
-    stack = _registry.get(number)
-    return stack[-1] if stack else None
-
-
-def emulated_bus_for_path(path: str) -> I2CBus | None:
-    """The registered bus for a device path such as ``/dev/i2c-1``."""
-    prefix = "/dev/i2c-"
-    if not path.startswith(prefix) or not path[len(prefix) :].isdigit():
-        return None
-    return emulated_bus(int(path[len(prefix) :]))

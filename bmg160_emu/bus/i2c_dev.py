@@ -10,12 +10,16 @@ and the order of checks, copies and transfers here is the kernel's:
 
 - ``I2C_SLAVE``/``I2C_SLAVE_FORCE``: EINVAL above 0x7f (0x3ff after ``I2C_TENBIT``), EBUSY
   for an address a driver holds unless forced; ``I2C_PEC``, ``I2C_TENBIT`` per open file;
-  ``I2C_RETRIES``/``I2C_TIMEOUT`` EINVAL above INT_MAX; ``I2C_FUNCS`` the adapter's mask.
+  ``I2C_RETRIES`` EINVAL above INT_MAX, ``I2C_TIMEOUT`` above INT_MAX / 10; ``I2C_FUNCS``
+  the adapter's mask, put where the argument points (EFAULT if it points nowhere).
 - ``I2C_SMBUS``: size and direction checked (EINVAL), quick and send-byte need no data, any
   other kind with a NULL data pointer is EINVAL; the union is copied in and out with the
   kernel's sizes (1, 2 or 34 bytes) and only for the kinds i2cdev_ioctl_smbus copies; size 6
   (I2C_SMBUS_I2C_BLOCK_BROKEN) becomes an I2C block read of 32 bytes.
-- ``I2C_RDWR``: 1..42 messages, each at most 8192 bytes, every buffer copied in first.
+- ``I2C_RDWR``: 1..42 messages, each at most 8192 bytes, every buffer copied in first; after
+  the transfer the read buffers are copied back, last first, until one faults (EFAULT).
+- Every copy of the caller's memory may fault (``UserMemory``): EFAULT, never a crash, at
+  the place the kernel's copy would fault (for an SMBus read, after the transfer).
 - ``read()``/``write()``: plain I2C at the open file's address, 8192 bytes at most.
 
 The transaction itself is a call into :class:`~bmg160_emu.bus.i2c.I2CBus`. The emulated
@@ -33,7 +37,6 @@ from typing import Protocol
 from bmg160_emu.bus.i2c import I2CBus, I2CMessage, os_error
 from bmg160_emu.bus.kernel_abi import (
     I2C_DEV_MAX_TRANSFER,
-    I2C_FUNC_I2C,
     I2C_FUNCS,
     I2C_M_RD,
     I2C_M_RECV_LEN,
@@ -67,6 +70,7 @@ from bmg160_emu.bus.kernel_abi import (
     SMBUS_IOCTL_DATA_SIZE,
     SMBUS_SIZE_NAMES,
 )
+from bmg160_emu.traffic.kinds import I2C_FUNC_I2C
 
 INT_MAX = 0x7FFFFFFF  # I2C_RETRIES and I2C_TIMEOUT refuse more (i2c-dev.c)
 ULONG_MASK = 0xFFFFFFFFFFFFFFFF  # an ioctl argument is an unsigned long (LP64)
@@ -153,10 +157,14 @@ class I2CDevFile:
         if request == I2C_TENBIT:
             self.tenbit = bool(arg.value)
             return 0
-        if request in (I2C_RETRIES, I2C_TIMEOUT):
+        if request == I2C_RETRIES:
             if arg.value > INT_MAX:
                 raise os_error(errno.EINVAL)
-            return 0  # the emulated adapter never retries nor times out
+            return 0  # the emulated adapter never retries
+        if request == I2C_TIMEOUT:  # in units of 10 ms, so INT_MAX / 10 at most
+            if arg.value > INT_MAX // 10:
+                raise os_error(errno.EINVAL)
+            return 0  # nor times out
         raise os_error(errno.ENOTTY)
 
     def set_address(self, address: int, force: bool = False) -> None:
@@ -280,8 +288,9 @@ class I2CDevFile:
                     raise os_error(errno.EFAULT)
                 buffer = table.follow(offset + I2C_MSG_BUF_OFFSET, length)
                 payload = buffer.read()[:length]
-            if flags & I2C_M_RECV_LEN:
-                if not flags & I2C_M_RD or not length or length < payload[0] + I2C_SMBUS_BLOCK_MAX:
+            if flags & I2C_M_RECV_LEN:  # the first byte: the extra bytes after the count
+                if (not flags & I2C_M_RD or not length or payload[0] < 1
+                        or length < payload[0] + I2C_SMBUS_BLOCK_MAX):
                     raise os_error(errno.EINVAL)
                 recv_len = True
             ten_bit = ten_bit or bool(flags & I2C_M_TEN)
@@ -295,7 +304,9 @@ class I2CDevFile:
         if recv_len:
             raise os_error(errno.EOPNOTSUPP)
         self.bus.i2c_transfer(messages)
-        for message, buffer in zip(messages, buffers):
+        # the read buffers are copied back last message first; the first copy that faults
+        # makes the result EFAULT and ends the copying (earlier messages keep no data)
+        for message, buffer in reversed(list(zip(messages, buffers))):
             if message.read and buffer is not None and message.data:
                 buffer.write(message.data)
         return count

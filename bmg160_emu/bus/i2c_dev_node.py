@@ -9,13 +9,24 @@ on it, ``close``. While :class:`patch_i2c_dev` is active those calls are answere
 the umockdev node uses) for the emulated bus numbers only; every other path and descriptor
 goes to the real OS untouched.
 
-How: ``os.open``, ``os.close``, ``os.read``, ``os.write``, ``fcntl.ioctl`` and
-``builtins.open``/``io.open`` are replaced for the duration, and so is every module-level
-name bound to one of them (``from fcntl import ioctl`` in smbus2 and smbus3, PureIO), then
-all of it is restored, on exit, on an exception, after a failing test; a name a module bound
-to a replacement while the patch was active is put back too. An emulated node holds a real
-descriptor (``/dev/null`` opened), so its number collides with nothing. The replacements are
+How: ``os.open``, ``os.close``, ``os.read``, ``os.write``, ``os.pread``, ``os.pwrite``,
+``os.dup``, ``os.dup2``, ``os.lseek``, ``os.fstat``, ``os.stat``, ``os.lstat``, ``os.access``,
+``os.listdir``, ``os.scandir``, ``fcntl.ioctl``, ``builtins.open``/``io.open`` and
+``io.FileIO`` are replaced for the duration, and so is every module-level name bound to one
+of them (``from fcntl import ioctl`` in smbus2 and smbus3, PureIO), then all of it is
+restored, on exit, on an exception, after a failing test; a name a module bound to a
+replacement while the patch was active is put back too. An emulated node holds a real
+descriptor (``/dev/null`` opened with the same flags), so its number collides with nothing
+and ``fcntl(F_GETFL)``, ``select`` and ``set_inheritable`` work on it. The replacements are
 process-wide: every thread sees one bus (the chips' locks order their transactions).
+
+As the kernel answers: a bad pointer in an ioctl argument is EFAULT, never a crash
+(:mod:`.user_memory`); ``os.dup`` of a node shares its open file (address, PEC), as a dup
+shares the kernel's ``struct file``; ``lseek`` is ESPIPE (``no_llseek``); ``pread``/``pwrite``
+read and write like ``read``/``write`` (the offset ignored, a negative one EINVAL); the node
+exists for ``os.stat``, ``os.path.exists``, ``os.listdir('/dev')`` and ``glob('/dev/i2c-*')``,
+a character device 89:N (I2C_MAJOR, the bus number as minor) with mode 0600 (devtmpfs's
+default), owned by the user running the program, since the emulated node opens for anyone.
 
 Not reached: C extensions (python3-smbus, spidev) call ``open``/``ioctl`` from C; they need
 the LD_PRELOAD route, ``bmg160-emu run`` (docs/umockdev.md).
@@ -24,109 +35,36 @@ the LD_PRELOAD route, ``bmg160-emu run`` (docs/umockdev.md).
 from __future__ import annotations
 
 import builtins
-import ctypes
 import errno
 import fcntl
 import io
 import operator
 import os
-import struct
+import stat
 import sys
 import threading
-from collections.abc import Callable, Mapping
+import time
+import weakref
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import ContextDecorator
 from typing import Any
 
-from bmg160_emu.bus.i2c import I2CBus, emulated_bus_for_path, os_error, register_bus, unregister_bus
-from bmg160_emu.bus.i2c_dev import ULONG_MASK, I2CDevFile
+from bmg160_emu.bus.i2c import I2CBus, os_error
+from bmg160_emu.bus.i2c_dev import I2CDevFile
+from bmg160_emu.bus.i2c_dev_files import REAL_FILE_IO, file_io_type, open_file_object
+from bmg160_emu.bus.registry import (
+    emulated_bus_for_path,
+    emulated_bus_numbers,
+    register_bus,
+    unregister_bus,
+)
+from bmg160_emu.bus.user_memory import IOCTL_BUFSZ, IoctlArgument, KeptAlive
 
-__all__ = ["KERNEL", "I2cDevKernel", "buses_from_mapping", "patch_i2c_dev"]
+__all__ = ["I2C_MAJOR", "KERNEL", "I2cDevKernel", "buses_from_mapping", "patch_i2c_dev"]
 
-IOCTL_BUFSZ = 1024  # CPython's fcntl.ioctl copies a buffer argument through 1024 bytes
-USER_POINTER = 0x7FFF_0000_0000  # what the kernel sees as the argument when it is a buffer
-PAGE_SIZE = 4096  # st_blksize of a character device: io.open's default buffer size
-
-
-def _c_int(value: int) -> int:
-    """fcntl.ioctl passes an integer argument as a C int."""
-    if value > 0x7FFFFFFF:
-        raise OverflowError("signed integer is greater than maximum")
-    if value < -0x80000000:
-        raise OverflowError("signed integer is less than minimum")
-    return value
-
-
-_POINTER = struct.Struct("=Q")
-_CHAR_ARRAYS: dict[int, Any] = {}  # size -> ctypes.c_char * size (building a type is slow)
-
-
-class _AddressMemory:
-    """Memory of this process at an address, reached as the kernel reaches user memory."""
-
-    __slots__ = ("address", "cells")
-
-    def __init__(self, address: int, size: int) -> None:
-        array = _CHAR_ARRAYS.get(size)
-        if array is None:
-            array = _CHAR_ARRAYS.setdefault(size, ctypes.c_char * size)
-        self.address, self.cells = address, array.from_address(address)
-
-    def read(self) -> bytes:
-        return self.cells.raw
-
-    def write(self, data: bytes) -> None:
-        self.cells.raw = data[: len(self.cells)]
-
-    def follow(self, offset: int, size: int) -> _AddressMemory:
-        return _pointee(ctypes.c_uint64.from_address(self.address + offset).value, size)
-
-
-class _BufferMemory:
-    """A buffer given to ``fcntl.ioctl``: the memory the argument points to."""
-
-    __slots__ = ("size", "view")
-
-    def __init__(self, view: memoryview, size: int) -> None:
-        self.view, self.size = view, size
-
-    def read(self) -> bytes:
-        view, size = self.view, self.size
-        if len(view) == size:
-            return bytes(view)
-        return view[:size].tobytes().ljust(size, b"\0")  # beyond it: fcntl's zeroed copy
-
-    def write(self, data: bytes) -> None:
-        n = min(len(data), len(self.view))
-        self.view[:n] = data[:n]
-
-    def follow(self, offset: int, size: int) -> _AddressMemory:
-        raw = self.view[offset : offset + 8].tobytes().ljust(8, b"\0")
-        return _pointee(_POINTER.unpack(raw)[0], size)
-
-
-def _pointee(address: int, size: int) -> _AddressMemory:
-    if address == 0:
-        raise os_error(errno.EFAULT)
-    return _AddressMemory(address, size)
-
-
-class _IoctlArgument:
-    """``fcntl.ioctl``'s third argument as i2c-dev sees it: an integer, or a pointer to a
-    buffer (a ctypes structure, a bytearray)."""
-
-    __slots__ = ("number", "view")
-
-    def __init__(self, number: int | None, view: memoryview | None) -> None:
-        self.number, self.view = number, view
-
-    @property
-    def value(self) -> int:
-        return USER_POINTER if self.number is None else self.number & ULONG_MASK
-
-    def memory(self, size: int) -> _AddressMemory | _BufferMemory:
-        if self.view is not None:
-            return _BufferMemory(self.view, size)
-        return _pointee(self.value, size)
+I2C_MAJOR = 89  # include/uapi/linux/major.h: every /dev/i2c-N is char device 89:N
+NODE_MODE = stat.S_IFCHR | 0o600  # devtmpfs creates device nodes 0600 unless told otherwise
+DEV_DIR = "/dev"
 
 
 def _descriptor(fd: Any) -> int:
@@ -140,22 +78,112 @@ def _descriptor(fd: Any) -> int:
 
 
 class _Node:
-    """One open emulated node: the kernel's file (client address, PEC) and its access mode."""
+    """One open emulated node: the kernel's ``struct file`` (the client: address, PEC) and
+    its access mode, shared by every descriptor dup'ed from it."""
 
-    __slots__ = ("file", "readable", "writable")
+    __slots__ = ("bus", "file", "readable", "writable")
 
     def __init__(self, bus: I2CBus, flags: int) -> None:
         access = flags & os.O_ACCMODE
+        self.bus = bus
         self.file = I2CDevFile(bus)
         self.readable = access in (os.O_RDONLY, os.O_RDWR)
         self.writable = access in (os.O_WRONLY, os.O_RDWR)
 
 
+def _path_text(path: Any) -> str | None:
+    """A path argument as text (str, bytes or PathLike), or None for anything else."""
+    if isinstance(path, str):
+        return path
+    if isinstance(path, (bytes, os.PathLike)):
+        try:
+            return os.fsdecode(path)
+        except TypeError:
+            return None
+    return None
+
+
+def _bus_for(path: Any) -> I2CBus | None:
+    """The emulated bus a path names (``/dev/i2c-N``, also as bytes or a PathLike)."""
+    text = _path_text(path)
+    if text is None or not text.startswith("/dev/"):
+        return None
+    return emulated_bus_for_path(os.path.normpath(text))
+
+
+class _DevEntry:
+    """An emulated node as ``os.scandir('/dev')`` lists it (an ``os.DirEntry`` look-alike)."""
+
+    __slots__ = ("kernel", "name", "number", "path")
+
+    def __init__(self, kernel: I2cDevKernel, directory: Any, number: int) -> None:
+        name = f"i2c-{number}"
+        self.kernel, self.number = kernel, number
+        self.name: Any = os.fsencode(name) if isinstance(directory, bytes) else name
+        self.path: Any = os.path.join(directory, self.name)
+
+    def inode(self) -> int:
+        return self.stat().st_ino
+
+    def is_dir(self, *, follow_symlinks: bool = True) -> bool:
+        return False
+
+    def is_file(self, *, follow_symlinks: bool = True) -> bool:
+        return False
+
+    def is_symlink(self) -> bool:
+        return False
+
+    def is_junction(self) -> bool:
+        return False
+
+    def stat(self, *, follow_symlinks: bool = True) -> os.stat_result:
+        bus = emulated_bus_for_path(f"/dev/i2c-{self.number}")
+        if bus is None:
+            raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), self.path)
+        return self.kernel.node_stat(bus)
+
+    def __fspath__(self) -> Any:
+        return self.path
+
+    def __repr__(self) -> str:
+        return f"<DirEntry {self.name!r}>"
+
+
+class _DevScandir:
+    """``os.scandir('/dev')`` with the emulated nodes in it (each listed once)."""
+
+    def __init__(self, real: Any, extra: list[_DevEntry]) -> None:
+        self.real, self.extra = real, extra
+        self.names = {entry.name for entry in extra}
+
+    def __iter__(self) -> Iterator[Any]:
+        return self
+
+    def __next__(self) -> Any:
+        for entry in self.real:
+            if entry.name not in self.names:
+                return entry
+        if self.extra:
+            return self.extra.pop(0)
+        raise StopIteration
+
+    def close(self) -> None:
+        self.real.close()
+
+    def __enter__(self) -> Any:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
 class I2cDevKernel:
     """The i2c-dev character device as this process sees it: ``open`` of emulated paths,
-    then ``ioctl``/``read``/``write``/``close`` on their descriptors, marshalled to
+    then ``ioctl``/``read``/``write``/``dup``/``close`` on their descriptors, marshalled to
     :class:`~bmg160_emu.bus.i2c_dev.I2CDevFile` (argument conversions and buffer copies as
-    CPython's ``os`` and ``fcntl`` make them). The real calls are kept for everything else."""
+    CPython's ``os`` and ``fcntl`` make them), and the node in the file system (``stat``,
+    ``/dev`` listings). The real calls are kept for everything else."""
 
     def __init__(self) -> None:
         self.nodes: dict[int, _Node] = {}
@@ -164,15 +192,103 @@ class I2cDevKernel:
         self.real_close = os.close
         self.real_read = os.read
         self.real_write = os.write
+        self.real_pread = os.pread
+        self.real_pwrite = os.pwrite
+        self.real_dup = os.dup
+        self.real_dup2 = os.dup2
+        self.real_lseek = os.lseek
+        self.real_fstat = os.fstat
+        self.real_stat = os.stat
+        self.real_lstat = os.lstat
+        self.real_access = os.access
+        self.real_listdir = os.listdir
+        self.real_scandir = os.scandir
         self.real_ioctl = fcntl.ioctl
         self.real_io_open = io.open
+        self.file_io = file_io_type(self)
+        self.born: weakref.WeakKeyDictionary[I2CBus, float] = weakref.WeakKeyDictionary()
 
     @property
     def files(self) -> dict[int, I2CDevFile]:
         """The open emulated nodes, descriptor -> I2CDevFile."""
         return {fd: node.file for fd, node in self.nodes.items()}
 
-    # ------------------------------------------------------------------ os
+    def emulated(self, file: Any, opener: Any = None) -> bool:
+        """Whether ``open``/``FileIO`` of ``file`` is an emulated node (a path or descriptor)."""
+        if file.__class__ is int:
+            return file in self.nodes
+        return opener is None and _bus_for(file) is not None
+
+    # ------------------------------------------------------------------ the node on disk
+
+    def node_stat(self, bus: I2CBus) -> os.stat_result:
+        """``stat`` of /dev/i2c-N: a character device 89:N made when the bus was first seen."""
+        made = self.born.setdefault(bus, time.time())
+        seconds = int(made)
+        nanoseconds = int(made * 1e9)
+        try:
+            device = self.real_stat(DEV_DIR).st_dev
+        except OSError:
+            device = 0
+        fields = (NODE_MODE, 0x10000 + bus.number, device, 1, os.getuid(), os.getgid(), 0,
+                  seconds, seconds, seconds)
+        extra: dict[str, float] = {"st_rdev": os.makedev(I2C_MAJOR, bus.number),
+                                   "st_blksize": 4096, "st_blocks": 0}
+        for name in ("atime", "mtime", "ctime"):
+            extra[f"st_{name}"] = made
+            extra[f"st_{name}_ns"] = nanoseconds
+        return os.stat_result(fields, extra)
+
+    def stat(self, path: Any, *, dir_fd: int | None = None,
+             follow_symlinks: bool = True) -> os.stat_result:
+        if path.__class__ is int:
+            return self.fstat(path)
+        bus = _bus_for(path) if dir_fd is None else None
+        if bus is None:
+            return self.real_stat(path, dir_fd=dir_fd, follow_symlinks=follow_symlinks)
+        return self.node_stat(bus)
+
+    def lstat(self, path: Any, *, dir_fd: int | None = None) -> os.stat_result:
+        bus = _bus_for(path) if dir_fd is None else None
+        if bus is None:
+            return self.real_lstat(path, dir_fd=dir_fd)
+        return self.node_stat(bus)
+
+    def access(self, path: Any, mode: int, *, dir_fd: int | None = None,
+               effective_ids: bool = False, follow_symlinks: bool = True) -> bool:
+        bus = _bus_for(path) if dir_fd is None and path.__class__ is not int else None
+        if bus is None:
+            return self.real_access(path, mode, dir_fd=dir_fd, effective_ids=effective_ids,
+                                    follow_symlinks=follow_symlinks)
+        return not operator.index(mode) & os.X_OK  # read and write for its owner, no x bit
+
+    def _extra_entries(self, directory: Any) -> list[_DevEntry] | None:
+        """The emulated nodes a listing of ``directory`` shows, or None (not /dev)."""
+        if directory.__class__ is int:
+            try:
+                text: str | None = os.readlink(f"/proc/self/fd/{directory}")
+            except OSError:
+                return None
+            directory = text
+        text = _path_text(directory)
+        if text is None or os.path.normpath(text) != DEV_DIR:
+            return None
+        return [_DevEntry(self, directory, n) for n in emulated_bus_numbers()]
+
+    def listdir(self, path: Any = None) -> list[Any]:
+        names = self.real_listdir(path)
+        extra = self._extra_entries(path) if path is not None else None
+        if extra:
+            known = set(names)
+            names += [entry.name for entry in extra if entry.name not in known]
+        return names
+
+    def scandir(self, path: Any = None) -> Any:
+        real = self.real_scandir(path)
+        extra = self._extra_entries(path) if path is not None else None
+        return _DevScandir(real, extra) if extra else real
+
+    # ------------------------------------------------------------------ os on descriptors
 
     def open(self, path: Any, flags: int, mode: int = 0o777, *, dir_fd: int | None = None) -> int:
         bus = _bus_for(path)
@@ -182,7 +298,7 @@ class I2cDevKernel:
             raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), os.fsdecode(path))
         if flags & getattr(os, "O_DIRECTORY", 0):
             raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), os.fsdecode(path))
-        fd = self.real_open(os.devnull, os.O_RDWR | os.O_CLOEXEC)  # a real, unique number
+        fd = self.real_open(os.devnull, flags)  # a real, unique number with the same flags
         with self.lock:
             self.nodes[fd] = _Node(bus, flags)
         return fd
@@ -192,10 +308,43 @@ class I2cDevKernel:
             self.nodes.pop(fd, None)
         self.real_close(fd)
 
+    def dup(self, fd: int) -> int:
+        new = self.real_dup(fd)
+        node = self.nodes.get(fd)
+        if node is not None:
+            with self.lock:
+                self.nodes[new] = node  # one open file: address and PEC shared
+        return new
+
+    def dup2(self, fd: int, fd2: int, inheritable: bool = True) -> int:
+        result = self.real_dup2(fd, fd2, inheritable)
+        node = self.nodes.get(fd)
+        with self.lock:
+            if node is not None:
+                self.nodes[fd2] = node
+            elif fd2 != fd:
+                self.nodes.pop(fd2, None)  # fd2 now names another file
+        return result
+
+    def lseek(self, fd: int, position: int, how: int) -> int:
+        if fd not in self.nodes:
+            return self.real_lseek(fd, position, how)
+        operator.index(position), operator.index(how)  # CPython converts them first
+        raise os_error(errno.ESPIPE)  # i2c-dev's llseek is no_llseek
+
+    def fstat(self, fd: int) -> os.stat_result:
+        node = self.nodes.get(fd)
+        if node is None:
+            return self.real_fstat(fd)
+        return self.node_stat(node.bus)
+
     def read(self, fd: int, count: int) -> bytes:
         node = self.nodes.get(fd)
         if node is None:
             return self.real_read(fd, count)
+        return self._read(node, count)
+
+    def _read(self, node: _Node, count: int) -> bytes:
         count = operator.index(count)  # os.read's Py_ssize_t argument, as CPython converts it
         if count > sys.maxsize:
             raise OverflowError("Python int too large to convert to C ssize_t")
@@ -209,10 +358,34 @@ class I2cDevKernel:
         node = self.nodes.get(fd)
         if node is None:
             return self.real_write(fd, data)
+        return self._write(node, data)
+
+    def _write(self, node: _Node, data: Any) -> int:
         payload = memoryview(data).cast("B").tobytes()  # os.write's "y*": any buffer
         if not node.writable:
             raise os_error(errno.EBADF)
         return node.file.write(payload)
+
+    def pread(self, fd: int, count: int, offset: int) -> bytes:
+        node = self.nodes.get(fd)
+        if node is None:
+            return self.real_pread(fd, count, offset)
+        self._check_offset(operator.index(offset))
+        return self._read(node, count)
+
+    def pwrite(self, fd: int, data: Any, offset: int) -> int:
+        node = self.nodes.get(fd)
+        if node is None:
+            return self.real_pwrite(fd, data, offset)
+        self._check_offset(operator.index(offset))
+        return self._write(node, data)
+
+    @staticmethod
+    def _check_offset(offset: int) -> None:
+        """pread/pwrite on i2c-dev: the offset is ignored, but a negative one is EINVAL
+        (ksys_pread64), and the node keeps FMODE_PREAD (i2cdev_open is not nonseekable)."""
+        if offset < 0:
+            raise os_error(errno.EINVAL)
 
     # ------------------------------------------------------------------ fcntl
 
@@ -223,7 +396,7 @@ class I2cDevKernel:
         request = operator.index(request) & 0xFFFFFFFF  # fcntl's "I": unsigned, unchecked
         handle = node.file
         if isinstance(arg, int):
-            return handle.ioctl(request, _IoctlArgument(_c_int(operator.index(arg)), None))
+            return handle.ioctl(request, IoctlArgument.from_int(arg))
         if isinstance(arg, str):
             arg = arg.encode()  # fcntl's "s*" argument: a str is passed as its UTF-8 bytes
         try:
@@ -231,13 +404,14 @@ class I2cDevKernel:
         except TypeError:
             operator.index(arg)  # fcntl's "i" argument: "'float' object cannot be interpreted
             raise  # as an integer", the TypeError CPython raises
+        known = KeptAlive(arg)
         if view.readonly or not mutate_flag:  # fcntl works on a copy and returns it
             if len(view) > IOCTL_BUFSZ:
                 raise ValueError("ioctl string arg too long")
             copy = bytearray(view)
-            handle.ioctl(request, _IoctlArgument(None, memoryview(copy)))
+            handle.ioctl(request, IoctlArgument(None, memoryview(copy), known))
             return bytes(copy)
-        return handle.ioctl(request, _IoctlArgument(None, view))
+        return handle.ioctl(request, IoctlArgument(None, view, known))
 
     # ------------------------------------------------------------------ io
 
@@ -246,133 +420,10 @@ class I2cDevKernel:
                 opener: Callable[[str, int], int] | None = None) -> Any:
         """``open()``: a file object over an emulated node (a path, or the descriptor of one
         when ``open(fd)`` wraps it), built as io.open builds one; anything else is io.open's."""
-        emulated = (file.__class__ is int and file in self.nodes) or (
-            file.__class__ is not int and opener is None and _bus_for(file) is not None)
-        if not emulated:
+        if not self.emulated(file, opener):
             return self.real_io_open(file, mode, buffering, encoding, errors, newline, closefd,
                                      opener)
-        return _open_file_object(self, file, mode, buffering, encoding, errors, newline, closefd)
-
-
-def _bus_for(path: Any) -> I2CBus | None:
-    """The emulated bus a path names (``/dev/i2c-N``, also as bytes or a PathLike)."""
-    if isinstance(path, str):
-        text = path
-    elif isinstance(path, (bytes, os.PathLike)):
-        try:
-            text = os.fsdecode(path)
-        except TypeError:
-            return None
-    else:
-        return None
-    if not text.startswith("/dev/"):
-        return None
-    return emulated_bus_for_path(os.path.normpath(text))
-
-
-class I2cDevFileIO(io.RawIOBase):
-    """``open('/dev/i2c-N', 'r+b', buffering=0)`` on an emulated node: reads and writes are
-    plain I2C transfers at the address set with I2C_SLAVE; the node cannot seek (ESPIPE)."""
-
-    def __init__(self, kernel: I2cDevKernel, fd: int, name: Any, mode: str, closefd: bool) -> None:
-        super().__init__()
-        self._kernel, self._fd, self.name, self.mode, self._closefd = kernel, fd, name, mode, closefd
-
-    def fileno(self) -> int:
-        self._checkClosed()  # type: ignore[attr-defined]
-        return self._fd
-
-    def readable(self) -> bool:
-        self._checkClosed()  # type: ignore[attr-defined]
-        return "r" in self.mode or "+" in self.mode
-
-    def writable(self) -> bool:
-        self._checkClosed()  # type: ignore[attr-defined]
-        return "r" not in self.mode or "+" in self.mode
-
-    def seekable(self) -> bool:
-        return False
-
-    def seek(self, offset: int, whence: int = 0) -> int:
-        raise os_error(errno.ESPIPE)
-
-    def tell(self) -> int:
-        raise os_error(errno.ESPIPE)
-
-    def readinto(self, buffer: Any) -> int:
-        self._checkClosed()  # type: ignore[attr-defined]
-        if not self.readable():
-            raise io.UnsupportedOperation("File not open for reading")
-        view = memoryview(buffer).cast("B")
-        data = self._kernel.read(self._fd, len(view))
-        view[: len(data)] = data
-        return len(data)
-
-    def write(self, data: Any) -> int:
-        self._checkClosed()  # type: ignore[attr-defined]
-        if not self.writable():
-            raise io.UnsupportedOperation("File not open for writing")
-        return self._kernel.write(self._fd, data)
-
-    def close(self) -> None:
-        if not self.closed and self._closefd:
-            self._kernel.close(self._fd)
-        super().close()
-
-    def __repr__(self) -> str:
-        return f"<I2cDevFileIO name={self.name!r} mode={self.mode!r} (emulated)>"
-
-
-_OPEN_FLAGS = {"r": os.O_RDONLY, "w": os.O_WRONLY | os.O_CREAT | os.O_TRUNC,
-               "a": os.O_WRONLY | os.O_CREAT | os.O_APPEND, "x": os.O_WRONLY | os.O_CREAT | os.O_EXCL}
-
-
-def _open_file_object(kernel: I2cDevKernel, file: Any, mode: str, buffering: int,
-                      encoding: str | None, errors: str | None, newline: str | None,
-                      closefd: bool) -> Any:
-    """io.open's steps (Lib/_pyio.py open) over an emulated node, its checks and messages."""
-    if not isinstance(mode, str):
-        raise TypeError(f"open() argument 'mode' must be str, not {type(mode).__name__}")
-    modes = set(mode)
-    if modes - set("axrwb+t") or len(mode) > len(modes):
-        raise ValueError(f"invalid mode: '{mode}'")
-    kinds = [c for c in "rwax" if c in modes]
-    if len(kinds) != 1:
-        raise ValueError("must have exactly one of create/read/write/append mode")
-    if "t" in modes and "b" in modes:
-        raise ValueError("can't have text and binary mode at once")
-    binary = "b" in modes
-    if binary and (encoding is not None or errors is not None or newline is not None):
-        raise ValueError("binary mode doesn't take an encoding, errors or newline argument")
-    updating = "+" in modes
-    flags = _OPEN_FLAGS[kinds[0]]
-    if updating:
-        flags = (flags & ~os.O_ACCMODE) | os.O_RDWR
-    fd = file if file.__class__ is int else kernel.open(file, flags)
-    raw_mode = kinds[0] + ("+" if updating else "")
-    raw = I2cDevFileIO(kernel, fd, file, raw_mode + "b", closefd or file.__class__ is not int)
-    try:
-        line_buffering = buffering == 1 or (buffering < 0 and not binary and raw.isatty())
-        if buffering == 1 or buffering < 0:
-            buffering = PAGE_SIZE
-        if buffering == 0:
-            if not binary:  # checked once the file is open, as _io.open does
-                raise ValueError("can't have unbuffered text I/O")
-            return raw
-        if updating:
-            buffer: Any = io.BufferedRandom(raw, buffering)  # "not seekable": as on a real node
-        elif kinds[0] == "r":
-            buffer = io.BufferedReader(raw, buffering)
-        else:
-            buffer = io.BufferedWriter(raw, buffering)
-        if binary:
-            return buffer
-        text = io.TextIOWrapper(buffer, encoding, errors, newline, line_buffering)
-        text.mode = mode  # type: ignore[misc]  # io.open sets it so on TextIOWrapper
-        return text
-    except BaseException:
-        raw.close()
-        raise
+        return open_file_object(self, file, mode, buffering, encoding, errors, newline, closefd)
 
 
 KERNEL = I2cDevKernel()
@@ -390,9 +441,21 @@ class _Replacements:
             (os, "close", kernel.real_close, kernel.close),
             (os, "read", kernel.real_read, kernel.read),
             (os, "write", kernel.real_write, kernel.write),
+            (os, "pread", kernel.real_pread, kernel.pread),
+            (os, "pwrite", kernel.real_pwrite, kernel.pwrite),
+            (os, "dup", kernel.real_dup, kernel.dup),
+            (os, "dup2", kernel.real_dup2, kernel.dup2),
+            (os, "lseek", kernel.real_lseek, kernel.lseek),
+            (os, "fstat", kernel.real_fstat, kernel.fstat),
+            (os, "stat", kernel.real_stat, kernel.stat),
+            (os, "lstat", kernel.real_lstat, kernel.lstat),
+            (os, "access", kernel.real_access, kernel.access),
+            (os, "listdir", kernel.real_listdir, kernel.listdir),
+            (os, "scandir", kernel.real_scandir, kernel.scandir),
             (fcntl, "ioctl", kernel.real_ioctl, kernel.ioctl),
             (io, "open", kernel.real_io_open, kernel.io_open),
             (builtins, "open", kernel.real_io_open, kernel.io_open),
+            (io, "FileIO", REAL_FILE_IO, kernel.file_io),
         ]
         self.names = _BoundNames({id(real) for _, _, real, _ in self.pairs}
                                  | {id(new) for _, _, _, new in self.pairs})
@@ -423,7 +486,9 @@ class _Replacements:
                 self.kernel.nodes.clear()
 
 
-_OWN_MODULES = frozenset({"os", "posix", "fcntl", "io", "_io", "builtins", __name__})
+# modules whose names must keep the real calls (this one's kernel, the file objects' FileIO)
+_OWN_MODULES = frozenset({"os", "posix", "fcntl", "io", "_io", "builtins", __name__,
+                          "bmg160_emu.bus.i2c_dev_files"})
 
 
 class _BoundNames:

@@ -1,14 +1,32 @@
-"""The Linux i2c-dev user-space ABI: ioctl numbers, flags, functionality bits and structures.
+"""The Linux i2c-dev user-space ABI: ioctl numbers, flags, functionality masks and structures.
 
 The one place these numbers are written down, named as in the kernel headers
 ``<linux/i2c-dev.h>`` and ``<linux/i2c.h>``, so that the adapter (``i2c_bus``), the i2c-dev
 emulation (``i2c_dev``) and the i2c-stub adapter read like the kernel code they mirror.
-Layouts are those of x86-64 and other LP64 ABIs.
+Layouts are those of x86-64 and other LP64 ABIs. The single ``I2C_FUNC_*`` bits live with
+the transaction kinds they describe (``bmg160_emu.traffic.kinds``); the masks built from
+them (``I2C_FUNC_SMBUS_EMUL`` ...) are here.
 """
 
 from __future__ import annotations
 
 import ctypes
+
+from bmg160_emu.traffic.kinds import (
+    I2C_FUNC_SMBUS_PEC,
+    I2C_FUNC_SMBUS_PROC_CALL,
+    I2C_FUNC_SMBUS_QUICK,
+    I2C_FUNC_SMBUS_READ_BLOCK_DATA,
+    I2C_FUNC_SMBUS_READ_BYTE,
+    I2C_FUNC_SMBUS_READ_BYTE_DATA,
+    I2C_FUNC_SMBUS_READ_I2C_BLOCK,
+    I2C_FUNC_SMBUS_READ_WORD_DATA,
+    I2C_FUNC_SMBUS_WRITE_BLOCK_DATA,
+    I2C_FUNC_SMBUS_WRITE_BYTE,
+    I2C_FUNC_SMBUS_WRITE_BYTE_DATA,
+    I2C_FUNC_SMBUS_WRITE_I2C_BLOCK,
+    I2C_FUNC_SMBUS_WRITE_WORD_DATA,
+)
 
 # ioctl request numbers (<linux/i2c-dev.h>)
 I2C_RETRIES = 0x0701
@@ -62,26 +80,6 @@ SMBUS_SIZE_NAMES = {
     I2C_SMBUS_BLOCK_PROC_CALL: "block_proc_call",
     I2C_SMBUS_I2C_BLOCK_DATA: "i2c_block_data",
 }
-
-# I2C_FUNCS bits (<linux/i2c.h>)
-I2C_FUNC_I2C = 0x00000001
-I2C_FUNC_10BIT_ADDR = 0x00000002
-I2C_FUNC_PROTOCOL_MANGLING = 0x00000004
-I2C_FUNC_SMBUS_PEC = 0x00000008
-I2C_FUNC_NOSTART = 0x00000010
-I2C_FUNC_SMBUS_BLOCK_PROC_CALL = 0x00008000
-I2C_FUNC_SMBUS_QUICK = 0x00010000
-I2C_FUNC_SMBUS_READ_BYTE = 0x00020000
-I2C_FUNC_SMBUS_WRITE_BYTE = 0x00040000
-I2C_FUNC_SMBUS_READ_BYTE_DATA = 0x00080000
-I2C_FUNC_SMBUS_WRITE_BYTE_DATA = 0x00100000
-I2C_FUNC_SMBUS_READ_WORD_DATA = 0x00200000
-I2C_FUNC_SMBUS_WRITE_WORD_DATA = 0x00400000
-I2C_FUNC_SMBUS_PROC_CALL = 0x00800000
-I2C_FUNC_SMBUS_READ_BLOCK_DATA = 0x01000000
-I2C_FUNC_SMBUS_WRITE_BLOCK_DATA = 0x02000000
-I2C_FUNC_SMBUS_READ_I2C_BLOCK = 0x04000000
-I2C_FUNC_SMBUS_WRITE_I2C_BLOCK = 0x08000000
 
 I2C_FUNC_SMBUS_BYTE = I2C_FUNC_SMBUS_READ_BYTE | I2C_FUNC_SMBUS_WRITE_BYTE
 I2C_FUNC_SMBUS_BYTE_DATA = I2C_FUNC_SMBUS_READ_BYTE_DATA | I2C_FUNC_SMBUS_WRITE_BYTE_DATA

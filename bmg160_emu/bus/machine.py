@@ -1,80 +1,49 @@
-"""MicroPython's ``machine`` module (``I2C``, ``SoftI2C``, ``SPI``, ``SoftSPI``, ``Pin``) over
-the emulated buses, for driver code written for a microcontroller and tested on a PC.
+"""MicroPython's ``machine`` module (``I2C``, ``SoftI2C``, ``SPI``, ``SoftSPI``, ``Pin``,
+``freq``, ``unique_id``, ``idle``) over the emulated buses, for driver code written for a
+microcontroller and run on a PC.
 
 Why a module and not a fake class: a MicroPython driver does ``import machine`` (some check
 ``type(i2c) == machine.I2C``), so :class:`micropython_machine` puts this very module in
-``sys.modules["machine"]`` for the test, with the buses it wires, and removes it after. The
-methods follow MicroPython's ``extmod/machine_i2c.c`` and ``machine_spi.c``:
+``sys.modules["machine"]``, with the buses it wires, and removes it after; the pytest
+fixture ``bmg160_machine`` and the command ``bmg160-emu micropython main.py`` both use it.
+The board is the ESP32 port (:mod:`.micropython_board`); the I2C classes are
+:mod:`.machine_i2c`, the argument rules :mod:`.micropython_rules`:
 
-- ``readfrom_mem(addr, memaddr, n, *, addrsize=8)``: the memory address (``addrsize // 8``
-  bytes, most significant first) written, a repeated start, ``n`` bytes read: one combined
-  transfer. ``writeto_mem`` writes address and data in one message. ``writeto`` returns the
-  number of data bytes acknowledged. ``scan()`` writes no data to 0x08..0x77 and lists the
-  addresses that answer.
-- Errors are MicroPython's: ``OSError`` whose ``errno`` (and ``args[0]``) is ENODEV (19) when
-  nobody acknowledges the address, ETIMEDOUT (110) for a timed-out transfer, EIO (5) for any
-  other bus failure (a stuck bus, a PEC or protocol error).
+- ``machine.freq()`` is 160 MHz; ``freq(hz)`` takes 20, 40, 80, 160 or 240 MHz
+  (``ValueError: frequency must be 20MHz, 40MHz, 80Mhz, 160MHz or 240MHz`` otherwise), and
+  ``time.ticks_cpu()`` counts cycles at it; ``unique_id()`` is the 6-byte MAC;
+  ``idle()`` yields and returns (the port's taskYIELD).
 - ``SPI`` has no chip select of its own: a ``Pin`` wired as a chip's CS selects it while it is
   low, and every transfer in between is one frame for the chip (bmg160_emu.bus.spi). A chip
   takes part in SPI modes 0 and 3 only; a byte nobody drives reads as ``UNDRIVEN_BYTE``.
 
 ``micropython_machine`` also gives ``time`` MicroPython's ``sleep_ms``, ``sleep_us``,
-``ticks_ms``, ``ticks_us``, ``ticks_diff`` and ``ticks_add`` (on ``time.sleep`` and
-``time.monotonic``, so ``bmg160_virtual_time`` moves them too), ``utime`` and ``ustruct``
-(MicroPython's names of ``time`` and ``struct``) and a ``micropython`` module (``const``)
-when none is installed.
+``ticks_ms``, ``ticks_us``, ``ticks_cpu``, ``ticks_diff`` and ``ticks_add``
+(:mod:`.micropython_time`, over ``time.sleep`` and ``time.monotonic``, so virtual time moves
+them too), ``utime`` and ``ustruct`` (MicroPython's names of ``time`` and ``struct``) and a
+``micropython`` module (``const``) when none is installed.
 """
 
 from __future__ import annotations
 
-import errno
 import struct
 import sys
 import time
 import types
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from contextlib import ContextDecorator
 from typing import Any
 
-from bmg160_emu.bus.i2c import I2CBus, I2CMessage, emulated_bus, register_bus, unregister_bus
+from bmg160_emu.bus.i2c import I2CBus
+from bmg160_emu.bus.machine_i2c import I2C, SoftI2C
+from bmg160_emu.bus.micropython_board import CPU_MHZ_CHOICES, UNIQUE_ID, board
+from bmg160_emu.bus.micropython_rules import allocate, get_int, read_buffer, write_buffer
+from bmg160_emu.bus.micropython_time import time_functions
+from bmg160_emu.bus.registry import register_bus, unregister_bus
 from bmg160_emu.bus.spi import UNDRIVEN_BYTE, SpiFrame
 
-__all__ = ["I2C", "SPI", "Pin", "SoftI2C", "SoftSPI", "micropython_error", "micropython_machine"]
-
-_NO_ACK = (errno.EREMOTEIO, errno.ENXIO, errno.ENODEV)  # an address nobody acknowledges
-SCAN_FIRST, SCAN_LAST = 0x08, 0x77  # 7-bit addresses 0b0000xxx and 0b1111xxx are reserved
-
-
-def micropython_error(exc: OSError) -> OSError:
-    """The OSError MicroPython raises for a failed transfer (``OSError: [Errno 19] ENODEV``)."""
-    code = errno.ENODEV if exc.errno in _NO_ACK else (
-        errno.ETIMEDOUT if exc.errno == errno.ETIMEDOUT else errno.EIO)
-    return OSError(code, errno.errorcode[code])
-
-
-def _buffer(obj: Any, writable: bool = False) -> memoryview:
-    """mp_get_buffer_raise: an object with the buffer protocol (TypeError otherwise)."""
-    try:
-        view = memoryview(obj).cast("B")
-    except TypeError:
-        raise TypeError(f"object with buffer protocol required, not {type(obj).__name__}") from None
-    if writable and view.readonly:
-        raise TypeError("object with buffer protocol required (writable)")
-    return view
-
-
-class _State:
-    """What the test wired: the bus every SoftI2C reaches, chip selects, pin levels."""
-
-    def __init__(self) -> None:
-        self.soft_i2c: int | None = None
-        self.chip_selects: dict[Any, tuple[int, Any]] = {}  # pin id -> (SPI id, chip)
-        self.frames: dict[Any, SpiFrame] = {}  # pin id -> the frame while CS is low
-        self.levels: dict[Any, int] = {}
-
-
-_state = _State()
-
+__all__ = ["I2C", "SPI", "Pin", "SoftI2C", "SoftSPI", "freq", "idle", "micropython_machine",
+           "unique_id"]
 
 class Pin:
     """``machine.Pin(id, mode=-1, pull=-1, *, value=None)``: a GPIO; a pin wired as a chip
@@ -99,15 +68,15 @@ class Pin:
 
     def value(self, x: Any = None) -> int | None:
         if x is None:
-            return _state.levels.get(self.id, 1 if self.pull == self.PULL_UP else 0)
+            return board.levels.get(self.id, 1 if self.pull == self.PULL_UP else 0)
         level = 1 if x else 0
-        _state.levels[self.id] = level
-        wired = _state.chip_selects.get(self.id)
+        board.levels[self.id] = level
+        wired = board.chip_selects.get(self.id)
         if wired is not None:
-            if level == 0 and self.id not in _state.frames:
-                _state.frames[self.id] = SpiFrame(wired[1])  # CS falls: a new frame
+            if level == 0 and self.id not in board.frames:
+                board.frames[self.id] = SpiFrame(wired[1])  # CS falls: a new frame
             elif level == 1:
-                _state.frames.pop(self.id, None)  # CS rises: the frame ends
+                board.frames.pop(self.id, None)  # CS rises: the frame ends
         return None
 
     __call__ = value
@@ -122,94 +91,6 @@ class Pin:
 
     def __repr__(self) -> str:
         return f"Pin({self.id!r})"
-
-
-class I2C:
-    """``machine.I2C(id, *, scl, sda, freq=400000, timeout=...)``: hardware I2C ``id`` is the
-    emulated bus of that number; ``I2C(-1, scl=..., sda=...)`` is a software I2C."""
-
-    def __init__(self, id: int = -1, *, scl: Any = None, sda: Any = None, freq: int = 400000,
-                 timeout: int = 50000) -> None:
-        if not isinstance(id, int) or isinstance(id, bool):
-            raise TypeError(f"can't convert {type(id).__name__} to int")
-        if id == -1:
-            if scl is None or sda is None:
-                raise TypeError("'scl' argument required" if scl is None else "'sda' argument required")
-            number = _state.soft_i2c
-        else:
-            number = id
-        bus = emulated_bus(number) if number is not None else None
-        if bus is None:
-            raise ValueError(f"I2C({id}) doesn't exist")
-        self._bus: I2CBus = bus
-        self.freq, self.scl, self.sda = freq, scl, sda
-
-    def init(self, *, scl: Any = None, sda: Any = None, freq: int = 400000, **_: Any) -> None:
-        self.freq = freq
-
-    def deinit(self) -> None:
-        """Nothing to release on the emulated bus."""
-
-    def _transfer(self, messages: list[I2CMessage]) -> list[I2CMessage]:
-        try:
-            return self._bus.i2c_transfer(messages)
-        except OSError as exc:
-            raise micropython_error(exc) from None
-
-    def scan(self) -> list[int]:
-        found = []
-        for address in range(SCAN_FIRST, SCAN_LAST + 1):
-            try:
-                self._bus.i2c_transfer([I2CMessage.write(address, b"")])
-            except OSError:
-                continue
-            found.append(address)
-        return found
-
-    def readfrom(self, addr: int, nbytes: int, stop: bool = True) -> bytes:
-        return self._transfer([I2CMessage.read_message(addr, int(nbytes))])[0].data
-
-    def readfrom_into(self, addr: int, buf: Any, stop: bool = True) -> None:
-        view = _buffer(buf, writable=True)
-        view[:] = self.readfrom(addr, len(view), stop)
-
-    def writeto(self, addr: int, buf: Any, stop: bool = True) -> int:
-        data = _buffer(buf).tobytes()
-        self._transfer([I2CMessage.write(addr, data)])
-        return len(data)  # every data byte acknowledged
-
-    def writevto(self, addr: int, vector: Iterable[Any], stop: bool = True) -> int:
-        data = b"".join(_buffer(b).tobytes() for b in vector)
-        return self.writeto(addr, data, stop)
-
-    @staticmethod
-    def _memaddr(memaddr: int, addrsize: int) -> bytes:
-        """The memory address bytes, most significant first (read_mem/write_mem)."""
-        return bytes((memaddr >> shift) & 0xFF for shift in range(addrsize - 8, -1, -8))
-
-    def readfrom_mem(self, addr: int, memaddr: int, nbytes: int, *, addrsize: int = 8) -> bytes:
-        messages = [I2CMessage.write(addr, self._memaddr(memaddr, addrsize)),
-                    I2CMessage.read_message(addr, int(nbytes))]
-        return self._transfer(messages)[1].data
-
-    def readfrom_mem_into(self, addr: int, memaddr: int, buf: Any, *, addrsize: int = 8) -> None:
-        view = _buffer(buf, writable=True)
-        view[:] = self.readfrom_mem(addr, memaddr, len(view), addrsize=addrsize)
-
-    def writeto_mem(self, addr: int, memaddr: int, buf: Any, *, addrsize: int = 8) -> None:
-        data = self._memaddr(memaddr, addrsize) + _buffer(buf).tobytes()
-        self._transfer([I2CMessage.write(addr, data)])
-
-    def __repr__(self) -> str:
-        return f"I2C({self._bus.number}, freq={self.freq})"
-
-
-class SoftI2C(I2C):
-    """``machine.SoftI2C(scl, sda, *, freq=400000, timeout=50000)``: bit-banged on any pins;
-    it reaches the bus :class:`micropython_machine` wired with ``soft_i2c``."""
-
-    def __init__(self, scl: Any, sda: Any, *, freq: int = 400000, timeout: int = 50000) -> None:
-        super().__init__(-1, scl=scl, sda=sda, freq=freq, timeout=timeout)
 
 
 class SPI:
@@ -232,24 +113,25 @@ class SPI:
         """Nothing to release on the emulated bus."""
 
     def _clock(self, mosi: bytes) -> bytes:
-        frames = [f for pin, f in _state.frames.items() if _state.chip_selects[pin][0] == self.id]
+        frames = [f for pin, f in board.frames.items() if board.chip_selects[pin][0] == self.id]
         if not frames or self.polarity != self.phase:  # modes 1 and 2: the chip stays out
             return bytes([UNDRIVEN_BYTE]) * len(mosi)
         with frames[0].chip.lock:
             return frames[0].clock(mosi)
 
-    def read(self, nbytes: int, write: int = 0x00) -> bytes:
-        return self._clock(bytes([write & 0xFF]) * int(nbytes))
+    def read(self, nbytes: Any, write: Any = 0x00) -> bytes:
+        length = allocate(get_int(nbytes), board.heap_bytes, "SPI.read")
+        return self._clock(bytes([get_int(write) & 0xFF]) * length)
 
-    def readinto(self, buf: Any, write: int = 0x00) -> None:
-        view = _buffer(buf, writable=True)
-        view[:] = self._clock(bytes([write & 0xFF]) * len(view))
+    def readinto(self, buf: Any, write: Any = 0x00) -> None:
+        view = write_buffer(buf)
+        view[:] = self._clock(bytes([get_int(write) & 0xFF]) * len(view))
 
     def write(self, buf: Any) -> None:
-        self._clock(_buffer(buf).tobytes())
+        self._clock(read_buffer(buf))
 
     def write_readinto(self, write_buf: Any, read_buf: Any) -> None:
-        out, into = _buffer(write_buf).tobytes(), _buffer(read_buf, writable=True)
+        out, into = read_buffer(write_buf), write_buffer(read_buf)
         if len(out) != len(into):
             raise ValueError("buffers must be the same length")
         into[:] = self._clock(out)
@@ -267,51 +149,65 @@ class SoftSPI(SPI):
 
 # ----------------------------------------------------------------------- time, micropython
 
-def _ticks_ms() -> int:
-    return int(time.monotonic() * 1000) & TICKS_MAX
+def freq(*hz: Any) -> int | None:
+    """``machine.freq()``: the CPU frequency in Hz; ``freq(hz)`` sets it to one the ESP32
+    takes (20, 40, 80, 160 or 240 MHz)."""
+    if not hz:
+        return board.cpu_hz
+    if len(hz) > 1:
+        raise TypeError(f"function expected at most 1 arguments, got {len(hz)}")
+    mhz = int(get_int(hz[0]) / 1_000_000)  # C division: towards zero
+    if mhz not in CPU_MHZ_CHOICES:
+        raise ValueError("frequency must be 20MHz, 40MHz, 80Mhz, 160MHz or 240MHz")
+    board.cpu_hz = mhz * 1_000_000
+    return None
 
 
-def _ticks_us() -> int:
-    return int(time.monotonic() * 1_000_000) & TICKS_MAX
+def unique_id() -> bytes:
+    """``machine.unique_id()``: the board's 6-byte MAC, the same on every run."""
+    return UNIQUE_ID
 
 
-TICKS_MAX = (1 << 30) - 1  # MicroPython's ticks wrap at 2**30 (TICKS_PERIOD)
-
-
-def _ticks_diff(ticks1: int, ticks2: int) -> int:
-    half = (TICKS_MAX + 1) // 2
-    return ((ticks1 - ticks2 + half) & TICKS_MAX) - half
-
-
-_TIME_NAMES = {
-    "sleep_ms": lambda ms: time.sleep(ms / 1000), "sleep_us": lambda us: time.sleep(us / 1e6),
-    "ticks_ms": _ticks_ms, "ticks_us": _ticks_us, "ticks_diff": _ticks_diff,
-    "ticks_add": lambda ticks, delta: (ticks + delta) & TICKS_MAX,
-}
+def idle() -> None:
+    """``machine.idle()``: the port yields to other tasks and returns (no time passes)."""
+    time.sleep(0)
 
 
 class micropython_machine(ContextDecorator):
     """Context manager (and decorator): ``import machine`` gives this module, with the
     hardware I2C buses ``i2c`` ({id: I2CBus or {address: chip}}), the bus ``soft_i2c`` for
-    every ``SoftI2C``, and ``spi`` ({SPI id: {CS pin id: chip}}); yields the module."""
+    every ``SoftI2C``, and ``spi`` ({SPI id: {CS pin id: chip}}); yields the module.
+    ``heap_bytes``: the board's heap (None: no limit; a buffer past it is a MemoryError);
+    ``where``: a sentence saying where the chips are, for the error of an I2C id not wired,
+    ``{id}`` standing for the id asked for (the pytest plugin says which marker option moves
+    them)."""
 
     def __init__(self, i2c: Mapping[int, I2CBus | Mapping[int, Any]] | None = None, *,
                  soft_i2c: int | None = None,
-                 spi: Mapping[Any, Mapping[Any, Any]] | None = None) -> None:
+                 spi: Mapping[Any, Mapping[Any, Any]] | None = None,
+                 heap_bytes: int | None = None, where: str | None = None) -> None:
         self.buses = {n: b if isinstance(b, I2CBus) else I2CBus(n, b) for n, b in (i2c or {}).items()}
         self.soft_i2c = soft_i2c if soft_i2c is not None else next(iter(self.buses), None)
         self.spi = {sid: dict(cs) for sid, cs in (spi or {}).items()}
+        self.heap_bytes = heap_bytes
+        if where is None and self.buses:
+            where = "the emulated I2C buses are " + ", ".join(
+                f"I2C({n})" for n in sorted(self.buses))
+        self.where = where or ""
         self._saved: dict[str, Any] = {}
         self._time_saved: dict[str, Any] = {}
 
     def __enter__(self) -> types.ModuleType:
         for bus in self.buses.values():
             register_bus(bus)
-        _state.soft_i2c = self.soft_i2c
+        board.reset()
+        board.soft_i2c = self.soft_i2c
+        board.heap_bytes = self.heap_bytes
+        board.where = self.where
         for spi_id, selects in self.spi.items():
             for pin, chip in selects.items():
-                _state.chip_selects[pin] = (spi_id, chip)
-                _state.levels[pin] = 1  # chip selects idle high
+                board.chip_selects[pin] = (spi_id, chip)
+                board.levels[pin] = 1  # chip selects idle high
         module = sys.modules[__name__]
         injected = {"machine": module}
         if "micropython" not in sys.modules:
@@ -323,7 +219,7 @@ class micropython_machine(ContextDecorator):
         for name, value in injected.items():
             self._saved[name] = sys.modules.get(name)
             sys.modules[name] = value
-        for name, function in _TIME_NAMES.items():
+        for name, function in time_functions(lambda: board.cpu_hz).items():
             self._time_saved[name] = getattr(time, name, None)
             setattr(time, name, function)
         return module
@@ -342,10 +238,9 @@ class micropython_machine(ContextDecorator):
         self._saved, self._time_saved = {}, {}
         for selects in self.spi.values():
             for pin in selects:
-                _state.chip_selects.pop(pin, None)
-                _state.frames.pop(pin, None)
-        _state.levels.clear()  # no pin level outlives the test
-        _state.soft_i2c = None
+                board.chip_selects.pop(pin, None)
+                board.frames.pop(pin, None)
+        board.reset()  # no pin level, frequency or heap outlives the test
         for bus in self.buses.values():
             unregister_bus(bus)
 

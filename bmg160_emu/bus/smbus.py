@@ -20,15 +20,10 @@ from typing import TYPE_CHECKING, Any
 
 from smbus2 import I2cFunc, i2c_msg
 
-from bmg160_emu.bus.i2c import (
-    I2C_SMBUS_BLOCK_MAX,
-    I2CBus,
-    I2CMessage,
-    emulated_bus,
-    emulated_bus_for_path,
-)
+from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
 from bmg160_emu.bus.kernel_abi import I2C_M_RD
-from bmg160_emu.bus.transactions import TransactionLog
+from bmg160_emu.bus.registry import emulated_bus, emulated_bus_for_path
+from bmg160_emu.traffic.transaction import TransactionLog
 
 if TYPE_CHECKING:
     from typing_extensions import Self

@@ -23,8 +23,8 @@ from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
 from bmg160_emu.bus.i2c import os_error
-from bmg160_emu.bus.transactions import TransactionLog
 from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of, field_of
+from bmg160_emu.traffic.transaction import TransactionLog
 
 if TYPE_CHECKING:
     from typing_extensions import Self

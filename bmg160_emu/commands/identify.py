@@ -9,7 +9,13 @@ import sys
 from pathlib import Path
 
 from bmg160_emu import limits
-from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    add_progress_options,
+    bounded_option,
+    progress_for,
+)
 
 EPILOG = """\
 examples:
@@ -47,7 +53,7 @@ def register(subparsers: Subparsers) -> None:
         "and write a profile the generator loads back.",
         EPILOG,
     )
-    parser.add_argument("file", type=Path, help="record: .csv, .npy, .npz, .resd (deg/s) or "
+    parser.add_argument("file", type=Path, metavar="FILE", help="record: .csv, .npy, .npz, .resd (deg/s) or "
                         "the firmware's UART stream (.txt)")
     parser.add_argument(
         "--rate",
@@ -99,6 +105,7 @@ def register(subparsers: Subparsers) -> None:
         "--seed",
         type=bounded_option(limits.SEED),
         default=None,
+        metavar="N",
         help="seed of the --compare emulator record (default: random; the same seed as the "
         "recording's own generator would reproduce its noise almost sample for sample)",
     )
@@ -145,7 +152,7 @@ def register(subparsers: Subparsers) -> None:
         "(percentile 95 %% intervals beside the asymptotic ones)",
     )
     parser.add_argument(
-        "--skip", default=None, metavar="DURATION", help="drop the start (warm-up), e.g. 40min"
+        "--skip", default=None, metavar="TIME", help="drop the start (warm-up), e.g. 40min"
     )
     parser.add_argument(
         "--units",
@@ -192,6 +199,7 @@ def register(subparsers: Subparsers) -> None:
         help="do not fit the sensor's output filter, quantization and lines (the fit then "
         "starts where the white -1/2 slope does)",
     )
+    add_progress_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -259,10 +267,12 @@ def run(args: argparse.Namespace) -> int:
             if args.method == "gmwm":
                 from bmg160_emu.noise.gmwm_identification import gmwm_identification
 
+                boot = progress_for(args, "identify").start(  # ends itself when done
+                    args.bootstrap * record.rate_dps.shape[1], "bootstrap fits")
                 result, gmwm_fits = gmwm_identification(
                     result, record.rate_dps, with_q=args.with_q, with_r=args.with_r,
                     tau_min_s=args.tau_min, tau_max_s=args.tau_max, bootstrap=args.bootstrap,
-                    seed=args.seed)
+                    seed=args.seed, progress=boot.update)
     except (RateFileError, IdentificationError, InteropError) as exc:
         text = str(exc)  # "record too short" and the like: name the file once
         raise CommandError(text if text.startswith(str(args.file)) else f"{args.file}: {text}") \

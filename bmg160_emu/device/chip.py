@@ -112,7 +112,7 @@ class BMG160:
             thermometer=Thermometer(temperature_c), nvm=Nvm(image, nvm_remain))
         s.budget = environment.ErrorBudget.of(
             errors, unit, acceleration_g, generator or profile, seed=seed, address=address,
-            thermometer=s.thermometer, times_ns=s.times_ns)
+            thermometer=s.thermometer, times_ns=s.times_ns, source=profile)
         s.path = datapath.DataPath(transform, generator, s.budget)
         self._step_s, self._step_ns = 0.0, 0  # advance's last step (s) and its rounding (ns)
         self._pointer = 0
@@ -246,6 +246,12 @@ class BMG160:
         """Electrical level 0/1 of INT1 or INT2 for a push-pull output (INT_EN_1 lvl bit)."""
         with self.lock:
             return regmap.pin_level(self.state, pin, self._now())
+
+    def next_pin_change_ns(self) -> int | None:
+        """The earliest time (ns on the chip's clock) INT1 or INT2 may change with no bus
+        access, or None when they hold until one (regmap.next_pin_change)."""
+        with self.lock:
+            return regmap.next_pin_change(self.state, self._now())
 
     def offsets_lsb(self) -> tuple[int, int, int]:
         """The three 12-bit offsets of OFC1..OFC4 and TRIM_GP0 (4.24)."""

@@ -49,8 +49,10 @@ RENAMED = frozen({
 # register. Stored only: no pin is an input in the model, so no frame is ever tagged.
 FIFO_EXT_INT_S = BMI088_FIFO_EXT_INT_S
 
+# DS 5.5.10, 5.5.11 name the pin fields after INT3 and INT4 (int3_od, int4_data ...)
 DIFFERENCES = Differences(absent=ABSENT, fields=FIELDS, renamed=RENAMED,
-                          replaced=frozen({"BGW_SPI3_WDT": FIFO_EXT_INT_S}))
+                          replaced=frozen({"BGW_SPI3_WDT": FIFO_EXT_INT_S}),
+                          pin_fields=("INT3", "INT4"))
 
 BMI088_GYRO = derive(
     "bmi088_gyro", "BMI088 gyroscope", DIFFERENCES, pins=("INT3", "INT4"),

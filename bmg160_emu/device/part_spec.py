@@ -40,13 +40,15 @@ class Differences:
     registers kept with only these fields (the other bits reserved: read 0, writes ignored).
     ``renamed``: the part's data-sheet name of a register. ``reset``: other reset values.
     ``replaced``: a register of the part at the address of the named BMG160 register, with
-    no behaviour beyond storage."""
+    no behaviour beyond storage. ``pin_fields``: the pins the part's data sheet names the
+    interrupt fields after (the BMI088's int3_od where the BMG160 has int1_od)."""
 
     absent: tuple[str, ...] = ()
     fields: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     renamed: Mapping[str, str] = field(default_factory=dict)
     reset: Mapping[str, int] = field(default_factory=dict)
     replaced: Mapping[str, Register] = field(default_factory=dict)
+    pin_fields: tuple[str, str] | None = None
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,23 @@ def _narrow(reg: Register, keep: tuple[str, ...]) -> Register:
     return replace(reg, fields=kept, reset=reg.reset & mask)
 
 
+def _pin_names(reg: Register, pins: tuple[str, str]) -> Register:
+    """The register with its fields named after the part's interrupt pins: the BMI088
+    gyroscope's INT3_INT4_IO_CONF has int3_od, int4_lvl ... where the BMG160's INT_EN_1 has
+    int1_od, int2_lvl (BMI088 data sheet 5.5.10, 5.5.11)."""
+    words = {"int1": pins[0].lower(), "int2": pins[1].lower(),
+             "INT1": pins[0], "INT2": pins[1]}
+
+    def renamed(text: str) -> str:
+        for old, new in words.items():
+            text = text.replace(old, new)
+        return text
+
+    fields = tuple(replace(f, name=renamed(f.name), meaning=renamed(f.meaning))
+                   for f in reg.fields)
+    return replace(reg, fields=fields) if fields != reg.fields else reg
+
+
 def derive(name: str, title: str, differences: Differences = Differences(), **details: Any) -> Part:
     """The part ``name``: the BMG160 table with ``differences`` applied, and what follows."""
     d = differences
@@ -152,7 +171,7 @@ def derive(name: str, title: str, differences: Differences = Differences(), **de
             reg = replace(reg, name=d.renamed[base.name])
         if base.name in d.reset:
             reg = replace(reg, reset=d.reset[base.name])
-        regs.append(reg)
+        regs.append(_pin_names(reg, d.pin_fields) if d.pin_fields else reg)
     return Part(
         name=name, title=title, differences=d, registers=tuple(regs), absent=frozenset(absent),
         reset_values=bytes(r.reset for r in regs), write_masks=bytes(r.write_mask for r in regs),

@@ -22,7 +22,7 @@ _SHADOW_DIS = field_of("RATE_HBW", "shadow_dis").mask
 def read_burst(s: ChipState, reg: int, n: int, now: int) -> tuple[bytes, int]:
     """Bytes of one read transaction and the pointer after it (2.4)."""
     out = bytearray(n)
-    addr = reg
+    addr = reg & choice.REGISTER_ADDRESS_MASK
     for pos in range(n):
         if addr >= FIRST_OUTSIDE_MAP:
             addr = min(addr + n - pos, POINTER_MAX)
@@ -85,7 +85,7 @@ def write_burst(s: ChipState, reg: int, data: bytes, now: int) -> int:
     """One write transaction; returns the pointer after it (auto-increment, 2.4)."""
     if len(data) > 1:
         s.strict_warning(f"multi-byte write of {len(data)} bytes at 0x{reg:02X} (spec 2.1)")
-    addr = reg
+    addr = reg & choice.REGISTER_ADDRESS_MASK
     for value in data:
         if addr < FIRST_OUTSIDE_MAP:
             write_reg(s, addr, value, now)

@@ -33,7 +33,7 @@ from bmg160_emu.clock import NEVER
 from bmg160_emu.device import fifo as fifo_mod
 from bmg160_emu.device import offsets
 from bmg160_emu.device import spec_choices as choice
-from bmg160_emu.device.interrupts import latch_hold_ns
+from bmg160_emu.device.interrupts import LATCHED, latch_hold_ns
 from bmg160_emu.device.offsets import FastOffset
 from bmg160_emu.device.power_modes import (
     DEEP_SUSPEND,
@@ -56,6 +56,8 @@ _FIFO_WM_EN, _FIFO_CONFIG_0, _FIFO_CONFIG_1 = (
     address_of("FIFO_WM_EN"), address_of("FIFO_CONFIG_0"), address_of("FIFO_CONFIG_1"))
 _FIFO_EN = field_of("INT_EN_0", "fifo_en").mask
 _INT_EN_1 = address_of("INT_EN_1")
+_INT_MAP_0, _INT_MAP_1, _INT_MAP_2 = (
+    address_of("INT_MAP_0"), address_of("INT_MAP_1"), address_of("INT_MAP_2"))
 _INT_LVL = (field_of("INT_EN_1", "int1_lvl").mask, field_of("INT_EN_1", "int2_lvl").mask)
 _FIFO_WM = field_of("FIFO_WM_EN", "fifo_wm_en").mask
 _FIFO_TAG = field_of("FIFO_CONFIG_0", "tag").mask
@@ -361,6 +363,21 @@ def pin_level(s: ChipState, pin: int, now: int) -> int:
     active = pins(s, now)[pin - 1]
     active_high = bool(s.regs[_INT_EN_1] & _INT_LVL[pin - 1])
     return int(active == active_high)
+
+
+def next_pin_change(s: ChipState, now: int) -> int | None:
+    """The earliest time after ``now`` (ns) at which INT1 or INT2 may change with no bus
+    access: the next sample (every engine acts on samples), the end of a data-ready pulse
+    under way or of a temporary latch; None when no source is mapped to a pin or nothing is
+    due. A simulator sleeps until then instead of polling the pins (bmg160-emu serve)."""
+    if not (s.regs[_INT_MAP_0] | s.regs[_INT_MAP_1] | s.regs[_INT_MAP_2]):
+        return None
+    due = [s.next_ns] if s.next_ns != NEVER else []
+    pulse_end = s.last_sample_ns + choice.DATA_READY_PULSE_NS
+    if not s.chip.hold_data_int and pulse_end > now:
+        due.append(pulse_end)
+    due += [h for st in s.irq.status.values() if now < (h := st.hold_until_ns) < LATCHED]
+    return min(due, default=None)
 
 
 def _by_address(table: dict[str, Any]) -> tuple[Any, ...]:

@@ -104,5 +104,13 @@ NVM_DEFAULT_IMAGE = bytes(6)
 NVM_DEFAULT_REMAIN = 0xF
 NVM_PROG_TIME_NS = 5_000_000
 
+# 2.4: the register address byte's bit 7 is not decoded: bits 6..0 are the address on both
+# buses (bit 7 is SPI's read flag). Over I2C, Zephyr's bmi08x driver sends ``reg | 0x80``
+# on every read, and that driver, unmodified, reads a real BMI088 (this die) over I2C: a
+# Crazyflie 2.1 Brushless application checks GYRO_CHIP_ID through it and calibrates on its
+# rates. Sources and the rest of the evidence: docs/unconfirmed-choices.md.
+REGISTER_ADDRESS_BITS = 7  # decoded address bits: 0x00..0x7F on I2C as on SPI
+REGISTER_ADDRESS_MASK = (1 << REGISTER_ADDRESS_BITS) - 1
+
 # 2.4: a burst starting at 0x40 or above reads 0x00 for every byte; writes there are
 # ignored. A burst that runs into 0x3F stays there and reads the FIFO.

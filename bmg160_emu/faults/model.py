@@ -13,6 +13,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from bmg160_emu.traffic.kinds import NO_DATA_KINDS
+
 BUS_KINDS = ("nack", "timeout", "stuck_bus", "corrupt_byte")
 SAMPLE_KINDS = ("stuck_axis", "bias_step", "spike", "saturation", "lost_samples",
                 "temperature_ramp")
@@ -23,12 +25,6 @@ FAULT_KINDS = BUS_KINDS + SAMPLE_KINDS + CHIP_KINDS
 # next bits, so the bits of a saved truth record keep their meaning.
 _FLAG_ORDER = ("nack", "timeout", *SAMPLE_KINDS, *CHIP_KINDS, "stuck_bus", "corrupt_byte")
 FAULT_FLAGS = {kind: 1 << i for i, kind in enumerate(_FLAG_ORDER)}
-
-# Transaction kinds (I2CBus's words) that carry data from the chip: a corrupt_byte fault can
-# only act on these.
-READ_KINDS = frozenset(("read_byte", "read_byte_data", "read_word_data", "process_call",
-                        "read_block_data", "block_process_call", "read_i2c_block_data",
-                        "i2c_read"))
 
 SATURATED_DPS = 1.0e6  # far beyond +-2000 deg/s: the chip clips it to +-32767 counts
 AXES = {"x": 0, "y": 1, "z": 2}
@@ -104,13 +100,16 @@ class Fault:
         self._check_types()
         triggers = [self.at_s is not None, self.on_transaction is not None,
                     self.probability is not None]
-        if sum(triggers) == 0 and self.conditional:
-            self.at_s = 0.0  # a condition alone: the first transaction that meets it
-            triggers[0] = True
-        if sum(triggers) != 1:
+        if sum(triggers) > 1:
             raise FaultError(
-                f"{self.kind}: give exactly one trigger: at_s, on_transaction or probability"
+                f"{self.kind}: give one trigger (at_s, on_transaction or probability), or none "
+                "for 'from the start'; on_register and address narrow it to the transactions "
+                "naming that register or sent to that address"
             )
+        if sum(triggers) == 0:
+            # no trigger: from the start (the first sample, or the first transaction that
+            # meets its conditions), as bmg160_faults.add(kind) is "from now on"
+            self.at_s = 0.0
         if self.address is not None and not 0 <= self.address <= 0x7F:
             raise FaultError(f"{self.kind}: address must be a 7-bit address 0x00..0x7f")
         if self.on_register is not None and not 0 <= self.on_register <= 0xFF:
@@ -185,12 +184,13 @@ class Fault:
 
     def selects(self, address: int, register: int | None, kind: str) -> bool:
         """Whether a transaction (7-bit address, register it names, I2CBus kind) is one the
-        fault may act on: its conditions hold, and a corrupt_byte needs data read."""
+        fault may act on: its conditions hold, and a corrupt_byte needs a transaction that
+        carries bytes (not a quick command)."""
         if self.address is not None and address != self.address:
             return False
         if self.on_register is not None and register != self.on_register:
             return False
-        return self.kind != "corrupt_byte" or kind in READ_KINDS
+        return self.kind != "corrupt_byte" or kind not in NO_DATA_KINDS
 
     @property
     def layer(self) -> str:
@@ -219,17 +219,73 @@ class Fault:
 _FAULT_KEYS = {f for f in Fault.__dataclass_fields__}
 
 
+# The keys every fault takes (its kind, trigger, conditions, target) and each kind's effect.
+COMMON_KEYS = ("kind", "at_s", "on_transaction", "probability", "on_register", "address",
+               "gyro", "max_count")
+EFFECT_KEYS = {
+    "nack": ("duration_s",),
+    "timeout": ("stall_s", "duration_s"),
+    "stuck_bus": ("stall_s", "duration_s"),
+    "corrupt_byte": ("byte", "bit", "duration_s"),
+    "stuck_axis": ("axis", "duration_s"),
+    "bias_step": ("step_dps", "axis", "duration_s"),
+    "spike": ("amplitude_dps", "axis", "samples"),
+    "saturation": ("axis", "amplitude_dps", "duration_s"),
+    "lost_samples": ("samples",),
+    "temperature_ramp": ("rate_c_per_s", "tc_bias_dps_per_c", "duration_s"),
+    "seu": ("register", "bit"),
+    "brownout": (),
+}
+
+
+def fault_keys(kind: str) -> tuple[str, ...]:
+    """The keys a fault of ``kind`` takes: the common ones, then its effect's."""
+    return COMMON_KEYS + EFFECT_KEYS.get(kind, ())
+
+
 def fault_from_dict(entry: dict[str, Any], where: str = "fault") -> Fault:
-    """Build a fault from its TOML table (``[[fault]]`` in a scenario file)."""
-    unknown = set(entry) - _FAULT_KEYS
+    """Build a fault from its TOML table (``[[fault]]`` in a scenario file); a key it does
+    not take is refused with the keys it does."""
+    kind = entry.get("kind")
+    if kind not in FAULT_KINDS:
+        raise FaultError(f"{where}: fault kind must be one of {list(FAULT_KINDS)}, not {kind!r}")
+    valid = fault_keys(kind)
+    unknown = sorted(set(entry) - _FAULT_KEYS)
     if unknown:
-        raise FaultError(f"{where}: unknown keys {sorted(unknown)}")
+        raise FaultError(f"{where}: unknown key{'s' if len(unknown) > 1 else ''} "
+                         f"{', '.join(unknown)}; a {kind} fault takes {', '.join(valid)}")
+    foreign = sorted(set(entry) - set(valid))
+    if foreign:
+        hint = (" (to select transactions naming a register, give on_register)"
+                if "register" in foreign else "")
+        raise FaultError(f"{where}: a {kind} fault takes no {', '.join(foreign)}{hint}; it "
+                         f"takes {', '.join(valid)}")
     try:
         return Fault(**entry)
     except FaultError as exc:
         raise FaultError(f"{where}: {exc}") from None
     except TypeError as exc:
         raise FaultError(f"{where}: {exc}") from None
+
+
+# Effect parameters of a Fault; a log entry replaces its trigger by the onset it records.
+_EFFECT_KEYS = ("duration_s", "axis", "step_dps", "amplitude_dps", "samples", "register", "bit",
+                "rate_c_per_s", "tc_bias_dps_per_c", "byte")
+
+
+def effect_parameters(fault: Fault) -> dict[str, Any]:
+    """The fault's kind and the effect parameters that differ from their defaults (no
+    trigger): what a ``fault:<kind>`` log entry carries for a replay."""
+    params: dict[str, Any] = {"kind": fault.kind}
+    defaults = Fault.__dataclass_fields__
+    for key in _EFFECT_KEYS:
+        value = getattr(fault, key)
+        if key == "tc_bias_dps_per_c":
+            if np.any(value):
+                params[key] = [float(v) for v in value]
+        elif value != defaults[key].default:
+            params[key] = value
+    return params
 
 
 def describe_flags(flags: int) -> list[str]:

@@ -1,46 +1,39 @@
 """The fault engine: a seeded :class:`FaultSchedule` acting :class:`Fault` entries on a rig,
-or on one chip on one bus (:class:`ChipOnBus`: the pytest plugin's chip and bus).
+or on one chip on one bus (:class:`~bmg160_emu.faults.targets.ChipOnBus`: the pytest
+plugin's chip and bus).
 
 Bus faults act in ``I2CBus.transaction_hooks``, sample faults in ``BMG160.sample_hooks``,
 chip faults between two transactions; every onset is logged (see :mod:`bmg160_emu.faults`).
+What a sample fault does to a sample is :mod:`.sample_effects`; acting a log's faults again
+is :mod:`.replay`; one fault into one chip from a script line is :mod:`.inject`.
 """
 
 from __future__ import annotations
 
 import errno
-import json
 import math
 import os
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from bmg160_emu.faults.corrupt import CorruptWire
 from bmg160_emu.faults.model import (
-    BUS_KINDS,
     CHIP_KINDS,
     FAULT_FLAGS,
-    SATURATED_DPS,
     Fault,
     FaultError,
     FaultEvent,
     GyroTarget,
+    effect_parameters,
     fault_from_dict,
 )
-from bmg160_emu.io.trace import parse_fault_entry  # noqa: F401  (the entry format lives with the trace)
-
-
-@dataclass
-class _Activation:
-    start_s: float
-    end_s: float  # math.inf when open-ended
-    gyro: int
-    samples_left: int | None = None  # spike, lost_samples: a count of samples instead
-    held: np.ndarray | None = None  # stuck_axis: the value it repeats
-    started: bool = False
-    not_before_s: float = -math.inf  # a replayed fault: the first sample it touched
-
+from bmg160_emu.faults.sample_effects import Activation, apply_effect, counts_samples
+from bmg160_emu.faults.targets import base_temperature, clock_time, poke, stall
+from bmg160_emu.traffic.fault_entry import fault_entry_text
+from bmg160_emu.traffic.kinds import FAULT_KIND_PREFIX
+from bmg160_emu.traffic.transaction import Transaction
 
 # (the bus, the gyros on it, [(fault index, fault, its targets on the bus, a bus fault?)])
 _BusPlan = tuple[Any, list[GyroTarget], list[tuple[int, Fault, list[GyroTarget], bool]]]
@@ -50,21 +43,6 @@ _BusPlan = tuple[Any, list[GyroTarget], list[tuple[int, Fault, list[GyroTarget],
 # time"; EBUSY "the bus was busy for longer than allowed ... needs some fault recovery",
 # what an adapter reports while a device holds SDA low (a stuck bus)
 _BUS_ERRORS = {"nack": errno.EREMOTEIO, "timeout": errno.ETIMEDOUT, "stuck_bus": errno.EBUSY}
-
-
-@dataclass
-class ChipOnBus:
-    """One chip on one I2C bus as a fault target, outside any rig (the pytest plugin's
-    chip on its bus): bus faults act on that bus, the others on the chip."""
-
-    chip: Any
-    bus: Any
-    address: int = -1  # the chip's own address unless given
-    index: int = 0
-
-    def __post_init__(self) -> None:
-        if self.address < 0:
-            self.address = int(getattr(self.chip, "address", 0x68))
 
 
 class _BusHook:
@@ -77,7 +55,7 @@ class _BusHook:
         self.schedule = schedule
 
     def __call__(self, bus: Any, index: int, address: int, kind: str,
-                 register: int | None = None) -> Callable[[int, bytes], bytes] | None:
+                 register: int | None = None) -> CorruptWire | None:
         return self.schedule._transaction_hook(bus, index, address, kind, register)
 
 
@@ -98,7 +76,7 @@ class FaultSchedule:
         self._fired: list[int] = [0] * len(self.faults)
         self._time_done: set[tuple[int, int]] = set()  # (fault, id(bus)) already fired
         self._bus_windows: list[list[tuple[float, float]]] = [[] for _ in self.faults]
-        self._activations: list[list[_Activation]] = [[] for _ in self.faults]
+        self._activations: list[list[Activation]] = [[] for _ in self.faults]
         self._last_rate: dict[int, np.ndarray] = {}
         self._sample_flags: dict[int, dict[float, int]] = {}
         self._base_temperature: dict[int, float] = {}
@@ -133,11 +111,20 @@ class FaultSchedule:
                 seen.add(id(gyro.bus))
                 gyro.bus.transaction_hooks.append(self._hook)
                 self._installed.append((gyro.bus.transaction_hooks, self._hook))
-            # time-triggered sample faults act on exact sample times, so they are known now
+        # time-triggered sample faults act on exact sample times, so they are known now
         for i, fault in enumerate(self.faults):
             if fault.layer == "sample" and fault.at_s is not None:
                 for gyro in self._targets(fault):
-                    self._activate(i, gyro, fault.at_s, None)
+                    self.activate(i, gyro, fault.at_s)
+
+    def install_on_samples(self, target: GyroTarget) -> None:
+        """Hook the schedule into one chip's samples alone (no bus, no install-time
+        activations): a lone chip, or a replay that places its activations itself."""
+        self._gyros = [target]
+        self._sample_flags[target.index] = {}
+        hook = self._sample_hook_for(target)
+        target.chip.sample_hooks.append(hook)
+        self._installed.append((target.chip.sample_hooks, hook))
 
     def remove(self) -> None:
         """Take the schedule's hooks out of the chips and buses (a fault window still open
@@ -176,11 +163,11 @@ class FaultSchedule:
         return plan
 
     def _transaction_hook(self, bus: Any, index: int, address: int, kind: str,
-                          register: int | None = None) -> Callable[[int, bytes], bytes] | None:
+                          register: int | None = None) -> CorruptWire | None:
         _, gyros_here, entries = self._bus_plan(bus)
-        now = _clock_time(gyros_here[0].chip) if gyros_here else 0.0
+        now = clock_time(gyros_here[0].chip) if gyros_here else 0.0
         failure: OSError | None = None
-        wire: Callable[[int, bytes], bytes] | None = None
+        wire: CorruptWire | None = None
         for i, fault, targets, is_bus_fault in entries:
             if (fault.conditional or fault.kind == "corrupt_byte") and not fault.selects(
                     address, register, kind):
@@ -191,17 +178,42 @@ class FaultSchedule:
                     continue
                 if not self._bus_fault_now(i, fault, bus, index, now) or failure is not None:
                     continue
-                event = self._bus_event(fault, index, now, address, addressed, gyros_here)
                 if fault.kind == "corrupt_byte":
-                    wire = wire or _flip(fault.byte, fault.bit)
-                else:
-                    failure = OSError(event, os.strerror(event))
+                    if wire is None:  # one corruption per transaction; reported when it ends
+                        wire = CorruptWire(fault, kind, self._corruption_reporter(
+                            bus, index, now, address, addressed))
+                    continue
+                code = self._bus_event(fault, index, now, address, addressed, gyros_here)
+                failure = OSError(code, os.strerror(code))
             elif self._triggered(i, fault, bus, index, now):
                 for gyro in targets:
-                    self._activate(i, gyro, now, index)
+                    self.activate(i, gyro, now, index)
         if failure is not None:
+            if wire is not None:  # the transaction fails: nothing crossed the wire
+                wire.what = "not acted: the transaction failed"
+                wire.report(wire)
             raise failure
         return wire
+
+    def _corruption_reporter(self, bus: Any, index: int, now: float, address: int,
+                             addressed: list[GyroTarget]) -> Callable[[CorruptWire], None]:
+        """What a corrupt_byte does once its transaction is over: its event (what it changed,
+        or that it found nothing to change), the gyro's flag, and its ``fault:corrupt_byte``
+        log entry, just before the transaction's own (replay acts it again from there)."""
+        def report(wire: CorruptWire) -> None:
+            fault = wire.fault
+            gyro = addressed[0].index if addressed else None
+            detail = f"{fault.describe()} at address 0x{address:02x}: {wire.what}"
+            event = FaultEvent(now, fault.kind, gyro, index, detail)
+            self.events.append(event)
+            if gyro is not None and wire.acted:
+                self._pending.setdefault(gyro, []).append((now, FAULT_FLAGS[fault.kind]))
+            log = getattr(bus, "log", None)
+            if self.log_to_bus and log is not None and getattr(log, "enabled", True):
+                text = fault_entry_text(detail, effect_parameters(fault))
+                log.append(Transaction(now, getattr(bus, "number", 0), address,
+                                       FAULT_KIND_PREFIX + fault.kind, written=text.encode()))
+        return report
 
     def _triggered(self, i: int, fault: Fault, bus: Any, index: int, now: float) -> bool:
         """One-shot or random trigger of a sample or chip fault at this transaction."""
@@ -230,38 +242,44 @@ class FaultSchedule:
 
     def _bus_event(self, fault: Fault, index: int, now: float, address: int,
                    addressed: list[GyroTarget], gyros_here: list[GyroTarget]) -> int:
-        """Record a bus fault acting on a transaction; its errno (0: the transaction goes on
-        with a corrupted byte)."""
+        """Record a bus fault failing a transaction; its errno (the failed transaction, with
+        that errno, is its record in the log)."""
         gyro = addressed[0].index if addressed else None
-        code = _BUS_ERRORS.get(fault.kind, 0)
+        code = _BUS_ERRORS[fault.kind]
         if fault.kind in ("timeout", "stuck_bus") and fault.stall_s > 0 and gyros_here:
-            _stall(gyros_here[0].chip, fault.stall_s)
+            stall(gyros_here[0].chip, fault.stall_s)
         self.events.append(FaultEvent(now, fault.kind, gyro, index,
                                       f"{fault.describe()} at address 0x{address:02x}"))
         if gyro is not None:
             self._pending.setdefault(gyro, []).append((now, FAULT_FLAGS[fault.kind]))
-        if not code and self.log_to_bus and gyro is not None:
-            self._note(self.events[-1], addressed[0], fault, event_too=False)
         return code
 
     # ----------------------------------------------------------------- chip and sample side
 
-    def _activate(self, i: int, gyro: GyroTarget, now: float, index: int | None) -> None:
+    def activate(self, i: int, gyro: GyroTarget, now: float, index: int | None = None,
+                 activation: Activation | None = None) -> None:
+        """Fault ``i`` acts on ``gyro`` from ``now`` (``index``: the transaction that
+        triggered it); a sample fault may be given its ``activation`` (a replay's)."""
         fault = self.faults[i]
         if fault.layer == "chip":
             self._fired[i] += 1
-            self._chip_fault(fault, gyro, now, index)
+            self.act_chip_fault(fault, gyro, now, index)
+            return
+        if activation is not None:
+            self._activations[i].append(activation)
             return
         if index is not None:
             self._fired[i] += 1
         end = math.inf if fault.duration_s is None else now + fault.duration_s
-        count = fault.samples if fault.kind in ("spike", "lost_samples") else None
-        self._activations[i].append(_Activation(now, end, gyro.index, count))
+        count = fault.samples if counts_samples(fault) else None
+        self._activations[i].append(Activation(now, end, gyro.index, count))
         if index is not None or fault.at_s is None:  # its bus-log entry waits for its first sample
             self._note(FaultEvent(now, fault.kind, gyro.index, index, fault.describe()), gyro,
                        log=False)
 
-    def _chip_fault(self, fault: Fault, gyro: GyroTarget, now: float, index: int | None) -> None:
+    def act_chip_fault(self, fault: Fault, gyro: GyroTarget, now: float,
+                       index: int | None = None) -> None:
+        """A chip fault acts now: a brown-out resets the chip, an SEU flips its bit."""
         chip = gyro.chip
         if fault.kind == "brownout":
             chip.power_on_reset()
@@ -270,7 +288,7 @@ class FaultSchedule:
             assert fault.register is not None
             before = chip.peek(fault.register)
             after = before ^ (1 << fault.bit)
-            _poke(chip, fault.register, after)
+            poke(chip, fault.register, after)
             detail = (f"SEU register 0x{fault.register:02x} bit {fault.bit}: "
                       f"0x{before:02x} -> 0x{chip.peek(fault.register):02x}")
         self._note(FaultEvent(now, fault.kind, gyro.index, index, detail), gyro, fault)
@@ -310,7 +328,9 @@ class FaultSchedule:
                 elif t >= act.end_s and fault.kind != "temperature_ramp":
                     continue
                 flags |= FAULT_FLAGS[fault.kind]
-                lost |= self._effect(fault, act, gyro, t, rate)
+                base = (self._base_temperature.setdefault(gyro.index, base_temperature(gyro))
+                        if fault.kind == "temperature_ramp" else 0.0)
+                lost |= apply_effect(fault, act, gyro.chip, t, rate, base)
         if flags:
             self._sample_flags[gyro.index][t] = flags
         if lost:
@@ -318,31 +338,8 @@ class FaultSchedule:
         self._last_rate[gyro.index] = rate.copy()
         return rate
 
-    def _effect(self, fault: Fault, act: _Activation, gyro: GyroTarget, t: float,
-                rate: np.ndarray) -> bool:
-        """Change ``rate`` in place for one sample; True when the sample is lost."""
-        axes = slice(None) if fault.axis is None else fault.axis
-        if fault.kind == "stuck_axis":
-            assert act.held is not None
-            rate[axes] = act.held[axes]
-        elif fault.kind == "bias_step":
-            rate[axes] += fault.step_dps
-        elif fault.kind == "spike":
-            rate[axes] += fault.amplitude_dps
-        elif fault.kind == "saturation":
-            rate[axes] = math.copysign(SATURATED_DPS, fault.amplitude_dps or 1.0)
-        elif fault.kind == "lost_samples":
-            return True
-        elif fault.kind == "temperature_ramp":
-            elapsed = min(t, act.end_s) - act.start_s
-            rise_c = fault.rate_c_per_s * elapsed
-            base = self._base_temperature.setdefault(gyro.index, _base_temperature(gyro))
-            _set_temperature(gyro.chip, base + rise_c)
-            rate += fault.tc_bias_dps_per_c * rise_c
-        return False
-
     def _note(self, event: FaultEvent, gyro: GyroTarget, fault: Fault | None = None,
-              activation: _Activation | None = None, *, log: bool = True,
+              activation: Activation | None = None, *, log: bool = True,
               event_too: bool = True) -> None:
         """Record an onset, and put it in the gyro's bus log as a ``fault:<kind>`` entry
         (its description, then the parameters a trace replay needs: :func:`fault_entry_text`)."""
@@ -353,12 +350,9 @@ class FaultSchedule:
                     (event.time_s, FAULT_FLAGS[event.kind]))
         bus_log = getattr(gyro.bus, "log", None)
         if log and self.log_to_bus and bus_log is not None and getattr(bus_log, "enabled", True):
-            from bmg160_emu.bus.transactions import Transaction
-
-            base_c = _base_temperature(gyro) if event.kind == "temperature_ramp" else None
-            text = fault_entry_text(event.detail, fault, activation, event.time_s, base_c)
+            text = entry_text(event, fault, activation, gyro)
             bus_log.append(Transaction(event.time_s, getattr(gyro.bus, "number", 0), gyro.address,
-                                   f"fault:{event.kind}", written=text.encode()))
+                                       FAULT_KIND_PREFIX + event.kind, written=text.encode()))
 
     # ----------------------------------------------------------------- truth
 
@@ -367,198 +361,17 @@ class FaultSchedule:
         return self._sample_flags.get(gyro, {}).get(t, 0)
 
 
-# ----------------------------------------------------------------- fault entries in a bus log
-
-# Effect parameters of a Fault; its trigger is replaced by the onset (at_s) in a log entry.
-_EFFECT_KEYS = ("duration_s", "axis", "step_dps", "amplitude_dps", "samples", "register", "bit",
-                "rate_c_per_s", "tc_bias_dps_per_c")
-
-
-def fault_entry_text(detail: str, fault: Fault | None = None,
-                     activation: _Activation | None = None, first_sample_s: float | None = None,
-                     base_temperature_c: float | None = None) -> str:
-    """The written bytes of a ``fault:<kind>`` log entry: the description for a person, then
-    (when the fault is known) one JSON line with what the fault did, for trace replay:
-    ``{"fault": {kind, effect parameters}, "activation": {start_s, end_s, first_sample_s,
-    held_dps}, "base_temperature_c": ...}`` (activation for sample faults only).
-    """
+def entry_text(event: FaultEvent, fault: Fault | None, activation: Activation | None,
+               gyro: GyroTarget) -> str:
+    """The written bytes of the ``fault:<kind>`` log entry of ``event`` (traffic.fault_entry)."""
     if fault is None:
-        return detail
-    params: dict[str, Any] = {"kind": fault.kind}
-    defaults = Fault.__dataclass_fields__
-    for key in _EFFECT_KEYS:
-        value = getattr(fault, key)
-        if key == "tc_bias_dps_per_c":
-            if np.any(value):
-                params[key] = [float(v) for v in value]
-        elif value != defaults[key].default:
-            params[key] = value
-    entry: dict[str, Any] = {"fault": params}
-    if activation is not None:
-        entry["activation"] = {
-            "start_s": activation.start_s,
-            "end_s": None if math.isinf(activation.end_s) else activation.end_s,
-            "first_sample_s": first_sample_s,
-            "held_dps": None if activation.held is None else [float(v) for v in activation.held],
-        }
-    if base_temperature_c is not None:
-        entry["base_temperature_c"] = float(base_temperature_c)
-    return detail + "\n" + json.dumps(entry, sort_keys=True)
-
-
-def replay_schedule(entries: Sequence[dict[str, Any]], target: GyroTarget) -> FaultSchedule:
-    """A schedule that acts recorded sample faults again on ``target``, each on exactly the
-    samples it touched in the session (same start, end, first sample and held value).
-
-    ``entries`` are the parameters :func:`parse_fault_entry` gives for ``fault:<kind>``
-    entries of sample faults, in the order of the log. The schedule writes nothing to the bus
-    log; install nothing else for these faults.
-    """
-    faults: list[Fault] = []
-    activations: list[_Activation] = []
-    for entry in entries:
-        act = entry.get("activation")
-        if not isinstance(act, dict) or act.get("start_s") is None:
-            raise FaultError(f"{entry.get('fault')}: the entry does not say when the fault acted")
-        fault = fault_from_dict({**entry["fault"], "at_s": float(act["start_s"])}, "replayed fault")
-        if fault.layer != "sample":
-            raise FaultError(f"{fault.kind} is not a sample fault")
-        end = math.inf if act.get("end_s") is None else float(act["end_s"])
-        count = fault.samples if fault.kind in ("spike", "lost_samples") else None
-        held = None if act.get("held_dps") is None else np.array(act["held_dps"], dtype=float)
-        first = -math.inf if act.get("first_sample_s") is None else float(act["first_sample_s"])
-        faults.append(fault)
-        activations.append(_Activation(fault.at_s or 0.0, end, target.index, count, held,
-                                       not_before_s=first))
-    schedule = FaultSchedule(faults, log_to_bus=False)
-    schedule._gyros = [target]
-    schedule._sample_flags[target.index] = {}
-    target.chip.sample_hooks.append(schedule._sample_hook_for(target))
-    for i, act in enumerate(activations):
-        schedule._activations[i].append(act)
-    return schedule
-
-
-def _flip(byte: int, bit: int) -> Callable[[int, bytes], bytes]:
-    """The wire filter of a corrupt_byte fault: bit ``bit`` of the ``byte``-th byte the host
-    reads in the transaction is inverted (a glitch the host samples)."""
-    def wire(offset: int, data: bytes) -> bytes:
-        place = byte - offset
-        if not 0 <= place < len(data):
-            return data
-        out = bytearray(data)
-        out[place] ^= 1 << bit
-        return bytes(out)
-
-    return wire
-
-
-# ----------------------------------------------------------------- chip access, in one place
-
-
-def _clock_time(chip: Any) -> float:
-    clock = getattr(chip, "clock", None)
-    if clock is not None and hasattr(clock, "now"):
-        return float(clock.now())
-    return float(chip.time)
-
-
-def _stall(chip: Any, seconds: float) -> None:
-    """A timed-out transfer takes the adapter's timeout: virtual time moves on by that much."""
-    clock = getattr(chip, "clock", None)
-    if clock is not None and hasattr(clock, "advance"):
-        clock.advance(seconds)
-
-
-def _poke(chip: Any, register: int, value: int) -> None:
-    """Change register content as radiation would: no bus, no access rules (the chip's
-    ``poke`` primitive, device/contract.py). A device without it cannot take an upset."""
-    poke = getattr(chip, "poke", None)
-    if poke is None:
-        raise TypeError(f"{type(chip).__name__} has no poke(register, value): a register "
-                        f"upset needs it (docs/architecture.md, the chip's primitives)")
-    poke(register, value)
-
-
-def _base_temperature(gyro: Any) -> float:
-    spec = getattr(gyro, "spec", None)
-    return float(getattr(spec, "temperature_c", 23.0))
-
-
-def _set_temperature(chip: Any, celsius: float) -> None:
-    if hasattr(chip, "set_temperature"):
-        chip.set_temperature(celsius)
-    else:
-        chip.temperature_c = celsius
-
-
-# ----------------------------------------------------------------- one chip, right now
-
-
-@dataclass
-class _LoneChip:
-    """A chip outside any rig, as a fault target (no bus: bus faults need a rig)."""
-
-    chip: Any
-    index: int = 0
-    bus: Any = None
-
-    @property
-    def address(self) -> int:
-        return int(getattr(self.chip, "address", 0x68))
-
-
-def _parse_value(text: str) -> Any:
-    for convert in (int, float):
-        try:
-            return convert(text, 0) if convert is int else convert(text)  # type: ignore[call-arg]
-        except ValueError:
-            pass
-    if "," in text:
-        return [_parse_value(part) for part in text.split(",")]
-    return text
-
-
-def inject(chip: Any, kind: str, *args: str, bus: Any = None, seed: int | None = 0,
-           **params: Any) -> FaultSchedule:
-    """Inject one fault into a lone chip from now on: ``inject(chip, "stuck_axis", "axis=y")``.
-
-    Arguments are ``key=value`` strings (as a script line gives them) or keywords. Without a
-    trigger the fault starts at the chip's current time. With ``bus`` (the ``I2CBus`` the
-    chip is on, such as the pytest plugin's) every kind is accepted, bus faults included,
-    and transactions trigger and count as on a rig's bus (``seed``: the random stream of a
-    ``probability`` trigger); without it bus faults are refused.
-    """
-    for arg in args:
-        key, sep, value = arg.partition("=")
-        if not sep or not key:
-            raise FaultError(f"{kind}: expected key=value, not {arg!r}")
-        params[key] = _parse_value(value)
-    if bus is not None:
-        if not {"at_s", "on_transaction", "probability", "address", "on_register"} & set(params):
-            params["at_s"] = float(chip.time)
-        schedule = FaultSchedule([fault_from_dict({"kind": kind, **params}, kind)], seed=seed)
-        schedule.install([ChipOnBus(chip, bus)])
-        return schedule
-    if kind in BUS_KINDS:
-        raise FaultError(f"{kind} is a bus fault: give the bus the chip is on, "
-                         f"inject(chip, {kind!r}, bus=...) (the pytest plugin's bmg160_smbus), "
-                         "or use a GyroRig")
-    if {"on_transaction", "probability"} & set(params):
-        raise FaultError(f"{kind}: a lone chip has no transactions to count; give at_s")
-    now = float(chip.time)
-    params.setdefault("at_s", now)
-    fault = fault_from_dict({"kind": kind, **params}, kind)
-    assert fault.at_s is not None
-    if fault.layer == "chip" and fault.at_s > now:
-        raise FaultError(f"{kind}: acts at once on a lone chip; at_s cannot be in the future")
-    schedule = FaultSchedule([fault], log_to_bus=False)
-    target = _LoneChip(chip)
-    schedule._gyros = [target]
-    schedule._sample_flags[0] = {}
-    chip.sample_hooks.append(schedule._sample_hook_for(target))
-    if fault.layer == "sample":
-        schedule._activate(0, target, fault.at_s, None)
-    else:
-        schedule._chip_fault(fault, target, now, None)
-    return schedule
+        return event.detail
+    base_c = base_temperature(gyro) if event.kind == "temperature_ramp" else None
+    if activation is None:
+        return fault_entry_text(event.detail, effect_parameters(fault), base_temperature_c=base_c)
+    return fault_entry_text(
+        event.detail, effect_parameters(fault), activation=True, start_s=activation.start_s,
+        end_s=None if math.isinf(activation.end_s) else activation.end_s,
+        first_sample_s=event.time_s,
+        held_dps=None if activation.held is None else activation.held.tolist(),
+        base_temperature_c=base_c)

@@ -310,6 +310,7 @@ class RateTableFile(FileReader):
 
     def read(self) -> np.ndarray:
         self.check_path()
+        where = None  # a CSV row's file and line (an .npy's row is its index)
         if self.path.suffix.lower() == ".npy":
             data = read_npy(self.path)
         else:
@@ -320,12 +321,15 @@ class RateTableFile(FileReader):
                                         "t_s, x, y, z")
                 return None, [0, 1, 2, 3]
 
-            data = read_csv_table(self.path, choose).values
+            table = read_csv_table(self.path, choose)
+            data, where = table.values, table.where
         if data.ndim != 2 or data.shape[1] != 4:
             raise RateFileError(f"a rate table holds rows of 4 numbers (t_s, x, y, z), not "
                                 f"shape {data.shape}", path=self.path)
         bad = first_non_finite(data)
-        if bad is not None:
+        if bad is not None:  # named by line (issue 35: a nan used to fail later, unnamed)
+            if where is not None:
+                raise RateFileError(f"{where(bad)}: empty or non-finite value")
             raise RateFileError(f"row {bad}: empty or non-finite value", path=self.path)
         return data
 

@@ -18,17 +18,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from bmg160_emu.bus.i2c import KIND_FUNCS
-from bmg160_emu.bus.transactions import Transaction, bytes_from_json
 from bmg160_emu.device.config import ChipConfig
 from bmg160_emu.io.atomic import AtomicFile
 from bmg160_emu.io.errors import FormatError, loads_json, read_text
 from bmg160_emu.io.formats import FileFormat, register_format
+from bmg160_emu.traffic.kinds import TRUE_RATE_KIND, known_kind
+from bmg160_emu.traffic.transaction import Transaction, bytes_from_json
 
 TRACE_FORMAT_TAG = "bmg160-emu trace"
 TRACE_FORMAT_VERSION = 1
-FAULT_KIND_PREFIX = "fault:"  # entries bmg160_emu.faults adds at a fault's onset
-TRUE_RATE_KIND = "true_rate"  # the session changed a chip's true rate (a script's `rate`)
 END_KEY = "end"  # the last line of a complete trace: {"end": TRACE_FORMAT_TAG, "transactions": n}
 CUT_SHORT = "no end line: the session was cut short (docs/outputs.md)"
 
@@ -63,23 +61,6 @@ def parse_true_rate_entry(written: bytes | str) -> tuple[float, float, float]:
     if not all(math.isfinite(v) for v in (x, y, z)):
         raise TraceFormatError("a true_rate entry with a rate that is not finite")
     return x, y, z
-
-
-def parse_fault_entry(written: bytes | str) -> tuple[str, dict[str, Any] | None]:
-    """(description, parameters or None) of a ``fault:<kind>`` entry's written bytes.
-
-    Entries written before the parameters were added carry only the description (None)."""
-    text = written.decode("utf-8", "replace") if isinstance(written, (bytes, bytearray)) else written
-    detail, _, rest = text.partition("\n")
-    if not rest.strip():
-        return detail, None
-    try:
-        entry = json.loads(rest)
-    except json.JSONDecodeError:
-        return detail, None
-    if not isinstance(entry, dict) or not isinstance(entry.get("fault"), dict):
-        return detail, None
-    return detail, entry
 
 
 # --------------------------------------------------------------------------- JSON Lines
@@ -296,8 +277,6 @@ def _check_end(obj: dict, count: int, where: str) -> dict:
     return obj
 
 
-# every kind a front end logs: the I2C kinds of I2CBus, the SPI frames, the annotations
-_KINDS = frozenset(KIND_FUNCS) | {"spi_read", "spi_write", "spi_frame", TRUE_RATE_KIND}
 _MAX_BYTES = 1 << 16  # far beyond any bus transaction (SMBus blocks: 32, i2c_rdwr: 8192)
 
 
@@ -323,7 +302,7 @@ def _check_bytes(value: Any, key: str, where: str) -> None:
 
 def _check_record(obj: dict, where: str) -> None:
     kind = obj.get("kind")
-    if not isinstance(kind, str) or not (kind in _KINDS or kind.startswith("fault:")):
+    if not isinstance(kind, str) or not known_kind(kind):
         raise TraceFormatError(f"{where}: unknown transaction kind {str(kind)[:40]!r}")
     t = obj.get("time", obj.get("time_s"))
     if not isinstance(t, (int, float)) or isinstance(t, bool) or not 0 <= t < 1e12:

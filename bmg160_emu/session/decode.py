@@ -11,7 +11,6 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from bmg160_emu.bus.transactions import bytes_from_json
 from bmg160_emu.device import registers
 from bmg160_emu.device.fields import (
     decode_register,
@@ -20,8 +19,11 @@ from bmg160_emu.device.fields import (
     register_name,
 )
 from bmg160_emu.device.registers import REGISTER_COUNT, REGISTERS, Register
+from bmg160_emu.device.spec_choices import REGISTER_ADDRESS_MASK
 from bmg160_emu.io.dump import RegisterDump
-from bmg160_emu.io.trace import FAULT_KIND_PREFIX, TRUE_RATE_KIND, parse_fault_entry
+from bmg160_emu.traffic.fault_entry import parse_fault_entry
+from bmg160_emu.traffic.kinds import FAULT_KIND_PREFIX, TRUE_RATE_KIND
+from bmg160_emu.traffic.transaction import bytes_from_json
 
 FIFO_DATA = registers.address_of("FIFO_DATA")  # the pointer does not advance here (spec 2.4)
 
@@ -73,6 +75,9 @@ def _rate_words(register: int, data: bytes) -> str | None:
 def describe_write(register: int, data: bytes, table: Table = REGISTERS) -> str:
     """'write 0x0F RANGE <- 0x02 (+-500 deg/s)': one register, or each byte of a burst
     (``table``: the part's register table, for its names and fields)."""
+    if register & ~REGISTER_ADDRESS_MASK:  # bit 7 is not decoded (spec 2.4)
+        return f"[0x{register:02X}: bit 7 not decoded] " + describe_write(
+            register & REGISTER_ADDRESS_MASK, data, table)
     if len(data) == 1:
         return (f"write {register_label(register, table)} <- 0x{data[0]:02x}"
                 f"{_field_text(register, data[0], table)}")
@@ -89,6 +94,9 @@ def describe_write(register: int, data: bytes, table: Table = REGISTERS) -> str:
 
 def describe_read(register: int, data: bytes, table: Table = REGISTERS) -> str:
     """'burst read 0x02..0x07 -> x=-12 y=3 z=40' or 'read 0x00 CHIP_ID -> 0x0f (...)'."""
+    if register & ~REGISTER_ADDRESS_MASK:  # bit 7 is not decoded (spec 2.4)
+        return f"[0x{register:02X}: bit 7 not decoded] " + describe_read(
+            register & REGISTER_ADDRESS_MASK, data, table)
     if len(data) == 1:
         value = data[0]
         if register >= REGISTER_COUNT:

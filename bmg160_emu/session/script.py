@@ -119,7 +119,7 @@ class ScriptRunner:
         try:
             self._execute(s)
         except OSError as exc:  # a bus error the script did not expect (e.g. an injected NACK)
-            from bmg160_emu.bus.transactions import errno_name
+            from bmg160_emu.traffic.transaction import errno_name
 
             name = errno_name(exc.errno) if exc.errno else str(exc)
             raise ScriptFailure(

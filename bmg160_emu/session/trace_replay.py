@@ -11,17 +11,16 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from bmg160_emu.bus.transactions import Transaction, bytes_from_json, errno_name
 from bmg160_emu.io.trace import (
-    FAULT_KIND_PREFIX,
     TRACE_FORMAT_TAG,
-    TRUE_RATE_KIND,
     TraceFormatError,
     TraceHeader,
-    parse_fault_entry,
     parse_true_rate_entry,
 )
 from bmg160_emu.session.decode import describe_transaction, record_value
+from bmg160_emu.traffic.fault_entry import parse_fault_entry
+from bmg160_emu.traffic.kinds import FAULT_KIND_PREFIX, TRUE_RATE_KIND
+from bmg160_emu.traffic.transaction import Transaction, bytes_from_json, errno_name
 
 
 @dataclass
@@ -72,7 +71,7 @@ class _Replayer:
     """Runs recorded transactions through the same front ends on fresh chips."""
 
     def __init__(self, chips: dict[int, Any]):
-        from bmg160_emu.bus.i2c import I2CBus
+        from bmg160_emu.bus.i2c import I2CBus, I2CMessage
         from bmg160_emu.bus.spi import FakeSpiDev
 
         self.chips = chips
@@ -80,6 +79,7 @@ class _Replayer:
         self._buses: dict[Any, Any] = {}
         self._spi: dict[Any, Any] = {}
         self._I2CBus = I2CBus
+        self._I2CMessage = I2CMessage
         self._FakeSpiDev = FakeSpiDev
         self._pending_error: str | None = None
 
@@ -166,6 +166,10 @@ class _Replayer:
             bus.i2c_write(a, (bytes([reg]) if reg is not None else b"") + w)
             return b""
         if kind == "i2c_read":
+            if reg is not None and a is not None:  # a register read: write, repeated start, read
+                write = self._I2CMessage.write(a, bytes([reg]) + w)
+                read = self._I2CMessage.read_message(a, len(expected))
+                return bytes(bus.i2c_transfer([write, read])[1].data)
             return bytes(bus.i2c_read(a, len(expected)))
         raise TraceFormatError(f"cannot replay a transaction of kind {kind!r}")
 
@@ -184,7 +188,8 @@ class _FaultReplayer:
     so they touch exactly the samples they touched in the session (and a stuck axis holds
     the same previous sample). Chip faults (SEU, brown-out) act when the replay reaches
     their entry, just before the transaction that triggered them, as in the session. Bus
-    faults need no entry: the failed transaction carries its errno and is failed again.
+    faults that fail a transaction need no entry: it carries its errno and is failed again;
+    a corrupted byte is acted again on the transaction after its entry.
     """
 
     def __init__(self, replayer: _Replayer):
@@ -245,11 +250,11 @@ class _FaultReplayer:
             return entry is not None and "activation" in entry
         if kind in CHIP_KINDS:
             return entry is not None or _chip_fault_from_text(kind, detail) is not None
-        return False
+        return kind == "corrupt_byte" and entry is not None  # the next transaction's byte
 
     def act(self, record: dict, line: int) -> None:
         """The replay has reached a fault entry: act a chip fault now, count a sample fault."""
-        from bmg160_emu.faults import CHIP_KINDS, inject
+        from bmg160_emu.faults import CHIP_KINDS, inject, replay_bus_fault
 
         if not self._replayable(record):
             return  # listed by prepare()
@@ -266,6 +271,9 @@ class _FaultReplayer:
             params.pop("at_s", None)
             params.pop("kind", None)
             inject(chip, kind, **params)
+        elif kind == "corrupt_byte":
+            assert entry is not None
+            replay_bus_fault(entry, self._chip(record, line), self.replayer.bus(record.get("bus", 0)))
         self.reapplied += 1
 
 

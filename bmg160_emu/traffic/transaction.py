@@ -12,8 +12,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
-# Log entries that record an event of the session rather than bus traffic.
-ANNOTATION_KINDS = frozenset({"true_rate"})  # trace.TRUE_RATE_KIND; faults are "fault:<kind>"
+from bmg160_emu.traffic.kinds import is_annotation, register_writes
 
 Sink = Callable[["Transaction"], None]
 
@@ -77,7 +76,7 @@ class Transaction:
         where = f"{self.bus}" + (f" 0x{self.address:02x}" if self.address is not None else "")
         reg = f" reg 0x{self.register:02x}" if self.register is not None else ""
         text = f"{self.time:12.6f}s  {where:<9} {self.kind}{reg}"
-        if self.kind in ANNOTATION_KINDS or self.kind.startswith("fault:"):
+        if is_annotation(self.kind):
             # not bus traffic: an event the session noted (a fault, a true-rate change) whose
             # written bytes are a description line (and machine-readable lines after it)
             lines = self.written.decode("utf-8", "replace").splitlines()
@@ -202,6 +201,13 @@ class TransactionLog:
 
     def kinds(self) -> list[str]:
         return [entry[3] for entry in list(self.entries)]
+
+    def register_writes(self, address: int | None = None) -> list[tuple[int, int]]:
+        """``(register, value)`` of every byte written into a device's registers (of the
+        device at ``address``, or any), oldest first, one pair per register of a burst:
+        the same for a driver whichever stack it uses (smbus2's ``write_byte_data``,
+        Blinka's or MicroPython's ``i2c_write``)."""
+        return register_writes(list(self.entries), address)
 
     def to_dicts(self) -> list[dict[str, Any]]:
         return [t.to_dict() for t in self]
