@@ -10,7 +10,7 @@ frees it on return; since CPython 3.11 that includes mapping and unmapping a fra
 ``keep_thread_state()``, called from such a call, takes one more ``PyGILState_Ensure``
 reference on the thread state the call runs in, so that the state outlives the call: the
 next calls from that thread find it (their ``PyGILState_Release`` only releases the GIL),
-and every Python module of the simulation runs without the cost (1.3 us for three modules
+and every Python module of the simulation runs without the cost (about 1 us for three modules
 instead of 24 us). It is Python's own state for that thread, as a thread Python started
 has all its life; it is freed with the interpreter, not when the thread ends (CPython frees
 a thread state only from its own thread): about 5 kB of memory per simulation run in a
