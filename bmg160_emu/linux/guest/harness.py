@@ -139,7 +139,8 @@ class Backend:
 
             self.calendar_socket = sockets / "time.sock"
             self.calendar = Calendar(self.server, os.fspath(self.calendar_socket), clock)
-            self.server.before_reply = self.calendar.tighten
+            calendar = self.calendar
+            self.server.before_reply = lambda: calendar.tighten(self._settle_calls)
             for device in (self.i2c, self.gpio):
                 if device is not None:
                     device.inband = True  # completions as events of the calendar
@@ -166,6 +167,11 @@ class Backend:
         except Exception as exc:  # noqa: BLE001 (kept for the caller; the guest sees a dead device)
             self.error = exc
             self.replies.add()  # wake a waiting caller: it finds the guest gone or the error
+
+    def _settle_calls(self) -> None:
+        for device in (self.i2c, self.gpio):
+            if device is not None:
+                device.settle_calls()
 
     def _replied(self) -> None:
         if self.calendar is not None:
