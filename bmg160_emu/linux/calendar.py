@@ -110,6 +110,15 @@ class Calendar:
         """The host has its reply and prepares its next request (on the loop's thread)."""
         self.holding = True
 
+    def run_free(self) -> None:
+        """The host will send nothing more (the agent was told to stop): the guest's time
+        goes on as it asks, so that its power-off finishes (from any thread)."""
+        def free() -> None:
+            self.holding = False
+            self.dispatch()
+
+        self.server.call_soon(free)
+
     def release(self, ring: Callable[[], None]) -> None:
         """Deliver the host's next request with ``ring`` (from any thread)."""
         def arm() -> None:

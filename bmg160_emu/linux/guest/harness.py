@@ -405,6 +405,8 @@ class Guest:
         if self.alive:
             try:
                 self.call([agent.stop()], timeout_s=timeout_s)
+                if self.backend is not None and self.backend.calendar is not None:
+                    self.backend.calendar.run_free()  # its power-off may wait for a timer
                 assert self.process is not None
                 self.process.wait(timeout=timeout_s)
             except (GuestDied, subprocess.TimeoutExpired, agent.ProtocolError, OSError):
