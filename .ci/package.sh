@@ -27,6 +27,6 @@ export XDG_CACHE_HOME="$work/cache"  # where a shipped copy's firmware builds go
 "$work/venv/bin/bmg160-emu" demo >"$work/demo.txt"
 grep -q "CHIP_ID = 0x0F" "$work/demo.txt" || { cat "$work/demo.txt"; exit 1; }
 "$work/venv/bin/bmg160-emu" firmware build
-"$work/venv/bin/bmg160-emu" firmware capture --seconds 0.2 --output "$work/stream.txt"
+"$work/venv/bin/bmg160-emu" firmware capture --duration 0.2 --output "$work/stream.txt"
 [ -s "$work/stream.txt" ] || { echo "firmware capture wrote nothing"; exit 1; }
 echo "package: sdist and wheel built and checked; demo, firmware build and capture ran from the wheel"

@@ -6,33 +6,10 @@ command that needs only one part of the package does not pay for the others.
 
 from __future__ import annotations
 
-import signal as _signal
-import sys as _sys
+# First: SIGINT and SIGTERM held as the command, ignored by its workers (bmg160_emu.startup)
+from bmg160_emu import startup as _startup
 
-
-def _stopped_while_starting(number: int, frame: object) -> None:
-    # os._exit, not SystemExit: the handler may run inside a finaliser during an import,
-    # where an exception is printed and ignored (a traceback, and the command ran on); and
-    # before the command runs there is nothing to finish or clean up
-    _sys.stderr.write(f"bmg160-emu: interrupted by {_signal.Signals(number).name} while "
-                      "starting; nothing written\n")
-    _sys.stderr.flush()
-    import os
-
-    os._exit(128 + number)
-
-
-# Run as the command (console script, python -m bmg160_emu), SIGINT and SIGTERM stop it with
-# one line and their exit status from the package's first line on, never a KeyboardInterrupt
-# traceback out of an import (issue 24); bmg160_emu.cli takes over when the command starts.
-# (the console script's own file is __main__: a Dask worker spawned from it gets its
-# sys.argv, not its __main__, and keeps Python's handlers)
-_MAIN_FILE = str(getattr(_sys.modules.get("__main__"), "__file__", None) or "")
-if (_sys.argv[0].endswith("bmg160-emu") and _MAIN_FILE.endswith("bmg160-emu")) \
-        or _sys.orig_argv[1:3] == ["-m", "bmg160_emu"]:
-    for _number in (_signal.SIGINT, _signal.SIGTERM):
-        if _signal.getsignal(_number) is not _signal.SIG_IGN:  # nohup, a background job
-            _signal.signal(_number, _stopped_while_starting)
+_startup.hold_signals()
 
 import importlib
 from typing import Any

@@ -10,6 +10,7 @@ touches this file.
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import os
 import pkgutil
@@ -17,38 +18,51 @@ import signal
 import sys
 import threading
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
-from bmg160_emu import __version__, commands
-from bmg160_emu.commands._common import CommandError  # what the commands raise: one line
+from bmg160_emu import __version__, commands, startup
+from bmg160_emu.commands._common import (  # what the commands raise: one line
+    CommandError,
+    add_command_parser,
+)
 from bmg160_emu.commands._extras import missing_message
 
 
-def _stopped_while_starting(number: int, frame: object) -> None:
-    """SIGINT or SIGTERM before a command runs: one line and the signal's exit status, never
-    a KeyboardInterrupt traceback from the middle of an import (issue 24)."""
-    name = signal.Signals(number).name
-    sys.stderr.write(f"bmg160-emu: interrupted by {name} while starting; nothing written\n")
-    if _AS_COMMAND:  # nothing to clean up yet, and no finaliser can swallow it (__init__.py)
-        sys.stderr.flush()
-        os._exit(128 + number)
-    raise SystemExit(128 + number)
-
-
 def _stopped_while_exiting(number: int, frame: object) -> None:
-    """A signal after the command returned: its outputs are finished; exit now, as it says."""
+    """A signal after the command returned: its outputs are finished (each is whole or
+    absent, io.atomic); say so and exit now, with the signal's status (issue 35: a SIGTERM
+    then used to end the process without a word)."""
     for stream in (sys.stdout, sys.stderr):
         try:
+            if stream is sys.stderr:
+                stream.write(f"bmg160-emu {_EXITING[0]}: interrupted by "
+                             f"{signal.Signals(number).name} while exiting; what it wrote is "
+                             "whole (docs/outputs.md)\n")
             stream.flush()
         except (OSError, ValueError):
             pass
     os._exit(128 + number)
 
 
+_EXITING = ["?"]  # the command being run, for the line above
+
+
+def _signals_ignored_at_the_end() -> None:
+    """The last exit handler (registered first): from here the interpreter tears itself
+    down, restoring the default handlers on the way (CPython's _PySignal_Fini), and a signal
+    then ended the process without a word; ignored (a disposition the teardown keeps, in
+    every thread), it is dropped, and the status is the command's."""
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, signal.SIG_IGN)
+
+
 # Run as the command (the console script, python -m bmg160_emu), the process exits with the
-# command; bmg160_emu/__init__.py has held the signals since the package's first line.
+# command; bmg160_emu.startup has held the signals since the package's first line.
 # Imported by a program (tests call main() in-process), the handlers are restored at the end.
-_AS_COMMAND = sys.argv[0].endswith(("bmg160-emu", "bmg160_emu/__main__.py"))
+_AS_COMMAND = startup.AS_COMMAND
+if _AS_COMMAND:
+    atexit.register(_signals_ignored_at_the_end)
 
 __all__ = ["build_parser", "main"]
 
@@ -64,10 +78,19 @@ def _terminate(signum: int, frame: object) -> None:
     raise Terminated
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+class CommandLine(argparse.ArgumentParser):
+    """The top-level parser; ``command_parsers`` maps each command to its own parser, so
+    that a command's mistakes are told with the command's usage (``demo --sed 3`` printed
+    the top-level usage, issue 35)."""
+
+    command_parsers: dict[str, argparse.ArgumentParser]
+
+
+def build_parser() -> CommandLine:
+    parser = CommandLine(
         prog="bmg160-emu",
         description="Emulate the Bosch BMG160 gyroscope at register level.",
+        epilog="bmg160-emu help COMMAND (or bmg160-emu COMMAND --help) describes a command.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
@@ -76,21 +99,47 @@ def build_parser() -> argparse.ArgumentParser:
             continue
         module = importlib.import_module(f"{commands.__name__}.{info.name}")
         module.register(sub)
+    helper = add_command_parser(
+        sub, "help", "describe bmg160-emu or one of its commands",
+        "Describe bmg160-emu, or the command named.",
+        "examples:\n  bmg160-emu help\n  bmg160-emu help identify")
+    helper.add_argument("topic", nargs="?", metavar="COMMAND", help="a command (default: all)")
+    helper.set_defaults(func=lambda args: _help(parser, args.topic))
+    parser.command_parsers = dict(sub.choices)
     return parser
+
+
+def _help(parser: CommandLine, topic: str | None) -> int:
+    """``bmg160-emu help [COMMAND]``: the help of the program or of one command."""
+    if topic is None:
+        parser.print_help()
+        return 0
+    command = parser.command_parsers.get(topic)
+    if command is None:
+        names = ", ".join(sorted(parser.command_parsers))
+        parser.command_parsers["help"].error(f"no command {topic!r}; the commands: {names}")
+    command.print_help()
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     in_main_thread = threading.current_thread() is threading.main_thread()
     previous = {}
     if in_main_thread:  # restored at the end unless this process is the command
-        previous = {n: signal.signal(n, _stopped_while_starting)
+        previous = {n: signal.signal(n, startup.stopped_while_starting)
                     for n in (signal.SIGINT, signal.SIGTERM)
                     if signal.getsignal(n) is not signal.SIG_IGN}
     command = "?"
+    from bmg160_emu.io.atomic import outputs_so_far
+
+    before = outputs_so_far()
     try:
         parser = build_parser()
-        args = parser.parse_args(argv)
-        command = args.command
+        args, extra = parser.parse_known_args(argv)
+        command = _EXITING[0] = args.command
+        if extra:  # told with the command's own usage, not the program's
+            parser.command_parsers.get(command, parser).error(
+                f"unrecognized arguments: {' '.join(extra)}")
         if not getattr(args, "func", None):
             parser.print_help()
             return 2
@@ -122,7 +171,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt as exc:
         name = getattr(exc, "signal_name", "SIGINT")
-        kept = getattr(exc, "kept", None) or "unfinished outputs removed (docs/outputs.md)"
+        kept = getattr(exc, "kept", None) or _what_was_kept(before)
         print(f"bmg160-emu {command}: interrupted by {name}; {kept}", file=sys.stderr)
         return 143 if name == "SIGTERM" else 130
     except BrokenPipeError:
@@ -130,10 +179,41 @@ def main(argv: Sequence[str] | None = None) -> int:
         # Unix tools do, and keep Python from complaining again when it flushes stdout at exit.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        # a file the user named that the system refuses (a name too long, a loop of links, a
+        # folder where a file was meant): one line naming it, wherever the command met it
+        # (issue 35: path options were checked one by one, and a 300-character name slipped
+        # through four of them). An OSError without a file name is a defect: its traceback.
+        if exc.filename is None:
+            raise
+        from bmg160_emu.io.atomic import name_problem, shown_path
+
+        why = name_problem(exc.filename) or exc.strerror or type(exc).__name__
+        print(f"bmg160-emu {command}: error: cannot use {shown_path(exc.filename)}: {why}",
+              file=sys.stderr)
+        return 2
     finally:
         if not _AS_COMMAND:
             for number, handler in previous.items():
                 signal.signal(number, _restorable(handler))
+
+
+def _what_was_kept(before: tuple[list[Path], list[Path]]) -> str:
+    """What a stopped command leaves, from io.atomic's record of this command's outputs:
+    never "removed" alone when some were written whole (issue 35)."""
+    from bmg160_emu.io.atomic import outputs_so_far
+
+    written, discarded = (after[len(then):] for after, then in zip(outputs_so_far(), before))
+    done = [str(p) for p in dict.fromkeys(written)]
+    cut = [str(p) for p in dict.fromkeys(discarded) if str(p) not in done]
+    if not done and not cut:
+        return "nothing written"
+    said = []
+    if done:
+        said.append(f"{', '.join(done)} written whole")
+    if cut:
+        said.append(f"unfinished {', '.join(cut)} removed (docs/outputs.md)")
+    return "; ".join(said)
 
 
 def _restorable(handler: Any) -> Any:

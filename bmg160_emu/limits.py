@@ -160,8 +160,18 @@ FULL_SCALE_DPS = Bounded("full-scale range", 125, 2000, "deg/s", integer=True,
 POLYNOMIAL_ORDER = Bounded("polynomial order", 0, 3, integer=True,
                            reason="PX4's thermal compensation is a cubic (TC_G*_X3)")
 RECORD_SAMPLES = Bounded("samples to record", 1, 100_000_000, integer=True,
-                        reason="memory: record holds 56 bytes a sample until it writes them; "
-                               "1e8 samples (5.6 GB) are 13.9 h at 2000 Hz, 11.6 days at 100 Hz")
+                        reason="work and memory: 1e8 samples are 13.9 h at 2000 Hz, 11.6 days "
+                               "at 100 Hz; record holds about 140 bytes a sample until it "
+                               "writes them (14 GB for 1e8) and refuses, by that figure, what "
+                               "this process cannot hold")
+# What record (and replay -o) holds per sample until it writes the file: 56 bytes of arrays
+# (time, counts, truth) and the writer's copies. Peak RSS less a 50 s run's, over 400,000
+# samples at 2000 Hz (2026-12-06): 78 bytes a sample to CSV, 117 to NPZ, 131 to RESD.
+RECORD_BYTES_PER_SAMPLE = 140
+THERMAL_BLOCKS = Bounded("blocks", 1, 2_000, integer=True,
+                         reason="the fit's covariance holds blocks x blocks numbers and its "
+                                "Cholesky costs blocks^3: 2,000 blocks take about 9 s and "
+                                "280 MB, 4,000 blocks 30 s and 890 MB (measured)")
 GUEST_TIMEOUT_S = Bounded("timeout", 1.0, 86_400.0, "s",
                           reason="wall time for a command in a kernel guest: a second (a boot "
                                  "takes about that) to a day")

@@ -37,8 +37,8 @@ LAYERS = {  # first name under bmg160_emu -> layer (a module may import its laye
     "linux": 4, "io": 4, "serve": 4,
     "bus": 3,
     "device": 2,
-    "clock": 1, "durations": 1, "noise": 1, "traffic": 1,
-    "limits": 0,
+    "clock": 1, "durations": 1, "noise": 1, "traffic": 1, "progress": 1,
+    "limits": 0, "startup": 0,
 }
 
 # Names with a leading underscore that are public by their owner's documentation, used

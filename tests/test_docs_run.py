@@ -125,7 +125,7 @@ def test_titled_blocks_become_files_and_markers_are_checked(tmp_path):
 
 def test_commands_quoted_in_prose_name_real_options(tmp_path):
     page = _page(tmp_path, "Use `bmg160-emu record --duration 1s --frobnicate` or\n"
-                 "`bmg160-emu recrod`; `bmg160-emu firmware capture --seconds 2` is fine, as is\n"
+                 "`bmg160-emu recrod`; `bmg160-emu firmware capture --duration 2` is fine, as is\n"
                  "`bmg160-emu trace --replay`.\n\n```console\n$ echo '`bmg160-emu x --y`'\n"
                  "`bmg160-emu x --y`\n```\n")
     failures = run_docs.run_page(page).failures

@@ -17,7 +17,7 @@ pytestmark = [
 def test_capture_onto_a_full_disk_is_a_one_line_error(tmp_path, capsys):
     full = tmp_path / "full.csv"
     full.symlink_to("/dev/full")
-    status = cli.main(["firmware", "capture", "--seconds", "0.2", "--output", str(full),
+    status = cli.main(["firmware", "capture", "--duration", "0.2", "--output", str(full),
                        "--out", str(tmp_path / "build")])
     err = capsys.readouterr().err.strip()
     assert status == 2
@@ -26,7 +26,7 @@ def test_capture_onto_a_full_disk_is_a_one_line_error(tmp_path, capsys):
 
 def test_capture_writes_the_whole_stream_under_its_name(tmp_path, capsys):
     out = tmp_path / "stream.txt"
-    status = cli.main(["firmware", "capture", "--seconds", "0.2", "--output", str(out),
+    status = cli.main(["firmware", "capture", "--duration", "0.2", "--output", str(out),
                        "--out", str(tmp_path / "build")])
     assert status == 0 and f"wrote {out}" in capsys.readouterr().out
     assert out.read_text().strip()
@@ -34,6 +34,6 @@ def test_capture_writes_the_whole_stream_under_its_name(tmp_path, capsys):
 
 
 def test_capture_to_a_missing_folder_is_refused_before_the_build(tmp_path, capsys):
-    status = cli.main(["firmware", "capture", "--seconds", "0.2",
+    status = cli.main(["firmware", "capture", "--duration", "0.2",
                        "--output", str(tmp_path / "nope" / "s.txt")])
     assert status == 2 and "does not exist" in capsys.readouterr().err

@@ -55,6 +55,8 @@ def _numeric_actions():
             parsers += [(f"{name} {n}", p) for n, p in action.choices.items()]
         for label, p in parsers:
             for action in p._actions:
+                if action.help == argparse.SUPPRESS:
+                    continue  # an old spelling kept hidden for a release: its new one is here
                 if action.type in (int, float):
                     yield label, action, "raw"
                 elif action.type is not None and action.option_strings and \

@@ -1,7 +1,7 @@
 """identify reads the firmware's UART stream (firmware capture, or a board's serial port) and
 RESD files (generate/record -o .resd): the rates, the rate, and one-line errors that name the
 file and the line or byte. tests/data/firmware_capture.txt is a recorded capture:
-``bmg160-emu firmware capture --seconds 6 --seed 4 --output tests/data/firmware_capture.txt``."""
+``bmg160-emu firmware capture --duration 6 --seed 4 --output tests/data/firmware_capture.txt``."""
 
 from __future__ import annotations
 
@@ -182,7 +182,7 @@ def test_the_registry_writes_rates_as_resd_and_refuses_what_resd_cannot_hold(tmp
 @pytest.mark.skipif(firmware_skip_reason() is not None, reason=str(firmware_skip_reason()))
 def test_firmware_capture_then_identify(tmp_path, capsys):
     stream = tmp_path / "stream.txt"
-    assert cli.main(["firmware", "capture", "--seconds", "6", "--odr", "400", "--output",
+    assert cli.main(["firmware", "capture", "--duration", "6", "--rate", "400", "--output",
                      str(stream), "--out", str(tmp_path / "build")]) == 0
     capsys.readouterr()
     out = _identify_json(capsys, str(stream))

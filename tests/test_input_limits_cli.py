@@ -28,7 +28,7 @@ def _one_error_line(err):
 def test_firmware_capture_of_infinite_seconds_is_refused_not_reported_as_written(tmp_path,
                                                                                  capsys):
     # it used to exit 0 saying it wrote "inf simulated s", the file a 2-line header
-    status, err = _run(["firmware", "capture", "--seconds", "inf", "--output",
+    status, err = _run(["firmware", "capture", "--duration", "inf", "--output",
                         str(tmp_path / "s.txt")], capsys)
     assert status == 2 and "not a duration" in _one_error_line(err)
     assert not (tmp_path / "s.txt").exists()

@@ -105,7 +105,7 @@ def test_real_time_runs_the_program_with_real_sleeps(tmp_path, capsys):
         time.sleep_ms(20)
         print(len(I2C(1).readfrom_mem(0x68, 0x02, 6)))
     """)
-    assert main(["micropython", "--real-time", str(path)]) == 0
+    assert main(["micropython", "--realtime", str(path)]) == 0
     assert _lines(capsys)[0] == ["6"]
 
 

@@ -267,3 +267,91 @@ def test_monte_carlo_output_onto_a_full_disk_is_a_one_line_error_after_the_table
     captured = capsys.readouterr()
     assert status == 2 and "p50_deg" in captured.out  # the results were printed ...
     assert captured.err.count("\n") == 1 and "No space left on device" in captured.err
+
+
+@pytest.mark.parametrize(("scheduler", "message"), [
+    ("5:2", "'5' is not an IPv4 address a.b.c.d"),  # once a 3.07 EiB allocation in Dask
+    ("0:99999999999999999999", "'0' is not an IPv4 address"),  # once an OverflowError
+    ("localhost:99999999999999999999", "the port must be 1 to 65535, not '999999999"),
+    ("tcp://10.0.0.5:0", "the port must be 1 to 65535, not '0'"),
+    ("tcp://:8786", "'' is not a host name"),
+    ("udp://10.0.0.5:8786", "scheme one of tcp, tls, inproc, ucx, ws, wss"),
+    ("tls://[::zz]:8786", "'::zz' is not an IPv6 address"),
+    ("a" * 300 + ":8786", "is not a host name"),
+])
+def test_a_scheduler_that_cannot_be_an_address_is_refused_in_one_line(
+        tmp_path, capsys, scheduler, message):
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(SCENARIO_TOML)
+    status = main(["montecarlo", str(scenario), "--runs", "1", "--scheduler", scheduler])
+    err = capsys.readouterr().err
+    assert status == 2 and message in err, err
+    assert len(err.strip().splitlines()) == 1 and len(err) < 400 and "Traceback" not in err
+
+
+@pytest.mark.parametrize("address", ["local", "sync", "tcp://10.0.0.5:8786", "localhost:8786",
+                                     "tls://[::1]:8786", "bogus", "scheduler.example.org"])
+def test_scheduler_addresses_a_dask_cluster_takes_pass_the_check(address):
+    from bmg160_emu.adcs.montecarlo import scheduler_address
+
+    assert scheduler_address(address) == address
+
+
+class _FakeFuture:
+    def __init__(self, value):
+        self.value = value
+
+    def result(self):
+        return self.value
+
+
+@needs_dask
+@pytest.mark.parametrize("when", ["close", "last run"])
+def test_a_signal_while_dask_shuts_down_keeps_every_finished_run(monkeypatch, tmp_path, capsys,
+                                                                 when):
+    # issue 35: a SIGTERM while the client closed, after every run had finished, left the
+    # command saying "unfinished outputs removed" with no file. Here a stand-in Client runs
+    # the runs in this process and raises SIGTERM as it closes (or as the last run ends);
+    # the command's own handler (cli._terminate) turns it into the exception it raises.
+    import signal
+
+    import distributed
+
+    from bmg160_emu.adcs.evaluation import PropagationRun
+
+    class Client:
+        def __init__(self, address, timeout=None):
+            pass
+
+        def map(self, run, seeds, pure=False):
+            return [_FakeFuture(run(s)) for s in seeds]
+
+        def close(self):
+            if when == "close":
+                signal.raise_signal(signal.SIGTERM)
+
+    def as_completed(futures):
+        for k, future in enumerate(futures):
+            if when == "last run" and k == len(futures) - 1:
+                yield future
+                signal.raise_signal(signal.SIGTERM)
+            else:
+                yield future
+
+    monkeypatch.setattr(distributed, "Client", Client)
+    monkeypatch.setattr(distributed, "as_completed", as_completed)
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(SCENARIO_TOML)
+    out = tmp_path / "curves.json"
+    status = main(["montecarlo", str(scenario), "--runs", "3", "--scheduler",
+                   "tcp://127.0.0.1:8786", "--output", str(out)])
+    err = capsys.readouterr().err
+    assert status == 143, err
+    assert "interrupted by SIGTERM after all 3 runs" in err and "complete" in err
+    import json
+
+    document = json.loads(out.read_text())
+    assert document["seeds"] == [0, 1, 2] and document["interrupted"] is False
+    whole = run_montecarlo(scenario, [0, 1, 2], scheduler="sync", progress=False)
+    assert document["percentiles_deg"]["p50"] == whole.percentiles[50.0].tolist()
+    del PropagationRun

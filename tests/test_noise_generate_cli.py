@@ -33,7 +33,7 @@ def test_npy_output_is_the_generator_stream_written_in_chunks(tmp_path, monkeypa
 def test_csv_output_has_time_and_reads_back(tmp_path):
     out = tmp_path / "noise.csv"
     args = ["generate", "--profile", "datasheet", "--rate", "100", "--duration", "2s"]
-    assert main(args + ["--seed", "2", "--mode", "physical", "-o", str(out)]) == 0
+    assert main(args + ["--seed", "2", "--noise-mode", "physical", "-o", str(out)]) == 0
     lines = out.read_text().splitlines()
     assert lines[0].startswith("# bmg160-emu generate: profile=datasheet mode=physical")
     assert lines[1] == "t_s,x_dps,y_dps,z_dps"
@@ -50,7 +50,7 @@ def test_csv_output_has_time_and_reads_back(tmp_path):
         (["--duration", "0s"], "must be positive"),
         (["--duration", "1s", "--rate", "250"], "unsupported output data rate 250"),
         (["--duration", "1s", "--profile", "nope"], "unknown noise profile 'nope'"),
-        (["--duration", "1s", "--profile", "datasheet", "--mode", "paper"], "paper mode needs"),
+        (["--duration", "1s", "--profile", "datasheet", "--noise-mode", "paper"], "paper mode needs"),
         (["--duration", "1ms"], "shorter than one sample period"),
     ],
 )
@@ -70,15 +70,29 @@ def test_unknown_output_suffix_is_an_error(tmp_path, capsys):
     assert "must end in .npy, .csv or .resd" in capsys.readouterr().err
 
 
-def test_progress_bar_only_on_a_terminal(tmp_path, capsys, monkeypatch):
-    import sys
-
+def test_progress_only_on_a_terminal_unless_asked_for(tmp_path, capsys):
+    # the terminal line itself is tested in virtual time (tests/test_progress.py)
     out = str(tmp_path / "n.npy")
     assert main(["generate", "--duration", "10s", "--seed", "1", "-o", out]) == 0
     assert "sample" not in capsys.readouterr().err
-    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
-    assert main(["generate", "--duration", "10s", "--seed", "1", "-o", out]) == 0
-    assert "2.00k/2.00k" in capsys.readouterr().err
+    assert main(["generate", "--duration", "10s", "--seed", "1", "-o", out, "--progress"]) == 0
+    assert "bmg160-emu generate: 2,000/2,000 samples (100 %)" in capsys.readouterr().err
+
+
+def test_the_old_spelling_of_noise_mode_still_works_and_says_the_new_one(tmp_path, capsys):
+    # generate said --mode where eight other commands say --noise-mode (issue 35); the old
+    # spelling stays for one release, hidden from the help
+    old, new = tmp_path / "old.npy", tmp_path / "new.npy"
+    args = ["generate", "--duration", "2s", "--seed", "5", "--profile", "paper"]
+    assert main(args + ["--mode", "paper", "-o", str(old)]) == 0
+    assert "--mode is now spelled --noise-mode" in capsys.readouterr().err
+    assert main(args + ["--noise-mode", "paper", "-o", str(new)]) == 0
+    assert old.read_bytes() == new.read_bytes()
+    from bmg160_emu.cli import build_parser
+
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["generate", "--help"])
+    assert "--mode " not in capsys.readouterr().out
 
 
 def test_without_seed_a_random_seed_is_named_and_repeats_the_record(tmp_path, capsys):

@@ -290,3 +290,44 @@ def test_montecarlo_on_a_scenario_shorter_than_its_readout_is_a_one_line_error(t
     assert main(["montecarlo", str(path), "--runs", "2", "--scheduler", "sync"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(path) in err and "shorter than the readout needs" in err
+
+
+@pytest.mark.parametrize("row", ["1,nan,0,0", "1,0,inf,0", "nan,0,0,0", "1,0,0,-inf"])
+def test_a_table_file_that_holds_nan_or_inf_is_refused_naming_file_and_line(tmp_path, row):
+    # issue 35: a nan passed loading and failed later, naming neither file nor line
+    (tmp_path / "table.csv").write_text(f"t,x,y,z\n0,0,0,0\n{row}\n2,0,0,0\n")
+    (tmp_path / "s.toml").write_text(
+        'duration_s = 1.0\n[[motion]]\nkind = "table"\nfile = "table.csv"\n')
+    with pytest.raises(ScenarioError, match=r"motion 1: .*table\.csv:3: empty or non-finite "
+                                            r"value"):
+        load_scenario(tmp_path / "s.toml")
+
+
+def test_a_table_path_that_is_a_folder_is_reported_as_the_table(tmp_path):
+    (tmp_path / "table.csv").mkdir()
+    (tmp_path / "s.toml").write_text(
+        'duration_s = 1.0\n[[motion]]\nkind = "table"\nfile = "table.csv"\n')
+    with pytest.raises(ScenarioError, match=r"s\.toml: motion 1: .*table\.csv: is a directory, "
+                                            r"not a rate table file"):
+        load_scenario(tmp_path / "s.toml")
+
+
+def test_an_npy_table_with_nan_or_a_lying_header_is_refused_by_row(tmp_path):
+    table = np.array([[0, 0, 0, 0], [1, 0, np.nan, 0]], dtype=float)
+    np.save(tmp_path / "t.npy", table)
+    (tmp_path / "s.toml").write_text(
+        'duration_s = 1.0\n[[motion]]\nkind = "table"\nfile = "t.npy"\n')
+    with pytest.raises(ScenarioError, match=r"t\.npy: row 1: empty or non-finite value"):
+        load_scenario(tmp_path / "s.toml")
+    header = {"descr": "<f8", "fortran_order": False, "shape": (10**11, 4)}
+    with (tmp_path / "t.npy").open("wb") as handle:  # 1e11 rows declared, 64 bytes held
+        np.lib.format.write_array_header_1_0(handle, header)
+        handle.write(b"\0" * 64)
+    with pytest.raises(ScenarioError, match=r"t\.npy.*header declares"):
+        load_scenario(tmp_path / "s.toml")
+
+
+def test_inline_samples_with_nan_are_refused_by_row():
+    with pytest.raises(ScenarioError, match="motion 1: samples row 2: the times and rates"):
+        scenario_from_dict({"duration_s": 1.0, "motion": [
+            {"kind": "table", "samples": [[0, 0, 0, 0], [1, float("nan"), 0, 0]]}]})

@@ -4,6 +4,7 @@
     python tools/fuzz.py --examples 500 --format trace --save failures/
     python tools/fuzz.py --cli --examples 200      # the command line (tests/_fuzz_cli.py)
     python tools/fuzz.py --signals --trials 50      # signals at random moments (issue 24)
+    python tools/fuzz.py --edges --examples 20      # paths, schedulers, blocks, memory (35)
 
 Each example is a valid file (made by the project's own CLI) with 1-3 random mutations (bit
 flips, truncation, deleted/duplicated spans and lines, numbers replaced by huge, non-finite or
@@ -31,6 +32,8 @@ from _fuzz_formats import FORMATS, mutate, try_load
 def main() -> int:
     if "--signals" in sys.argv[1:]:
         return signals_main(sys.argv[1:])
+    if "--edges" in sys.argv[1:]:
+        return edges_main(sys.argv[1:])
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--examples", type=int, default=1000, help="mutated files per format")
     parser.add_argument("--cli", action="store_true",
@@ -95,6 +98,77 @@ def signals_main(argv: list[str]) -> int:
                 for c in counts.values())
     print(f"{total} signalled runs in {time.monotonic() - started:.0f} s; {len(failed)} failed")
     return 1 if failed else 0
+
+
+def edges_main(argv: list[str]) -> int:
+    """``--edges``: the command line at its edges (tests/_fuzz_edges.py), ``--examples``
+    seeds each: hostile paths on every path option, scheduler strings (1,000 a seed),
+    thermal blocks, and the memory-cap commands (``--cap-gib``, 20 s each) once."""
+    import random
+
+    from _fuzz_edges import (
+        CAPPED,
+        PATH_OPTIONS,
+        fuzz_block,
+        fuzz_path,
+        judge_scheduler,
+        path_values,
+        run_capped,
+        scheduler_strings,
+    )
+
+    parser = argparse.ArgumentParser(prog="fuzz.py --edges")
+    parser.add_argument("--edges", action="store_true", required=True)
+    parser.add_argument("--examples", type=int, default=10, help="seeds per kind")
+    parser.add_argument("--first-seed", type=int, default=0, help="the first seed")
+    parser.add_argument("--cap-gib", type=float, default=1.0, help="address-space cap")
+    parser.add_argument("--only", choices=("paths", "schedulers", "blocks", "memory"),
+                        action="append", help="only these kinds (default all)")
+    args = parser.parse_args(argv)
+    kinds = args.only or ["paths", "schedulers", "blocks", "memory"]
+    seeds = range(args.first_seed, args.first_seed + args.examples)
+    broken: list[str] = []
+    counts: Counter[str] = Counter()
+    started = time.monotonic()
+
+    def tally(kind: str, what: str, bad: str | None) -> None:
+        counts[kind] += 1
+        if bad is not None:
+            broken.append(f"  {kind}: {bad} <- {what}")
+            print(broken[-1], flush=True)
+
+    with tempfile.TemporaryDirectory() as folder:
+        tmp = Path(folder)
+        for seed in seeds:
+            if "paths" in kinds:
+                for label in PATH_OPTIONS:
+                    work = tmp / f"p{seed}"
+                    work.mkdir(exist_ok=True)
+                    for kind, path in path_values(work, random.Random(f"{label}{seed}")):
+                        what, outcome = fuzz_path(label, kind, path, work)
+                        tally("paths", what, f"{outcome.kind}: {outcome.detail}"
+                              if outcome.broken else None)
+            if "schedulers" in kinds:
+                for text in scheduler_strings(random.Random(seed), 1000):
+                    tally("schedulers", repr(text), judge_scheduler(text))
+            if "blocks" in kinds:
+                rng = random.Random(seed)
+                for _ in range(10):
+                    what, outcome = fuzz_block(rng, tmp)
+                    tally("blocks", what, f"{outcome.kind}: {outcome.detail}"
+                          if outcome.broken else None)
+        if "memory" in kinds:
+            for capped in CAPPED:
+                work = tmp / "memory"
+                work.mkdir(exist_ok=True)
+                outcome = run_capped(capped, work, int(args.cap_gib * 2**30), 20.0)
+                tally("memory", capped.name, f"{outcome.kind}: {outcome.detail}"
+                      if outcome.broken else None)
+    for kind, n in counts.items():
+        print(f"{kind:<12}{n:>8} runs")
+    print(f"{sum(counts.values())} runs in {time.monotonic() - started:.0f} s; "
+          f"{len(broken)} broke the invariant")
+    return 1 if broken else 0
 
 
 if __name__ == "__main__":

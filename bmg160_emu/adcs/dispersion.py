@@ -64,6 +64,33 @@ def _interval(entry: Any, where: str) -> Interval:
     return Interval(value, low, high)
 
 
+def identified_axes(result: Mapping[str, Any], origin: str = "identification"
+                    ) -> dict[str, Mapping[str, Any]]:
+    """The x, y and z tables of ``identify --json`` output, as a noise profile names them.
+
+    ``identify`` keys its axes by the record's column names (``gyro_x``, or ``a`` of
+    ``--columns a,b,c``) while a profile (``--profile-out``) names them x, y, z in the
+    record's column order (issue 35: the example looked up ``x`` in a ``gyro_x`` result, a
+    KeyError, and the dispersion quietly gave every axis the first axis's intervals). Keys
+    x, y, z are taken as they are; names that end in x, y and z (``gyro_x``, ``wx``) by that
+    letter; any other names in their order. A record of one or two axes lends its first
+    axis to the missing ones."""
+    axes = result.get("axes") if isinstance(result, Mapping) else None
+    if not isinstance(axes, Mapping) or not axes:
+        raise DispersionError(f"{origin}: no 'axes' table (is it `bmg160-emu identify "
+                              "--json` output?)")
+    names = [str(name) for name in axes]
+    if all(a in axes for a in AXES):
+        chosen = list(AXES)
+    else:
+        by_letter = {a: [n for n in names if n.lower().endswith(a)] for a in AXES}
+        if all(len(found) == 1 for found in by_letter.values()):
+            chosen = [by_letter[a][0] for a in AXES]
+        else:
+            chosen = (names + [names[0]] * 3)[:3]
+    return {a: axes[name] for a, name in zip(AXES, chosen)}
+
+
 class NoiseDispersion:
     """Per-axis intervals of the dispersed parameters, drawn into noise profiles."""
 
@@ -77,25 +104,23 @@ class NoiseDispersion:
     def from_identification(cls, result: str | Path | Mapping[str, Any],
                             parameters: Sequence[str] = ("N", "B", "K"),
                             base: Any = "paper") -> NoiseDispersion:
-        """From ``identify --json`` output (a path or the parsed mapping). An axis missing
-        from the record (one- or two-axis records) takes the first axis's intervals."""
+        """From ``identify --json`` output (a path or the parsed mapping), its axes matched
+        to x, y, z by :func:`identified_axes`; ``base`` gives what is not dispersed (T, the
+        bias): the profile identified from the same record."""
         origin = "identification"
+        parsed: Any = result
         if not isinstance(result, Mapping):
             origin = str(result)
             try:
-                result = json.loads(Path(result).read_text())
+                parsed = json.loads(Path(result).read_text())
             except OSError as exc:
                 raise DispersionError(f"{origin}: cannot read: {exc.strerror}") from None
             except json.JSONDecodeError as exc:
                 raise DispersionError(f"{origin}: not JSON (line {exc.lineno}: {exc.msg})") from None
-        axes = result.get("axes") if isinstance(result, Mapping) else None
-        if not isinstance(axes, Mapping) or not axes:
-            raise DispersionError(f"{origin}: no 'axes' table (is it `bmg160-emu identify "
-                                  "--json` output?)")
-        found = list(axes)
+        tables = identified_axes(parsed, origin)
         intervals: dict[str, dict[str, Interval]] = {}
         for axis in AXES:
-            table = axes.get(axis, axes[found[0]])
+            table = tables[axis]
             intervals[axis] = {}
             for key in parameters:
                 if not isinstance(table, Mapping) or key not in table:

@@ -11,19 +11,20 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import signal
-import sys
-from collections.abc import Callable, Iterable, Sequence
+import threading
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
 from bmg160_emu.adcs.results import RunResult
 from bmg160_emu.adcs.scenarios import Scenario, load_scenario
+from bmg160_emu.progress import Progress
 
 DEFAULT_PERCENTILES = (50.0, 90.0, 95.0, 99.0)
 
@@ -40,8 +41,9 @@ class MonteCarloResult:
     angle_error_deg: np.ndarray  # (runs, times)
     percentiles: dict[float, np.ndarray]
     extras: dict[str, np.ndarray] = field(default_factory=dict)
-    planned_runs: int | None = None  # set when interrupted: the runs that were asked for
-    stopped_by: str | None = None  # "SIGINT" or "SIGTERM" when interrupted
+    planned_runs: int | None = None  # the runs that were asked for (run_montecarlo sets it)
+    stopped_by: str | None = None  # "SIGINT" or "SIGTERM": the signal that stopped the job,
+    # also when it came after the last run (then the result is complete)
 
     @property
     def interrupted(self) -> bool:
@@ -152,19 +154,23 @@ def parse_seeds(text: str | None, runs: int | None) -> list[int]:
     return seeds
 
 
-def _progress(total: int, enabled: bool | None):
-    # enabled None: a bar only on a terminal, so logs and CI output stay clean
-    disable = (not sys.stderr.isatty()) if enabled is None else not enabled
-    if disable:  # no bar: tqdm (an extra) is not needed
-        return contextlib.nullcontext(SimpleNamespace(update=lambda n: None))
-    from tqdm import tqdm
+def _progress(progress: bool | None | Progress) -> Progress:
+    """The progress report of the runs: a :class:`~bmg160_emu.progress.Progress` as given,
+    or one on stderr (``None``: a line redrawn on a terminal, and a long estimate said
+    everywhere; ``True``: drawn even off a terminal; ``False``: nothing at all)."""
+    if isinstance(progress, Progress):
+        return progress
+    if progress is False:
+        return Progress("monte carlo", stream=_Discard(), terminal=False)
+    return Progress("monte carlo", enabled=progress)
 
-    from bmg160_emu.io.atomic import held_signals
 
-    # held: a signal inside tqdm's constructor left a half-built bar whose __del__ printed
-    # an AttributeError traceback (found by tests/_fuzz_signals.py)
-    with held_signals():
-        return tqdm(total=total, unit="run", desc="monte carlo")
+class _Discard:
+    def write(self, text: str) -> int:
+        return len(text)
+
+    def flush(self) -> None:
+        pass
 
 
 class Interrupted(KeyboardInterrupt):
@@ -177,20 +183,24 @@ class Interrupted(KeyboardInterrupt):
         self.kept: str | None = None  # what cli's one line says was kept
 
 
-def _run_sync(run: RunFunction, seeds: Sequence[int], progress: bool | None) -> list[RunResult]:
+def _run_sync(run: RunFunction, seeds: Sequence[int], progress: Progress) -> list[RunResult]:
     results: list[RunResult] = []
-    with _progress(len(seeds), progress) as bar:
-        try:
+    try:  # the whole stage: a signal as the last run ends still keeps every run
+        with progress.stage(len(seeds), "runs") as bar:
             for seed in seeds:
                 results.append(run(seed))
-                bar.update(1)
-        except KeyboardInterrupt as exc:
-            raise Interrupted(results, exc) from None
+                bar(len(results))
+    except KeyboardInterrupt as exc:
+        raise Interrupted(results, exc) from None
     return results
 
 
-def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
+def _run_dask(run: RunFunction, seeds: Sequence[int], progress: Progress,
               address: str | None, workers: int | None) -> list[RunResult]:
+    """The runs on a Dask cluster. A signal at any moment (the cluster starting, the runs,
+    its shut-down) stops it the same way: the cluster is shut down and :class:`Interrupted`
+    carries every run finished by then, all of them when the signal came during the
+    shut-down (issue 35: a SIGTERM there used to lose them all)."""
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError:  # pragma: no cover - depends on the installation
@@ -199,48 +209,118 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: bool | None,
         ) from None
     from bmg160_emu.io.atomic import held_signals
 
-    cluster = None
-    if address is None:
-        with held_signals() as arrived:  # a ^C while the workers start is acted on once they
-            cluster = LocalCluster(      # have (Dask's start-up printed a traceback, issue 24)
-                n_workers=workers or os.cpu_count() or 1,
-                threads_per_worker=1,  # the runs are CPU-bound Python: one process per core
-                processes=True,
-                # None still binds :8787 (distributed 2026.8): a busy port gave a warning
-                dashboard_address=":0",
-            )
-            client = Client(cluster)
-            if arrived:  # stopped before any run: the cluster goes down before the signal acts
-                client.close()
-                cluster.close()
-        if arrived:  # held_signals delivered it; should a handler have let it pass (seen once
-            cause = KeyboardInterrupt()  # in campaign 3: client.map on the closed client)
-            cause.signal_name = signal.Signals(arrived[0]).name  # type: ignore[attr-defined]
-            raise Interrupted([], cause)
-    else:
-        try:
-            client = Client(address, timeout="10s")
-        except (OSError, ValueError, TimeoutError) as exc:
-            raise RuntimeError(f"cannot reach the Dask scheduler at {address!r}: {exc} "
-                               "(expected 'local', 'sync' or an address like "
-                               "tcp://host:8786)") from None
+    cluster = client = None
+    by_seed: dict[int, RunResult] = {}
+    stop: BaseException | None = None
     try:
+        if address is None:
+            with held_signals():  # a ^C while the workers start is acted on once they have
+                # (Dask's start-up printed a traceback, issue 24)
+                with _sigint_blocked_for_new_threads():
+                    cluster = LocalCluster(
+                        n_workers=workers or os.cpu_count() or 1,
+                        threads_per_worker=1,  # CPU-bound Python runs: a process per core
+                        processes=True,
+                        # None still binds :8787 (distributed 2026.8): a busy port warned
+                        dashboard_address=":0",
+                        # the workers' WARNINGs and ERRORs at shut-down (a task cancelled,
+                        # a heartbeat to the closed scheduler) are Dask's housekeeping, not
+                        # the user's; a run's error comes back through its future and is
+                        # said once, here (issue 35)
+                        silence_logs=logging.CRITICAL,
+                    )
+                client = Client(cluster)
+        else:
+            client = _connect(Client, address)
         futures = client.map(run, list(seeds), pure=False)
-        by_seed: dict[int, RunResult] = {}
-        with _progress(len(seeds), progress) as bar:
-            try:
-                for future in as_completed(futures):
-                    result = future.result()
-                    by_seed[result.seed] = result
-                    bar.update(1)
-            except KeyboardInterrupt as exc:
-                raise Interrupted([by_seed[s] for s in seeds if s in by_seed], exc) from None
-        return [by_seed[s] for s in seeds]
+        with progress.stage(len(seeds), "runs") as bar:
+            for future in as_completed(futures):
+                result = future.result()
+                by_seed[result.seed] = result
+                bar(len(by_seed))
+    except KeyboardInterrupt as exc:
+        stop = exc
     finally:
-        with held_signals():  # a second ^C must not cut the cluster's shut-down
-            client.close()
+        late = _shut_down(client, cluster)
+    if stop is None:
+        stop = late  # during the shut-down: every run had finished
+    if stop is not None:
+        raise Interrupted([by_seed[s] for s in seeds if s in by_seed], stop)
+    return [by_seed[s] for s in seeds]
+
+
+def _connect(client_type: Any, address: str) -> Any:
+    """A client of the scheduler at ``address`` (already checked by
+    :func:`scheduler_address`), or a RuntimeError saying why not in one line: whatever
+    answers there (another service, a wrong port) must not surface as Dask's traceback (a
+    reply read as a frame length once asked numpy for 3.07 EiB, issue 35)."""
+    try:
+        return client_type(address, timeout="10s")
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any failure to connect is the user's one line
+        detail = str(exc).splitlines()[0][:200] if str(exc) else type(exc).__name__
+        raise RuntimeError(f"cannot reach the Dask scheduler at {address!r}: {detail} "
+                           "(expected 'local', 'sync' or an address like "
+                           "tcp://host:8786)") from None
+
+
+@contextlib.contextmanager
+def _sigint_blocked_for_new_threads() -> Iterator[None]:
+    """SIGINT blocked in this thread while the local cluster starts, so that the threads Dask
+    starts then (its event loop, and the threads that spawn and respawn the worker
+    processes) and the workers themselves (fork and exec keep the signal mask) never take
+    it: a ^C from the terminal reaches the whole process group, and workers that died of it
+    printed their own tracebacks and WARNINGs while this process was keeping the finished
+    runs. This process owns the shut-down: a SIGINT sent meanwhile waits, pending, and
+    reaches its handler when the block ends (the caller holds it, io.atomic.held_signals)."""
+    if threading.current_thread() is not threading.main_thread() \
+            or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def _shut_down(client: Any, cluster: Any) -> BaseException | None:
+    """Close the client and the local cluster with the signals held (a second ^C must not
+    cut the shut-down, and Dask's own logging of the closing comms is silenced); returns
+    the signal that came meanwhile, as the exception its handler raised, or None."""
+    from bmg160_emu.io.atomic import held_signals
+
+    quiet = _quiet_dask_logs()
+    try:
+        with held_signals():
+            if client is not None:
+                client.close()
             if cluster is not None:
                 cluster.close()
+    except KeyboardInterrupt as exc:  # held, then delivered: the runs are all in
+        return exc
+    finally:
+        quiet.close()
+    return None
+
+
+class _quiet_dask_logs:
+    """Dask's loggers in this process at ERROR while the cluster closes (a heartbeat that
+    finds its comm closed logs a WARNING); restored by ``close()``."""
+
+    NAMES = ("distributed", "tornado", "asyncio")
+
+    def __init__(self) -> None:
+        self.levels = {}
+        for name in self.NAMES:
+            logger = logging.getLogger(name)
+            self.levels[name] = logger.level
+            logger.setLevel(max(logger.level, logging.CRITICAL))
+
+    def close(self) -> None:
+        for name, level in self.levels.items():
+            logging.getLogger(name).setLevel(level)
 
 
 def run_montecarlo(
@@ -249,7 +329,7 @@ def run_montecarlo(
     *,
     scheduler: str = "local",
     workers: int | None = None,
-    progress: bool | None = None,
+    progress: bool | None | Progress = None,
     percentiles: Iterable[float] = DEFAULT_PERCENTILES,
     run: RunFunction | None = None,
 ) -> MonteCarloResult:
@@ -270,6 +350,9 @@ def run_montecarlo(
         from bmg160_emu.adcs.evaluation import PropagationRun
 
         run = PropagationRun(scenario)
+    from bmg160_emu.io.atomic import held_signals
+
+    stopped_by = None
     try:
         results = map_runs(run, seeds, scheduler=scheduler, workers=workers, progress=progress)
     except Interrupted as stop:
@@ -277,20 +360,96 @@ def run_montecarlo(
             stop.kept = "no run had finished: nothing to summarise or write"
             raise
         # the finished runs are kept: summarised (in seed order) and marked as interrupted
-        partial = reduce_runs(scenario.name, stop.results, percentiles)
-        partial.planned_runs = len(seeds)
-        partial.stopped_by = stop.signal_name
-        return partial
-    return reduce_runs(scenario.name, results, percentiles)
+        results, stopped_by = stop.results, stop.signal_name
+    summary = None
+    while summary is None:  # the runs are in: a signal now waits for their summary
+        try:
+            with held_signals():
+                summary = reduce_runs(scenario.name, results, percentiles)
+        except KeyboardInterrupt as exc:
+            stopped_by = stopped_by or getattr(exc, "signal_name", "SIGINT")
+    summary.planned_runs = len(seeds)
+    summary.stopped_by = stopped_by
+    return summary
 
 
 def map_runs(run: RunFunction, seeds: Iterable[int], *, scheduler: str = "local",
-             workers: int | None = None, progress: bool | None = None) -> list[RunResult]:
+             workers: int | None = None,
+             progress: bool | None | Progress = None) -> list[RunResult]:
     """``run(seed)`` for every seed on ``scheduler`` (as :func:`run_montecarlo`), in seed
-    order: for any picklable run (the Basilisk example's closed loop, ...)."""
+    order: for any picklable run (the Basilisk example's closed loop, ...). ``progress``:
+    see :func:`_progress`."""
     seeds = [int(s) for s in seeds]
     if not seeds:
         raise ValueError("no seeds to run")
-    if scheduler == "sync":
-        return _run_sync(run, seeds, progress)
-    return _run_dask(run, seeds, progress, None if scheduler == "local" else scheduler, workers)
+    address = scheduler_address(scheduler)
+    if address == "sync":
+        return _run_sync(run, seeds, _progress(progress))
+    return _run_dask(run, seeds, _progress(progress), None if address == "local" else address,
+                     workers)
+
+
+def default_scheduler() -> tuple[str, str | None]:
+    """The scheduler when none is asked for: Dask's local cluster where Dask is installed,
+    else this process, with a note that says so and how to get Dask (the CLI and the
+    Basilisk example fall back alike, issue 35)."""
+    import importlib.util
+
+    if all(importlib.util.find_spec(name) is not None for name in ("dask", "distributed")):
+        return "local", None
+    return "sync", ("Dask is not installed: the runs go in this process (scheduler sync); "
+                    "pip install 'bmg160-emu[montecarlo]' runs them on all cores")
+
+
+SCHEMES = ("tcp", "tls", "inproc", "ucx", "ws", "wss")  # distributed's comm back ends
+
+
+def scheduler_address(text: str) -> str:
+    """``local``, ``sync`` or a Dask scheduler address (``tcp://host:8786``, ``host:8786``),
+    checked before anything connects: a scheme distributed knows, a host name or IP address,
+    a port from 1 to 65535. ValueError says what is wrong in one line (``5:2`` once reached
+    another service that answered with a 3.07 EiB frame; ``0:99999999999999999999``
+    overflowed the resolver, issue 35)."""
+    import ipaddress
+    import re
+
+    if text in ("local", "sync"):
+        return text
+    def cut(part: str, width: int = 40) -> str:
+        return part if len(part) <= width else part[:width - 3] + "..."
+
+    shown = cut(text, 60)
+    expected = (f"--scheduler {shown!r}: expected 'local', 'sync' or a Dask scheduler address "
+                "like tcp://host:8786")
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    if scheme not in SCHEMES:
+        raise ValueError(f"{expected} (scheme one of {', '.join(SCHEMES)})")
+    if scheme == "inproc":
+        return text
+    if rest.startswith("["):  # [IPv6]:port
+        host, _, port_text = rest[1:].partition("]")
+        has_port = port_text != ""  # "]:8786"; anything else after "]" fails the port check
+        port_text = port_text.removeprefix(":")
+        try:
+            ipaddress.IPv6Address(host)
+        except ValueError:
+            raise ValueError(f"{expected} ({cut(host)!r} is not an IPv6 address)") from None
+    else:
+        has_port = ":" in rest  # "host:" too: an empty port is no port
+        host, _, port_text = rest.rpartition(":") if has_port else (rest, "", "")
+        if re.fullmatch(r"[0-9.]+", host):
+            try:
+                ipaddress.IPv4Address(host)
+            except ValueError:
+                raise ValueError(f"{expected} ({cut(host)!r} is not an IPv4 address a.b.c.d)") \
+                    from None
+        elif not re.fullmatch(r"(?=.{1,253}$)[A-Za-z0-9]([A-Za-z0-9-]*[A-Za-z0-9])?"
+                              r"(\.[A-Za-z0-9]([A-Za-z0-9-]*[A-Za-z0-9])?)*", host):
+            raise ValueError(f"{expected} ({cut(host)!r} is not a host name)")
+    if has_port and (not re.fullmatch(r"[0-9]{1,5}", port_text)
+                      or not 1 <= int(port_text) <= 65535):
+        raise ValueError(f"{expected} (the port must be 1 to 65535, not "
+                         f"{cut(port_text, 20)!r})")
+    return text

@@ -150,12 +150,22 @@ def _finite_array(value: Any, shape: tuple[int, ...], message: str) -> np.ndarra
 _SPEC_KEYS = set(GyroSpec.__dataclass_fields__)
 
 
-def gyro_spec_from_dict(entry: dict[str, Any], index: int) -> GyroSpec:
-    """A gyro from its ``[[gyro]]`` table."""
+def gyro_spec_from_dict(entry: dict[str, Any], index: int, base: Any = None) -> GyroSpec:
+    """A gyro from its ``[[gyro]]`` table; a ``profile`` path is relative to ``base``, the
+    scenario file's folder, as a table file and a stand-in are (issue 35: `montecarlo
+    my_orbit.toml` from another folder could not find the profile named in it)."""
+    from pathlib import Path
+
     unknown = set(entry) - _SPEC_KEYS
     if unknown:
         raise ScenarioError(f"gyro {index + 1}: unknown keys {sorted(unknown)}")
     entry = {"name": f"gyro{index}", **entry}
+    profile = entry.get("profile")
+    if isinstance(profile, str) and base is not None and not Path(profile).is_absolute():
+        from bmg160_emu.noise.profile import builtin_profile_names
+
+        if profile not in builtin_profile_names():
+            entry["profile"] = str(Path(base) / profile)
     return GyroSpec(**entry)
 
 
@@ -257,7 +267,9 @@ class GyroRig:
         self.seed = int(seed)
         self.q0 = np.asarray(q0, dtype=float)
         if gyros is None:
-            gyros = [gyro_spec_from_dict(g, i) for i, g in enumerate(scenario.gyros)] or [GyroSpec()]
+            base = scenario.source.parent if scenario.source is not None else None
+            gyros = [gyro_spec_from_dict(g, i, base) for i, g in enumerate(scenario.gyros)] \
+                or [GyroSpec()]
         self.specs = list(gyros)
         places = [(s.bus, s.address) for s in self.specs]
         if len(set(places)) != len(places):

@@ -163,9 +163,10 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
     ``devices=True`` where the command's session takes other devices (``--device``: run,
     stub, dump, script; not where the session is one gyro's, as record's and demo's are)."""
     group = parser.add_argument_group("emulated chip")
-    group.add_argument("--seed", type=bounded_option(limits.SEED), default=None, help="master noise seed (default: random)")
+    group.add_argument("--seed", type=bounded_option(limits.SEED), default=None, metavar="N",
+                       help="master noise seed (default: random)")
     group.add_argument(
-        "--profile", default=None,
+        "--profile", default=None, metavar="NAME|FILE",
         help="noise profile name or TOML (default: the part's own: paper for the bmg160, the "
              "data-sheet profile of the others)",
     )
@@ -205,6 +206,7 @@ def add_chip_options(parser: argparse.ArgumentParser, *, realtime: bool = True,
         type=_address,
         action="append",
         default=None,
+        metavar="ADDRESS",
         help="I2C address of a chip, 0x68 or 0x69; repeat for two chips (default 0x68 "
              "unless --device is given)",
     )
@@ -333,7 +335,8 @@ def buses_from_args(args: argparse.Namespace, bus: int | None, announce: bool = 
     ``bus``); every device shares one clock (``clock`` when given). A chosen seed is printed
     now, or with ``announce=False`` left to :func:`announce_seed`."""
     from bmg160_emu.clock import RealTimeClock, VirtualClock
-    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._common import CommandError, profile_named
+    from bmg160_emu.noise.profile import ProfileError
 
     configs = configs_from_args(args)
     seed = session_seed(args, announce)
@@ -343,6 +346,9 @@ def buses_from_args(args: argparse.Namespace, bus: int | None, announce: bool = 
     for config in configs:
         try:
             device = config.build(seed, clock)
+        except ProfileError as exc:  # named by the profile as given (issue 35)
+            raise CommandError(profile_named(getattr(config, "profile", None), str(exc))) \
+                from None
         except (ValueError, KeyError, OSError) as exc:
             raise CommandError(str(exc)) from None
         number = bus if config.bus is None else config.bus

@@ -165,3 +165,98 @@ def run_script_file(
         print(f"{failed_prefix}{exc}", file=sys.stderr)
         return 1
     return 0
+
+
+def memory_room() -> tuple[int, str]:
+    """Bytes this process can still allocate, and what bounds it: its address-space limit
+    (``ulimit -v``) less what it already maps, or the system's available memory and free
+    swap (/proc/meminfo), whichever is less. Without /proc (not Linux): no bound known."""
+    import resource
+
+    room, why = 2**62, "no limit known"
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    status = _proc_fields("/proc/self/status")
+    if soft != resource.RLIM_INFINITY and "VmSize" in status:
+        room, why = soft - status["VmSize"], "its address-space limit, ulimit -v"
+    info = _proc_fields("/proc/meminfo")
+    if "MemAvailable" in info:
+        free = info["MemAvailable"] + info.get("SwapFree", 0)
+        if free < room:
+            room, why = free, "the memory and swap this machine has free"
+    return max(room, 0), why
+
+
+def _proc_fields(path: str) -> dict[str, int]:
+    """``Name:   123 kB`` lines of a /proc file, in bytes."""
+    fields: dict[str, int] = {}
+    try:
+        with open(path, encoding="ascii") as handle:
+            for line in handle:
+                name, _, value = line.partition(":")
+                parts = value.split()
+                if len(parts) == 2 and parts[1] == "kB" and parts[0].isdigit():
+                    fields[name] = int(parts[0]) * 1024
+    except OSError:
+        pass
+    return fields
+
+
+def check_memory(need_bytes: float, what: str, remedy: str) -> None:
+    """Refuse, before the work, a job that cannot hold what it must (a CommandError giving
+    the figures): one that would fail on its last step, or be killed, hours in (issue 35:
+    ``record --duration 50000s`` at 2000 Hz under a 4 GiB limit died after 1.8 s with an
+    allocation traceback)."""
+    from bmg160_emu.io.atomic import size_text
+
+    room, why = memory_room()
+    if need_bytes > room:
+        raise CommandError(f"{what} needs about {size_text(int(need_bytes))} of memory; this "
+                           f"process can have {size_text(room)} more ({why}): {remedy}")
+
+
+def add_progress_options(parser: argparse.ArgumentParser) -> None:
+    """``--progress`` / ``--no-progress``, one spelling on every command that can run long:
+    a line with the time left, by default only when stderr is a terminal (a long job says
+    its estimate either way, bmg160_emu.progress)."""
+    bar = parser.add_mutually_exclusive_group()
+    bar.add_argument("--progress", dest="progress", action="store_true", default=None,
+                     help="show the progress line even when stderr is not a terminal "
+                     "(default: only on a terminal)")
+    bar.add_argument("--no-progress", dest="progress", action="store_false",
+                     help="no progress line (a job estimated at over a minute still says so)")
+
+
+def progress_for(args: argparse.Namespace, command: str) -> Any:
+    """The :class:`bmg160_emu.progress.Progress` of ``bmg160-emu COMMAND`` as its options
+    ask (``args.progress``: None, True or False)."""
+    from bmg160_emu.progress import Progress
+
+    return Progress(f"bmg160-emu {command}", enabled=getattr(args, "progress", None))
+
+
+def add_renamed_option(parser: Any, old: str, new: str, **kwargs: Any) -> None:
+    """``old``, an earlier spelling of the option ``new``, kept for one release and hidden
+    from the help (CHANGELOG.md lists each): it sets the same value as ``new`` and says the
+    new spelling on stderr, so scripts keep working while they are updated."""
+    parser.add_argument(old, action=_RenamedOption, new=new, help=argparse.SUPPRESS, **kwargs)
+
+
+class _RenamedOption(argparse.Action):
+    def __init__(self, option_strings: list[str], dest: str, new: str, **kwargs: Any) -> None:
+        self.new = new
+        super().__init__(option_strings, dest, **kwargs)
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        print(f"{parser.prog}: note: {option_string} is now spelled {self.new} (the old "
+              "spelling goes in the next release; CHANGELOG.md)", file=sys.stderr)
+        setattr(namespace, self.dest, self.const if self.nargs == 0 else values)
+
+
+def profile_named(profile: Any, message: str) -> str:
+    """A noise profile's error, named by the profile as the user gave it: the file, or the
+    built-in name (``paper mode needs sigma_gyro ...`` named neither, issue 35)."""
+    if profile is None or str(profile) in message:
+        return message
+    shown = str(profile)
+    return f"{shown}: {message}" if Path(shown).suffix else f"profile {shown}: {message}"

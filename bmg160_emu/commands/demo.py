@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import sys
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -19,8 +20,10 @@ from bmg160_emu.commands._common import (
     Subparsers,
     add_bus_option,
     add_command_parser,
+    add_progress_options,
     bounded_option,
     integer_at_least,
+    progress_for,
 )
 from bmg160_emu.device.registers import address_of, field_of
 
@@ -74,6 +77,7 @@ def register(subparsers: Subparsers) -> None:
         metavar="N",
         help="frames to collect in FIFO mode and read back, 1..100 (default 6)",
     )
+    add_progress_options(parser)
     add_chip_options(parser)
     parser.set_defaults(func=run)
 
@@ -120,7 +124,8 @@ class DemoDriver:
         for address in (CHIP_ID, RANGE, BW, LPM1, INT_EN_0):
             self.out(f"  0x{address:02X}  {describe(address).describe(self.reg(address))}")
 
-    def stream(self, samples: int, sensitivity: float, odr_hz: float) -> None:
+    def stream(self, samples: int, sensitivity: float, odr_hz: float,
+               done: Callable[[int], None] = lambda n: None) -> None:
         self.out("")
         self.out(
             f"streamed samples (polling INT_STATUS_1.data_int, {sensitivity:g} LSB per deg/s):"
@@ -141,6 +146,7 @@ class DemoDriver:
                 f"  {n:>3} {counts[0]:>7} {counts[1]:>7} {counts[2]:>7}  "
                 f"{dps[0]:>9.3f} {dps[1]:>9.3f} {dps[2]:>9.3f}"
             )
+            done(n + 1)
         temp = self.reg(TEMP)
         temp_signed = temp - 256 if temp & 0x80 else temp
         self.out(f"  TEMP 0x{temp:02X} -> {23 + temp_signed / 2:.1f} degC (spec 5.2)")
@@ -189,8 +195,12 @@ def run(args: argparse.Namespace) -> int:
 
     from bmg160_emu.bus.patching import patch_smbus
     from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.progress import Progress
 
     chips = chips_from_args(args)
+    progress = progress_for(args, "demo")
+    if args.progress is None and sys.stdout.isatty():  # the rows on the same terminal are
+        progress = Progress("bmg160-emu demo", enabled=False)  # the sign of life: no line
     range_code = RANGE_CODE_BY_DPS[args.range_dps] if args.range_dps is not None else 0
     bw_code = args.bandwidth if args.bandwidth is not None else DEFAULT_BW_CODE
     first = next(iter(chips.values()))
@@ -205,7 +215,8 @@ def run(args: argparse.Namespace) -> int:
                 driver = DemoDriver(bus, address, print)
                 try:
                     driver.bring_up(range_code, bw_code)
-                    driver.stream(args.samples, chip.sensitivity, chip.odr_hz)
+                    with progress.stage(args.samples, "samples") as update:
+                        driver.stream(args.samples, chip.sensitivity, chip.odr_hz, update)
                     driver.fifo(args.fifo_frames, chip.sensitivity, chip.odr_hz)
                 except BrokenPipeError:
                     raise  # the reader went away (e.g. `| head`): not a bus failure

@@ -56,7 +56,8 @@ def register(subparsers: Subparsers) -> None:
         "--chip", type=_address, metavar="ADDRESS", default=None,
         help="dump only the chip at this address (one of --address; default: every chip)",
     )
-    parser.add_argument("-o", "--output", type=Path, default=None, help="write to FILE")
+    parser.add_argument("-o", "--output", type=Path, default=None, metavar="FILE",
+                        help="write to FILE")
     add_chip_options(parser, devices=True)
     parser.set_defaults(func=run)
 

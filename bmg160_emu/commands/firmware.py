@@ -9,6 +9,7 @@ from bmg160_emu import limits
 from bmg160_emu.commands._common import (
     Subparsers,
     add_command_parser,
+    add_renamed_option,
     bounded_option,
     duration_seconds,
 )
@@ -17,7 +18,7 @@ EPILOG = """\
 examples:
   bmg160-emu firmware build --profile paper
   bmg160-emu firmware build --profile paper --address 0x69 --out build/gyro69
-  bmg160-emu firmware capture --seconds 60 --odr 200 --output stream.txt
+  bmg160-emu firmware capture --duration 60s --rate 200 -o stream.txt
 
 'build' writes bmg160_params.h (noise coefficients, register table, I2C address) and builds
 bmg160.elf and bmg160.hex with Debian's gcc-avr. Flash the HEX onto an Arduino Uno/Nano:
@@ -55,24 +56,35 @@ def register(subparsers: Subparsers) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     _common(capture)
-    capture.add_argument("--seconds", type=duration_seconds, required=True,
-                         help="simulated seconds (at most 30 days)")
-    capture.add_argument("--odr", type=bounded_option(limits.ODR_HZ), default=200,
-                         choices=(100, 200, 400, 1000, 2000), help="output data rate in Hz (200)")
-    capture.add_argument("--output", required=True, help="file for the UART stream")
+    capture.add_argument("--duration", type=duration_seconds, required=True, metavar="TIME",
+                         help="simulated time: 10s, 5min, 2h, 1d, or seconds (at most 30 days)")
+    add_renamed_option(capture, "--seconds", "--duration", dest="duration",
+                       type=duration_seconds)
+    capture.add_argument("--rate", type=bounded_option(limits.ODR_HZ), default=200,
+                         choices=(100, 200, 400, 1000, 2000), metavar="HZ",
+                         help="output data rate: 100, 200, 400, 1000 or 2000 Hz (default 200)")
+    add_renamed_option(capture, "--odr", "--rate", dest="rate",
+                       type=bounded_option(limits.ODR_HZ), choices=(100, 200, 400, 1000, 2000))
+    capture.add_argument("-o", "--output", required=True, metavar="FILE",
+                         help="file for the UART stream")
     capture.set_defaults(func=run_capture)
     parser.set_defaults(func=lambda args: _missing_action(parser))
 
 
 def _common(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--profile", default="paper", help="noise profile name or TOML file")
+    parser.add_argument("--profile", default="paper", metavar="NAME|FILE",
+                        help="noise profile name or TOML file")
     parser.add_argument(
         "--address", default="0x68", help="7-bit I2C address: 0x68 (SDO low) or 0x69 (SDO high)"
     )
     parser.add_argument(
-        "--mode", default="physical", choices=("physical", "paper"), help="noise discretization"
+        "--noise-mode", default="physical", choices=("physical", "paper"),
+        help="noise discretisation (default: physical)"
     )
-    parser.add_argument("--seed", type=bounded_option(limits.FIRMWARE_SEED), default=1, help="seed of the on-chip generator")
+    add_renamed_option(parser, "--mode", "--noise-mode", dest="noise_mode",
+                       choices=("physical", "paper"))
+    parser.add_argument("--seed", type=bounded_option(limits.FIRMWARE_SEED), default=1,
+                        metavar="N", help="seed of the on-chip generator")
     parser.add_argument(
         "--normal",
         default="ziggurat",
@@ -80,7 +92,8 @@ def _common(parser: argparse.ArgumentParser) -> None:
         help="normal generator: ziggurat (default, fastest), Marsaglia's polar form or the "
         "paper's trigonometric Box-Muller",
     )
-    parser.add_argument("--out", default=None, help="build folder (default firmware/build/...)")
+    parser.add_argument("--out", default=None, metavar="DIR",
+                        help="build folder (default firmware/build/...)")
 
 
 def _missing_action(parser: argparse.ArgumentParser) -> int:
@@ -100,7 +113,7 @@ def _build(args: argparse.Namespace):
         return build_firmware(
             profile=args.profile,
             address=address,
-            mode=args.mode,
+            mode=args.noise_mode,
             seed=args.seed,
             normal=args.normal,
             out_dir=args.out,
@@ -140,10 +153,10 @@ def run_capture(args: argparse.Namespace) -> int:
     build = _build(args)
     try:  # the stream appears under its name only when complete (docs/commands/firmware.md)
         with atomic_path(output) as partial:
-            capture_uart(build, args.seconds, partial, odr_hz=args.odr)
+            capture_uart(build, args.duration, partial, odr_hz=args.rate)
     except (ValueError, FirmwareToolError) as exc:
         raise CommandError(str(exc).replace("\n", " | ")) from None
     except OSError as exc:
         raise CommandError(f"cannot write {output}: {exc.strerror or exc}") from None
-    print(f"wrote {output} ({args.seconds:g} simulated s at {args.odr} Hz)")
+    print(f"wrote {output} ({args.duration:g} simulated s at {args.rate} Hz)")
     return 0

@@ -8,7 +8,15 @@ import sys
 from pathlib import Path
 
 from bmg160_emu import limits
-from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    add_progress_options,
+    add_renamed_option,
+    bounded_option,
+    profile_named,
+    progress_for,
+)
 from bmg160_emu.durations import parse_duration
 
 EPILOG = """\
@@ -51,7 +59,7 @@ def register(subparsers: Subparsers) -> None:
         EPILOG,
     )
     parser.add_argument(
-        "--profile", default="paper",
+        "--profile", default="paper", metavar="NAME|FILE",
         help="built-in profile (paper, datasheet), a TOML profile, a Kalibr imu.yaml (.yaml, "
         ".yml) or a MATLAB gyroparams .m file (default paper)"
     )
@@ -67,16 +75,18 @@ def register(subparsers: Subparsers) -> None:
         help="simulated time: 10s, 5min, 2h, 1d, or seconds (positive)",
     )
     parser.add_argument(
-        "--seed", type=bounded_option(limits.SEED), default=None,
+        "--seed", type=bounded_option(limits.SEED), default=None, metavar="N",
         help="noise seed (default: random, chosen, printed and written to a CSV header)",
     )
     parser.add_argument(
-        "--mode",
+        "--noise-mode",
         choices=("physical", "paper"),
         default="physical",
         help="physical: N, B, T, K scaled with the sample period (default); "
         "paper: the paper's recursion (docs/noise-engine.md)",
     )
+    add_renamed_option(parser, "--mode", "--noise-mode", dest="noise_mode",
+                       choices=("physical", "paper"))
     parser.add_argument(
         "--bandwidth",
         type=bounded_option(limits.BANDWIDTH_CODE),
@@ -92,8 +102,10 @@ def register(subparsers: Subparsers) -> None:
         "quantization ([output]) left out",
     )
     parser.add_argument(
-        "-o", "--output", type=Path, required=True, help="OUT.npy, OUT.csv or OUT.resd (Renode)"
+        "-o", "--output", type=Path, required=True, metavar="FILE",
+        help="OUT.npy, OUT.csv or OUT.resd (Renode)"
     )
+    add_progress_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -109,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
     from bmg160_emu.io.errors import FormatError
     from bmg160_emu.io.formats import block_writer_for
     from bmg160_emu.io.partial import clear_sidecar, write_sidecar
+    from bmg160_emu.noise.profile import ProfileError
     from bmg160_emu.noise.sensor_noise import ProfileNoise, profile_noise
 
     try:  # the registry's formats of a rate stream (io/rate_stream.py)
@@ -122,18 +135,24 @@ def run(args: argparse.Namespace) -> int:
         duration = parse_duration(args.duration)
     except ValueError as exc:
         raise CommandError(f"--duration: {exc}") from None
-    if args.bandwidth is not None and args.mode == "paper":
+    if args.bandwidth is not None and args.noise_mode == "paper":
         raise CommandError("--bandwidth filters the physical mode's noise; paper mode is the "
                            "paper's output-referred recursion (nothing filters it): give --rate")
     if args.bandwidth is not None and args.raw:
         raise CommandError("--raw leaves every filter out: it does not go with --bandwidth")
     gen: ProfileNoise
     try:
-        gen = profile_noise(args.profile, args.rate, seed=args.seed, mode=args.mode,
+        gen = profile_noise(args.profile, args.rate, seed=args.seed, mode=args.noise_mode,
                             bandwidth_code=args.bandwidth, use_output=not args.raw)
+    except ProfileError as exc:  # named by the profile as given (issue 35)
+        raise CommandError(profile_named(args.profile, str(exc))) from None
     except ValueError as exc:
         text = str(exc)  # a rate the BW code has not is named as the option it came from
+        if text.startswith("unsupported output data rate"):  # paper mode (docs/limits.md)
+            text = f"rate {args.rate:g} Hz in paper mode: {text}"
         raise CommandError(f"--{text}" if text.startswith("rate ") else text) from None
+    for note in gen.notes:  # what of the profile's output stage is left out, and why
+        print(f"bmg160-emu generate: note: {note}", file=sys.stderr)
     total = round(duration * gen.rate_hz)
     if total < 1:
         raise CommandError(f"duration {args.duration!r} is shorter than one sample period")
@@ -151,7 +170,7 @@ def run(args: argparse.Namespace) -> int:
         check_free_space(args.output, stream.size_bytes(total))
     except OutputError as exc:
         raise CommandError(str(exc)) from None
-    bar = _progress(total)
+    progress = progress_for(args, "generate")
     stopped: KeyboardInterrupt | None = None
     try:
         # under a temporary name: complete, or (interrupted) an honest shorter record
@@ -159,7 +178,7 @@ def run(args: argparse.Namespace) -> int:
             try:
                 writer = stream(handle, total, gen.rate_hz, [header])
                 try:
-                    for start, block in _chunks(gen, total, bar):
+                    for start, block in _chunks(gen, total, progress):
                         writer.write(start, block)
                 except KeyboardInterrupt as exc:
                     if writer.samples == 0:  # no sample: no file (it would look valid)
@@ -178,9 +197,6 @@ def run(args: argparse.Namespace) -> int:
                 clear_sidecar(args.output)  # an earlier cut run's mark
     except OSError as exc:
         raise CommandError(f"cannot write {args.output}: {exc.strerror or exc}") from None
-    finally:
-        if bar is not None:
-            bar.close()
     if stopped is not None:
         name = getattr(stopped, "signal_name", "SIGINT")
         print(f"bmg160-emu generate: interrupted by {name} after {written:,} of "
@@ -193,21 +209,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _progress(total: int):
-    from bmg160_emu.commands._extras import available
-
-    if not sys.stderr.isatty() or not available("tqdm"):  # a bar is a [noise] nicety
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, unit="sample", unit_scale=True, file=sys.stderr)
-
-
-def _chunks(gen, total: int, bar):
+def _chunks(gen, total: int, progress):
+    """The samples in blocks of CHUNK_SAMPLES, the progress told after each."""
     done = 0
-    while done < total:
-        m = min(CHUNK_SAMPLES, total - done)
-        yield done, gen.generate(m)
-        done += m
-        if bar is not None:
-            bar.update(m)
+    with progress.stage(total, "samples") as update:
+        while done < total:
+            m = min(CHUNK_SAMPLES, total - done)
+            yield done, gen.generate(m)
+            done += m
+            update(done)

@@ -9,7 +9,13 @@ import sys
 from pathlib import Path
 
 from bmg160_emu import limits
-from bmg160_emu.commands._common import Subparsers, add_command_parser, bounded_option
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    add_progress_options,
+    bounded_option,
+    progress_for,
+)
 
 EPILOG = """\
 examples:
@@ -47,7 +53,7 @@ def register(subparsers: Subparsers) -> None:
         "and write a profile the generator loads back.",
         EPILOG,
     )
-    parser.add_argument("file", type=Path, help="record: .csv, .npy, .npz, .resd (deg/s) or "
+    parser.add_argument("file", type=Path, metavar="FILE", help="record: .csv, .npy, .npz, .resd (deg/s) or "
                         "the firmware's UART stream (.txt)")
     parser.add_argument(
         "--rate",
@@ -82,12 +88,24 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument(
         "--compare",
         action="store_true",
-        help="with --figures: overlay an emulator record from the result",
+        help="with --figures: the recording over the band of emulated records from the result "
+        "(median and 2.5-97.5 %%, --verdict-seeds of them) and the verdict",
+    )
+    parser.add_argument(
+        "--verdict-seeds", type=bounded_option(limits.RUNS), default=20, metavar="N",
+        help="emulated records of the verdict (bmg160-emu compare) printed after "
+        "--profile-out and drawn by --compare (default 20, fewer when they would take over "
+        "a minute)",
+    )
+    parser.add_argument(
+        "--no-verdict", action="store_true",
+        help="do not print the verdict after --profile-out",
     )
     parser.add_argument(
         "--seed",
         type=bounded_option(limits.SEED),
         default=None,
+        metavar="N",
         help="seed of the --compare emulator record (default: random; the same seed as the "
         "recording's own generator would reproduce its noise almost sample for sample)",
     )
@@ -134,7 +152,7 @@ def register(subparsers: Subparsers) -> None:
         "(percentile 95 %% intervals beside the asymptotic ones)",
     )
     parser.add_argument(
-        "--skip", default=None, metavar="DURATION", help="drop the start (warm-up), e.g. 40min"
+        "--skip", default=None, metavar="TIME", help="drop the start (warm-up), e.g. 40min"
     )
     parser.add_argument(
         "--units",
@@ -181,6 +199,7 @@ def register(subparsers: Subparsers) -> None:
         help="do not fit the sensor's output filter, quantization and lines (the fit then "
         "starts where the white -1/2 slope does)",
     )
+    add_progress_options(parser)
     parser.set_defaults(func=run)
 
 
@@ -248,10 +267,12 @@ def run(args: argparse.Namespace) -> int:
             if args.method == "gmwm":
                 from bmg160_emu.noise.gmwm_identification import gmwm_identification
 
+                boot = progress_for(args, "identify").start(  # ends itself when done
+                    args.bootstrap * record.rate_dps.shape[1], "bootstrap fits")
                 result, gmwm_fits = gmwm_identification(
                     result, record.rate_dps, with_q=args.with_q, with_r=args.with_r,
                     tau_min_s=args.tau_min, tau_max_s=args.tau_max, bootstrap=args.bootstrap,
-                    seed=args.seed)
+                    seed=args.seed, progress=boot.update)
     except (RateFileError, IdentificationError, InteropError) as exc:
         text = str(exc)  # "record too short" and the like: name the file once
         raise CommandError(text if text.startswith(str(args.file)) else f"{args.file}: {text}") \
@@ -268,8 +289,18 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(f"cannot write {target if len(written) == 0 else 'an output'}: "
                            f"{exc.strerror or exc}") from None
 
+    verdict = None
+    if record is not None and (args.compare or (args.profile_out is not None
+                                                and not args.no_verdict)):
+        verdict = _verdict(args, record, result)
+        if verdict is not None and args.compare and args.figures is not None:
+            written += _write_verdict_figure(args, verdict)
     if args.json:
         out = result.as_dict(args.units)
+        if verdict is not None:
+            from bmg160_emu.noise.verdict import verdict_dict
+
+            out["verdict"] = verdict_dict(verdict)
         for name, fit in (gmwm_fits or {}).items():
             out["axes"][name]["fit"] = fit.as_dict()  # the fit that gave the values
         out["written"] = [str(p) for p in written]
@@ -281,6 +312,8 @@ def run(args: argparse.Namespace) -> int:
         stage = _output_stage_line(result)
         if stage:
             print(stage)
+        if verdict is not None:
+            print(verdict.text())
         for path in written:
             print(f"wrote {path}")
     for axis in result.axes:  # a curve in the wrong units: said where it cannot be missed
@@ -288,6 +321,55 @@ def run(args: argparse.Namespace) -> int:
             if note.startswith("implausible"):
                 print(f"bmg160-emu identify: warning: axis {axis.axis}: {note}", file=sys.stderr)
     return 0
+
+
+READING_NOTE_BYTES = 20_000_000  # files from this size get a line before and after reading
+VERDICT_BUDGET_S = 60.0  # the verdict after --profile-out takes at most about this long
+VERDICT_MIN_SEEDS = 5  # fewer emulated records say too little: the verdict is left out
+
+
+def _verdict(args: argparse.Namespace, record, result):
+    """The verdict of the identified profile against the record (noise.verdict), with as
+    many of --verdict-seeds as fit in VERDICT_BUDGET_S (one record timed first), or None
+    with a line saying why and how to get it."""
+    import time
+
+    from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
+    from bmg160_emu.noise.verdict import compare_profile
+
+    how = f"bmg160-emu compare {args.file} {args.profile_out or 'PROFILE'}"
+    if float(record.rate_hz) not in SUPPORTED_RATES_HZ:
+        print(f"bmg160-emu identify: no verdict: the record's rate {record.rate_hz:g} Hz is not "
+              "an output data rate the generator draws (100, 200, 400, 1000, 2000 Hz)",
+              file=sys.stderr)
+        return None
+    profile = result.to_profile(args.profile_out.stem if args.profile_out else "identified")
+    names = tuple(a.axis for a in result.axes)
+    started = time.perf_counter()
+    compare_profile(record.rate_dps[: min(record.rate_dps.shape[0], 1 << 16)], record.rate_hz,
+                    profile, 1, names)
+    per_seed = (time.perf_counter() - started) * max(record.rate_dps.shape[0] / (1 << 16), 1.0)
+    seeds = min(args.verdict_seeds, int(VERDICT_BUDGET_S / max(per_seed, 1e-9)))
+    if seeds < VERDICT_MIN_SEEDS and not args.compare:
+        print(f"bmg160-emu identify: no verdict: {VERDICT_MIN_SEEDS} emulated records would "
+              f"take about {VERDICT_MIN_SEEDS * per_seed:.0f} s; run `{how} --seeds N`",
+              file=sys.stderr)
+        return None
+    seeds = max(seeds, VERDICT_MIN_SEEDS)
+    print(f"bmg160-emu identify: verdict over {seeds} emulated records (about "
+          f"{seeds * per_seed:.0f} s; `{how}` gives more) ...", file=sys.stderr, flush=True)
+    return compare_profile(record.rate_dps, record.rate_hz, profile, seeds, names)
+
+
+def _write_verdict_figure(args: argparse.Namespace, verdict) -> list[Path]:
+    from bmg160_emu.io.atomic import atomic_path
+    from bmg160_emu.noise import plots
+    from bmg160_emu.noise.verdict import verdict_figure
+
+    path = args.figures / f"compare.{args.format}"
+    with atomic_path(path) as partial:
+        plots.save(verdict_figure(verdict), partial)
+    return [path]
 
 
 def _output_stage_line(result) -> str:
@@ -318,7 +400,18 @@ def _identify_record(args: argparse.Namespace, options: dict):
     from bmg160_emu.noise.identify import STAGES_PER_AXIS, identify
 
     columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
+    import time
+
+    size = args.file.stat().st_size if args.file.is_file() else 0
+    started = time.perf_counter()
+    if size >= READING_NOTE_BYTES:  # a large text file takes 10-20 s: say so, then how long
+        print(f"bmg160-emu identify: reading {args.file} ({size / 1e6:.0f} MB) ...",
+              file=sys.stderr, flush=True)
     record = load_rate_record(args.file, args.rate, columns)
+    if size >= READING_NOTE_BYTES:
+        print(f"bmg160-emu identify: read {record.rate_dps.shape[0]:,} samples x "
+              f"{record.rate_dps.shape[1]} axes in {time.perf_counter() - started:.1f} s",
+              file=sys.stderr, flush=True)
     from bmg160_emu.io.partial import partial_note
 
     cut = partial_note(args.file)
@@ -463,7 +556,6 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
     }
     if args.compare:
         from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
-        from bmg160_emu.noise.identify import identify_axis
         from bmg160_emu.noise.sensor_noise import profile_noise
 
         chip_rate = min(SUPPORTED_RATES_HZ, key=lambda r: abs(r / record.rate_hz - 1))
@@ -472,16 +564,15 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
                 f"--compare: the record's rate {record.rate_hz:g} Hz is not a BMG160 output "
                 "data rate (100, 200, 400, 1000, 2000 Hz)"
             )
-        # what generate writes from the profile: its output stage included
+        # what generate writes from the profile: its output stage included; one record for
+        # the look of the time series (its ADEV and PSD are drawn as the band of many
+        # records: compare.png, _write_verdict_figure; one record's ADEV at L/10 scatters by
+        # a factor 2-4 from seed to seed, issue 35)
         gen = profile_noise(result.to_profile(), chip_rate, seed=args.seed)
         emulated = gen.generate(record.rate_dps.shape[0])
         for i, axis in enumerate(result.axes):
-            emu = identify_axis(emulated[:, i], record.rate_hz, axis.axis)
-            overlays = plots.overlay_figures(
-                record.rate_dps[:, i], emulated[:, i], record.rate_hz, axis, emu
-            )
-            for key, fig in overlays.items():
-                figs[f"{key}_{axis.axis}"] = fig
+            figs[f"overlay_time_{axis.axis}"] = plots.overlay_time_figure(
+                record.rate_dps[:, i], emulated[:, i], record.rate_hz, axis.axis)
     from bmg160_emu.io.atomic import atomic_path
 
     written = []

@@ -81,7 +81,8 @@ def register(subparsers: Subparsers) -> None:
     run.add_argument("--console", type=Path, default=None, metavar="FILE",
                      help="write the guest's console (kernel messages) to FILE")
     add_chip_options(run, realtime=False)
-    run.add_argument("program", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
+    run.add_argument("program", nargs=argparse.REMAINDER, metavar="PROGRAM",
+                     help="-- COMMAND ARGS...")
     run.set_defaults(func=run_command)
 
     def usage(_args: argparse.Namespace) -> int:

@@ -12,6 +12,7 @@ from bmg160_emu.commands._common import (
     Subparsers,
     add_bus_option,
     add_command_parser,
+    add_renamed_option,
     duration_seconds,
     integer_at_least,
 )
@@ -21,11 +22,11 @@ examples:
   bmg160-emu micropython main.py                      # the chip at 0x68 on I2C(1)
   bmg160-emu micropython --seed 7 --true-rate 10 0 -5 --duration 2s main.py
   bmg160-emu micropython --part bmi088_gyro --device bmi088_accel@0x18 main.py
-  bmg160-emu micropython --bus 0 --real-time main.py  # on I2C(0), in real time
+  bmg160-emu micropython --bus 0 --realtime main.py  # on I2C(0), in real time
 
 The program imports machine and time as on the board (an ESP32): machine.I2C(BUS) and
 every SoftI2C reach the chips, time.sleep_ms() and time.ticks_ms() are there. Without
---real-time the chips' clock follows the program's sleeps: a sleep_ms(10) moves them 10 ms
+--realtime the chips' clock follows the program's sleeps: a sleep_ms(10) moves them 10 ms
 on at once, so the program runs faster than real time and the same every run (with
 --seed). Its folder and its lib folder are on the import path. --duration stops the
 program at its first sleep past that much program time (main.py often loops for ever).
@@ -43,8 +44,10 @@ def register(subparsers: Subparsers) -> None:
         EPILOG,
     )
     add_bus_option(parser, "the I2C id the chips are on, machine.I2C(N) (default 1)", default=1)
-    parser.add_argument("--real-time", action="store_true",
+    parser.add_argument("--realtime", dest="real_time", action="store_true",
                         help="the chips on the wall clock; the program's sleeps really wait")
+    add_renamed_option(parser, "--real-time", "--realtime", dest="real_time", nargs=0,
+                       const=True)
     parser.add_argument("--duration", type=duration_seconds, default=None, metavar="TIME",
                         help="stop the program at its first sleep past TIME of program time "
                              "(30s, 5min)")
@@ -53,8 +56,10 @@ def register(subparsers: Subparsers) -> None:
                         help="the board's heap: a buffer past it is a MemoryError (an ESP32 "
                              "without PSRAM has about 110000); default: no limit")
     add_chip_options(parser, realtime=False, devices=True)
-    parser.add_argument("program", type=Path, help="the MicroPython program, e.g. main.py")
-    parser.add_argument("args", nargs=argparse.REMAINDER, help="its sys.argv[1:]")
+    parser.add_argument("program", type=Path, metavar="PROGRAM",
+                        help="the MicroPython program, e.g. main.py")
+    parser.add_argument("args", nargs=argparse.REMAINDER, metavar="ARGS",
+                        help="its sys.argv[1:]")
     parser.set_defaults(func=run)
 
 

@@ -11,8 +11,11 @@ from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
 from bmg160_emu.commands._common import (
     Subparsers,
     add_command_parser,
+    add_progress_options,
     bounded_option,
+    check_memory,
     check_writable,
+    progress_for,
 )
 
 EPILOG = """\
@@ -54,8 +57,9 @@ def register(subparsers: Subparsers) -> None:
         "--truth", type=Path, default=None, metavar="SCENARIO",
         help="true motion from a scenario file (TOML, docs/scenarios.md)",
     )
-    parser.add_argument("-o", "--output", type=Path, required=True,
+    parser.add_argument("-o", "--output", type=Path, required=True, metavar="FILE",
                         help="OUT.csv, OUT.npz or OUT.resd (Renode)")
+    add_progress_options(parser)
     add_chip_options(parser, realtime=False)
     parser.set_defaults(func=run)
 
@@ -99,31 +103,24 @@ def run(args: argparse.Namespace) -> int:
     if args.rate is not None:
         args.bandwidth = BW_CODE_BY_ODR_HZ[args.rate]
     chip = next(iter(chips_from_args(args).values()))
+    samples = round(duration * chip.odr_hz)
     try:  # record holds every sample until it writes them: refuse what memory cannot hold
-        limits.RECORD_SAMPLES.check(round(duration * chip.odr_hz), f"--duration {args.duration}"
+        limits.RECORD_SAMPLES.check(samples, f"--duration {args.duration}"
                                     if args.duration else f"{args.truth}: duration_s")
     except limits.LimitError as exc:
         raise CommandError(f"{exc} (at {chip.odr_hz:g} Hz; a lower --rate records longer)")\
             from None
+    check_memory(samples * limits.RECORD_BYTES_PER_SAMPLE, f"recording {samples:,} samples "
+                 f"({limits.RECORD_BYTES_PER_SAMPLE} bytes each until they are written)",
+                 "record less (--duration) or at a lower --rate")
     if scenario is not None:
         chip.set_true_rate(scenario)
 
-    progress = None
-    from bmg160_emu.commands._extras import available
-
-    if sys.stderr.isatty() and available("tqdm"):  # a bar is an extra's nicety, not needed
-        from tqdm import tqdm
-
-        bar = tqdm(total=round(duration * chip.odr_hz), unit="sample", file=sys.stderr)
-
-        def progress(done: int, total: int) -> None:
-            if done % 1000 == 0 or done == total:
-                bar.n = done
-                bar.refresh()
-
+    reporter = progress_for(args, "record")
     stopped: KeyboardInterrupt | None = None
     try:
-        rec = record(chip, duration, progress)
+        with reporter.stage(samples, "samples") as update:
+            rec = record(chip, duration, lambda done, total: update(done))
     except (ValueError, RuntimeError) as exc:
         raise CommandError(str(exc)) from None
     except RecordingInterrupted as exc:  # keep the samples so far: an honest shorter record

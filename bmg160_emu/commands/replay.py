@@ -12,6 +12,7 @@ from bmg160_emu.commands._chip_options import RANGE_CODE_BY_DPS, add_chip_option
 from bmg160_emu.commands._common import (
     Subparsers,
     add_command_parser,
+    add_progress_options,
     bounded_option,
     check_writable,
     run_script_file,
@@ -52,9 +53,12 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument("--max-gap-factor", type=bounded_option(limits.GAP_FACTOR), default=3.0, metavar="F",
                         help="a time step over F times the median step is a gap (default 3)")
     parser.add_argument("--loop", action="store_true", help="start over at the end (default: hold)")
-    parser.add_argument("-o", "--output", type=Path, default=None,
-                        help="record the chip's output during the replay to OUT.csv, .npz or .resd")
-    parser.add_argument("--script", type=Path, default=None, help="run a register script instead")
+    parser.add_argument("-o", "--output", type=Path, default=None, metavar="FILE",
+                        help="record the chip's output during the replay to OUT.csv, .npz or "
+                        ".resd")
+    parser.add_argument("--script", type=Path, default=None, metavar="FILE",
+                        help="run a register script instead")
+    add_progress_options(parser)
     add_chip_options(parser)
     parser.set_defaults(func=run)
 
@@ -98,23 +102,31 @@ def run(args: argparse.Namespace) -> int:
                                         f"{args.data}: a replay of {duration:g} s")
         except ValueError as exc:  # LimitError is one
             raise CommandError(f"{exc} (at {chip.odr_hz:g} Hz)") from None
-        return _record_to(args.output, chip, data, args.data)
+        return _record_to(args, chip, data)
     return run_script_file(args.script, chips, print, "FAILED ")
 
 
-def _record_to(path: Path, chip: Any, data: Any, source: Path) -> int:
+def _record_to(args: argparse.Namespace, chip: Any, data: Any) -> int:
     """The chip's output during the replay, recorded to ``path``: whole, or (a signal) the
     samples so far marked interrupted, or nothing before the first sample; written under a
     temporary name with the signals held (io.atomic), so a full disk or a ^C keeps the old
     file (it used to leave a truncated one under the target's name)."""
-    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.commands._common import CommandError, check_memory, progress_for
     from bmg160_emu.io.atomic import held_signals
     from bmg160_emu.io.recording import write_recording
     from bmg160_emu.session.record import RecordingInterrupted, record
 
+    path, source = args.output, args.data
+
+    samples = round((data.duration_s + data.median_step_s) * chip.odr_hz)
+    check_memory(samples * limits.RECORD_BYTES_PER_SAMPLE, f"recording {samples:,} samples "
+                 f"({limits.RECORD_BYTES_PER_SAMPLE} bytes each until they are written)",
+                 "replay a shorter file, or at a lower output data rate")
     stopped: KeyboardInterrupt | None = None
     try:
-        rec = record(chip, data.duration_s + data.median_step_s)
+        with progress_for(args, "replay").stage(samples, "samples") as update:
+            rec = record(chip, data.duration_s + data.median_step_s,
+                         lambda done, total: update(done))
     except RecordingInterrupted as exc:
         stopped, rec = exc, exc.recording
         if len(rec) == 0:

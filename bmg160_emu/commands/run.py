@@ -55,7 +55,8 @@ def register(subparsers: Subparsers) -> None:
         "record every transaction as a JSON Lines trace (decode: bmg160-emu trace FILE)",
     )
     add_chip_options(parser, realtime=False, devices=True)
-    parser.add_argument("program", nargs=argparse.REMAINDER, help="-- COMMAND ARGS...")
+    parser.add_argument("program", nargs=argparse.REMAINDER, metavar="PROGRAM",
+                        help="-- COMMAND ARGS...")
     parser.add_argument(
         "--watch", action="store_true", help="make the session watchable live (bmg160-emu watch)"
     )

@@ -41,16 +41,16 @@ def register(subparsers: Subparsers) -> None:
         "correlated noise.",
         EPILOG,
     )
-    parser.add_argument("file", type=Path, help="CSV with time, x, y, z (deg/s) and temperature")
+    parser.add_argument("file", type=Path, metavar="FILE", help="CSV with time, x, y, z (deg/s) and temperature")
     parser.add_argument("--temperature-column", default=None, metavar="NAME",
                         help=f"the temperature column (default: one of {', '.join(TEMPERATURE_COLUMNS)})")
     parser.add_argument("--order", type=bounded_option(limits.POLYNOMIAL_ORDER), default=3, choices=(0, 1, 2, 3),
                         help="polynomial order (default 3, as PX4)")
     parser.add_argument("--reference", type=bounded_option(limits.REFERENCE_TEMPERATURE_C), default=None, metavar="DEGC",
                         help="reference temperature of the polynomial (default: mid-range)")
-    parser.add_argument("--block", default="60s", metavar="DURATION",
+    parser.add_argument("--block", default="60s", metavar="TIME",
                         help="block length the fit averages over (default 60s)")
-    parser.add_argument("--noise-profile", default=None, metavar="PROFILE",
+    parser.add_argument("--noise-profile", default=None, metavar="NAME|FILE",
                         help="the unit's noise profile (default: identified from the residuals)")
     parser.add_argument("--px4-params", type=Path, default=None, metavar="FILE",
                         help="write PX4's TC_G0_* parameters as a QGroundControl .params file")
@@ -124,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     except RateFileError as exc:
         raise CommandError(str(exc)) from None
     rate_hz = 1.0 / step
+    _check_blocks(block_s, step, len(t), args.block)
     noise = None
     if args.noise_profile is not None:
         from bmg160_emu.noise import load_profile
@@ -138,17 +139,37 @@ def run(args: argparse.Namespace) -> int:
                                    block_s=block_s, noise=noise)
     except (ThermalFitError, IdentificationError) as exc:  # the residuals' noise fit too
         raise CommandError(f"{args.file}: {exc}") from None
-    try:
-        if args.px4_params is not None:
-            with atomic_open(args.px4_params, encoding="utf-8") as f:
-                f.write(fit.px4_params_file(instance=args.px4_instance))
-        if args.errors_out is not None:
-            with atomic_open(args.errors_out, encoding="utf-8") as f:
-                f.write(_errors_toml(fit.to_errors(), args.file))
-    except OSError as exc:
-        raise CommandError(f"cannot write: {exc.strerror or exc}") from None
+    outputs = [(args.px4_params, lambda: fit.px4_params_file(instance=args.px4_instance)),
+               (args.errors_out, lambda: _errors_toml(fit.to_errors(), args.file))]
+    for path, text in outputs:
+        if path is None:
+            continue
+        try:
+            with atomic_open(path, encoding="utf-8") as f:
+                f.write(text())
+        except OSError as exc:  # named by the output, not by its temporary file
+            raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None
     print(json.dumps(_as_dict(fit), indent=1) if args.json else _summary(fit, args.file))
     return 0
+
+
+def _check_blocks(block_s: float, step_s: float, samples: int, shown: str) -> None:
+    """A block of whole samples, and few enough of them for the fit's blocks x blocks
+    covariance (limits.THERMAL_BLOCKS). ``--block 1ms`` on a 100 Hz log made one block per
+    sample, and the covariance of a 1-hour log asked numpy for 966 GiB (issue 35)."""
+    from bmg160_emu.commands._common import CommandError
+
+    if block_s < step_s * (1 - 1e-9):
+        raise CommandError(f"--block {shown} is shorter than the log's sample period "
+                           f"({step_s:g} s): a block averages whole samples")
+    per_block = max(1, round(block_s / step_s))
+    blocks = samples // per_block
+    most = int(limits.THERMAL_BLOCKS.high)
+    if blocks > most:
+        shortest = math.ceil(samples / most) * step_s
+        raise CommandError(f"--block {shown} cuts the log into {blocks:,} blocks; the fit takes "
+                           f"at most {most:,} (its covariance is blocks x blocks numbers, "
+                           f"docs/limits.md): give --block {shortest:g}s or longer")
 
 
 def _as_dict(fit: Any) -> dict[str, Any]:
@@ -173,10 +194,29 @@ def _summary(fit: Any, source: Path) -> str:
     for name, a in zip(fit.axis_names, fit.axes):
         for k in range(fit.order + 1):
             lo, hi = a.intervals[k]
-            lines.append(f"  {name}  c{k} = {a.coefficients[k]: .6g} {units[k]}  "
-                         f"[{lo:.6g}, {hi:.6g}]")
+            place = _last_digit_place(a.standard_errors[k])
+            lines.append(f"  {name}  c{k} = {_to_place(a.coefficients[k], place, ' ')} "
+                         f"{units[k]}  [{_to_place(lo, place)}, {_to_place(hi, place)}]")
         lines.append(f"  {name}  reduced chi-square {a.reduced_chi2:.2f}")
     return "\n".join(lines)
+
+
+def _last_digit_place(standard_error: float) -> int:
+    """The decimal place (a power of ten) of a standard error's second significant digit: an
+    estimate is quoted to that place and no further (GUM, JCGM 100:2008, 7.2.6). The digits
+    beyond it are noise, and they differ with the BLAS kernel of the machine."""
+    if not (standard_error > 0 and math.isfinite(standard_error)):
+        return -6
+    return math.floor(math.log10(standard_error)) - 1
+
+
+def _to_place(value: float, place: int, sign: str = "") -> str:
+    """``value`` rounded to the decimal place ``10**place``, in the shortest notation."""
+    if value == 0 or not math.isfinite(value):
+        return f"{value:{sign}g}"
+    digits = max(1, math.floor(math.log10(abs(value))) - place + 1)
+    keep_zeros = "#" if digits > 1 else ""  # 0.01540, not 0.0154: the place is the point
+    return f"{value:{sign}{keep_zeros}.{digits}g}"
 
 
 def _errors_toml(errors: dict[str, Any], source: Path) -> str:

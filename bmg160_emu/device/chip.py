@@ -112,7 +112,7 @@ class BMG160:
             thermometer=Thermometer(temperature_c), nvm=Nvm(image, nvm_remain))
         s.budget = environment.ErrorBudget.of(
             errors, unit, acceleration_g, generator or profile, seed=seed, address=address,
-            thermometer=s.thermometer, times_ns=s.times_ns)
+            thermometer=s.thermometer, times_ns=s.times_ns, source=profile)
         s.path = datapath.DataPath(transform, generator, s.budget)
         self._step_s, self._step_ns = 0.0, 0  # advance's last step (s) and its rounding (ns)
         self._pointer = 0

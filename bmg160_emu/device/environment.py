@@ -14,6 +14,7 @@ Which errors a chip has, in order of precedence: ``errors=`` given to the chip, 
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -25,8 +26,11 @@ from bmg160_emu.noise.sensor_errors import NO_ERRORS, SensorErrors, TurnOnBias
 FULL_SCALE_LSB = 32768.0  # the int16 full scale: FS in deg/s is this over the sensitivity
 
 
-def errors_for(errors: Any, unit: int | None, seed: int | None, profile: Any) -> SensorErrors:
-    """The chip's errors from its options (the module docstring's precedence)."""
+def errors_for(errors: Any, unit: int | None, seed: int | None, profile: Any,
+               source: Any = None) -> SensorErrors:
+    """The chip's errors from its options (the module docstring's precedence); ``source``,
+    the profile as the chip was given it (a name or a path), names it in an error (issue 35:
+    a file with name = "paper" was reported as "profile paper")."""
     if errors is not None:
         if isinstance(errors, SensorErrors):
             return errors
@@ -41,6 +45,8 @@ def errors_for(errors: Any, unit: int | None, seed: int | None, profile: Any) ->
             raise ValueError("unit= draws a unit of a lot: give the chip a seed (the lot)")
         return draw_unit(int(seed), unit)
     where = f"profile {getattr(profile, 'name', profile)} [errors]"
+    if isinstance(source, (str, os.PathLike)):
+        where = f"{os.fspath(source)} [errors]"
     if profile is not None and not hasattr(profile, "axes"):
         from bmg160_emu.noise import load_profile
 
@@ -79,12 +85,12 @@ class ErrorBudget:
     @classmethod
     def of(cls, errors: Any, unit: int | None, acceleration_g: Any, generator_or_profile: Any,
            *, seed: int | None, address: int, thermometer: Any,
-           times_ns: Callable[[int, int], np.ndarray]) -> ErrorBudget:
+           times_ns: Callable[[int, int], np.ndarray], source: Any = None) -> ErrorBudget:
         """The budget of a chip from its constructor's options, its thermometer and the
         times of its samples (``state.ChipState.times_ns``)."""
         profile = getattr(generator_or_profile, "profile", generator_or_profile)
-        budget = cls(errors_for(errors, unit, seed, profile), seed, address, thermometer,
-                     times_ns)
+        budget = cls(errors_for(errors, unit, seed, profile, source), seed, address,
+                     thermometer, times_ns)
         budget.set_acceleration(acceleration_g)
         return budget
 

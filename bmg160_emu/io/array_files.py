@@ -51,14 +51,23 @@ def check_declared_size(handle: typing.BinaryIO, available: int, path: str | Pat
 
 
 def open_npz(path: str | Path):
-    """The archive of an NPZ file (arrays read lazily, one key at a time)."""
+    """The archive of an NPZ file (arrays read lazily, one key at a time). The file is
+    opened here and handed to the archive, which closes it; when the archive cannot be
+    read, it is closed here (``np.load`` of a truncated zip left its file open, a
+    ResourceWarning, issue 35)."""
+    from numpy.lib.npyio import NpzFile
+
+    handle = open(path, "rb")  # noqa: SIM115 - owned by the archive from here on
     try:
-        archive = np.load(path, allow_pickle=False)
-    except ARRAY_ERRORS as exc:
-        raise RateFileError(f"not a readable NPZ archive ({exc})", path=path) from None
-    if isinstance(archive, np.ndarray):
-        raise RateFileError("not an NPZ archive (a .npy array)", path=path)
-    return archive
+        if handle.read(6).startswith(b"\x93NUMPY"):
+            raise RateFileError("not an NPZ archive (a .npy array)", path=path)
+        handle.seek(0)
+        return NpzFile(handle, own_fid=True, allow_pickle=False)
+    except BaseException as exc:
+        handle.close()
+        if isinstance(exc, ARRAY_ERRORS) and not isinstance(exc, RateFileError):
+            raise RateFileError(f"not a readable NPZ archive ({exc})", path=path) from None
+        raise
 
 
 def npz_array(archive, key: str, path: str | Path) -> np.ndarray:

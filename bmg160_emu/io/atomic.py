@@ -29,8 +29,20 @@ from typing import IO, Any
 
 __all__ = [
     "AtomicFile", "OutputError", "atomic_open", "atomic_path", "check_free_space", "check_writable",
-    "held_signals",
+    "held_signals", "name_problem", "outputs_so_far", "shown_path", "size_text",
 ]
+
+# every target this process put in place, and every one whose temporary file was removed
+# unfinished, in order: what a stopped command says it kept (issue 35: identify said
+# "unfinished outputs removed" with 4 of its 5 outputs written)
+_WRITTEN: list[Path] = []
+_DISCARDED: list[Path] = []
+
+
+def outputs_so_far() -> tuple[list[Path], list[Path]]:
+    """Copies of the lists of outputs written whole and of outputs removed unfinished by
+    this process so far (a caller compares them before and after its work)."""
+    return list(_WRITTEN), list(_DISCARDED)
 
 
 class OutputError(OSError):
@@ -49,9 +61,42 @@ def _is_special(target: Path) -> bool:
         return False
 
 
+NAME_MAX = 255  # bytes in one path component on Linux's file systems (limits.h)
+PATH_MAX = 4096  # bytes in a whole path given to the kernel (limits.h)
+
+
+def shown_path(path: str | os.PathLike[str], width: int = 80) -> str:
+    """A path for a one-line message: whole when short, else its start and end around
+    ``...`` (a 300-character name must not fill the screen)."""
+    text = os.fspath(path)
+    if isinstance(text, bytes):  # pragma: no cover - the commands give str paths
+        text = text.decode(errors="replace")
+    if len(text) <= width:
+        return text
+    keep = (width - 3) // 2
+    return text[:keep] + "..." + text[-keep:]
+
+
+def name_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why the kernel would refuse ``path`` by its length alone (ENAMETOOLONG), or None: a
+    component over NAME_MAX bytes, or the whole over PATH_MAX (issue 35: a 300-character
+    name was an OSError traceback in identify, generate, thermal and firmware capture)."""
+    text = os.fsencode(path)
+    if len(text) >= PATH_MAX:
+        return f"the path is {len(text):,} bytes; Linux takes at most {PATH_MAX - 1:,}"
+    longest = max(text.split(b"/"), key=len)
+    if len(longest) > NAME_MAX:
+        return (f"a name in it is {len(longest):,} bytes; a file name is at most "
+                f"{NAME_MAX} bytes")
+    return None
+
+
 def check_writable(path: str | os.PathLike[str]) -> None:
     """Refuse, before any work, a path whose folder is missing or not writable, or that is a
-    folder: :class:`OutputError` naming the path."""
+    folder, or whose name is too long: :class:`OutputError` naming the path."""
+    problem = name_problem(path)
+    if problem is not None:
+        raise OutputError(f"cannot write {shown_path(path)}: {problem}")
     target = _resolved(path)
     if target.is_dir():
         raise OutputError(f"cannot write {os.fspath(path)}: it is a folder")
@@ -76,12 +121,13 @@ def check_free_space(path: str | os.PathLike[str], size_bytes: int) -> None:
     free = shutil.disk_usage(target.parent).free
     if size_bytes > free:
         raise OutputError(
-            f"cannot write {os.fspath(path)}: it needs {_size(size_bytes)} and "
-            f"{target.parent} has {_size(free)} free"
+            f"cannot write {os.fspath(path)}: it needs {size_text(size_bytes)} and "
+            f"{target.parent} has {size_text(free)} free"
         )
 
 
-def _size(n: int) -> str:
+def size_text(n: int) -> str:
+    """A byte count for a message: ``812 bytes``, ``5.6 GB``."""
     for unit in ("bytes", "kB", "MB", "GB", "TB"):
         if n < 1000 or unit == "TB":
             return f"{n:,} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
@@ -131,6 +177,7 @@ def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iter
                                      dir=folder)
     os.close(fd)
     temp = Path(temp_name)
+    placed = False
     try:
         yield temp
         if special:
@@ -144,9 +191,13 @@ def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iter
             else:
                 os.chmod(temp, _mode_for_new_file())
             os.replace(temp, target)
+        placed = True
+        _WRITTEN.append(Path(os.fspath(path)))
     finally:
         with contextlib.suppress(FileNotFoundError):
             temp.unlink()
+        if not placed:
+            _DISCARDED.append(Path(os.fspath(path)))
 
 
 @contextlib.contextmanager

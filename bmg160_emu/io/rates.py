@@ -137,7 +137,10 @@ def _resolve_rate(table: RateTable, rate_hz: float | None, n: int) -> float:
         raise RateFileError(f"sample rate must be a positive number of Hz, got {rate_hz!r}")
     if t is None:
         if rate_hz is None:
-            raise RateFileError("no time column: give the sample rate (--rate HZ)", path=path)
+            raise RateFileError("no time column (a column named "
+                                + ", ".join(TIME_COLUMN_NAMES[:-1]) + f" or {TIME_COLUMN_NAMES[-1]}"
+                                "): give the sample rate (--rate HZ) or name the time column "
+                                "so", path=path)
         return float(rate_hz)
     check_time_column(t, table.where, GAP_FACTOR)
     if n < 2:
@@ -307,6 +310,7 @@ class RateTableFile(FileReader):
 
     def read(self) -> np.ndarray:
         self.check_path()
+        where = None  # a CSV row's file and line (an .npy's row is its index)
         if self.path.suffix.lower() == ".npy":
             data = read_npy(self.path)
         else:
@@ -317,12 +321,15 @@ class RateTableFile(FileReader):
                                         "t_s, x, y, z")
                 return None, [0, 1, 2, 3]
 
-            data = read_csv_table(self.path, choose).values
+            table = read_csv_table(self.path, choose)
+            data, where = table.values, table.where
         if data.ndim != 2 or data.shape[1] != 4:
             raise RateFileError(f"a rate table holds rows of 4 numbers (t_s, x, y, z), not "
                                 f"shape {data.shape}", path=self.path)
         bad = first_non_finite(data)
-        if bad is not None:
+        if bad is not None:  # named by line (issue 35: a nan used to fail later, unnamed)
+            if where is not None:
+                raise RateFileError(f"{where(bad)}: empty or non-finite value")
             raise RateFileError(f"row {bad}: empty or non-finite value", path=self.path)
         return data
 

@@ -13,6 +13,8 @@ filter takes less than 1 % off white noise's Allan variance (``FILTER_DEFICIT``)
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 
@@ -40,13 +42,15 @@ def gmwm_identification(
     tau_max_s: float | None = None,
     bootstrap: int = 0,
     seed: int | None = None,
+    progress: Callable[[int], None] | None = None,
 ) -> tuple[Identification, dict[str, gmwm.GMWMFit]]:
     """``result`` (``identify``'s, of the samples ``rate_dps``, (n,) or (n, k) deg/s) with
     each axis's fit replaced by GMWM's of white noise + one Gauss-Markov term + random walk
     (+ quantization with ``with_q``, + drift with ``with_r``) on the scales within
     ``tau_min_s`` .. ``tau_max_s``; ``bootstrap`` replicates (seeded) add bootstrap
-    intervals. Returns the new identification and the GMWM fit of each axis by name.
-    IdentificationError naming the axis when a fit fails."""
+    intervals; ``progress(done)`` is told the replicates done so far over all axes (10,000
+    a axis took hours, issue 35). Returns the new identification and the GMWM fit of each
+    axis by name. IdentificationError naming the axis when a fit fails."""
     samples = np.asarray(rate_dps, dtype=float).reshape(len(rate_dps), -1)
     rate_hz = result.rate_hz
     model = ["WN", "GM", "RW"] + ["QN"] * with_q + ["DR"] * with_r
@@ -61,14 +65,19 @@ def gmwm_identification(
             deficit = np.abs(white_avar_unit(wv.taus_s, rate_hz, axis.output_filter.design)
                              * wv.taus_s - 1.0)
             keep &= deficit < FILTER_DEFICIT
+        elif axis.stage is not None and axis.stage.carries_response:
+            # a measured output response (bands inside): the same 1 % rule through it
+            deficit = np.abs(axis.stage.response.white_avar_unit(wv.taus_s) * wv.taus_s - 1.0)
+            keep &= deficit < FILTER_DEFICIT
         if tau_max_s is not None:
             keep &= wv.taus_s <= tau_max_s
         wv = dataclasses.replace(wv, m=wv.m[keep], taus_s=wv.taus_s[keep], wv=wv.wv[keep],
                                  n_coeffs=wv.n_coeffs[keep])
         try:
             fit = gmwm.gmwm_fit(wv, model)
-            if bootstrap:
-                fit = gmwm.bootstrap(fit, bootstrap, seed=seed)
+            if bootstrap:  # the axes' replicates, one axis after another
+                told = None if progress is None else partial(_told, progress, i * bootstrap)
+                fit = gmwm.bootstrap(fit, bootstrap, seed=seed, progress=told)
         except gmwm.GMWMError as exc:
             raise IdentificationError(f"axis {axis.axis}: {exc}") from None
         est = {k: Estimate(e.value, e.ci_low, e.ci_high, e.unit) for k, e in fit.estimates.items()}
@@ -95,10 +104,16 @@ def gmwm_identification(
             chi2_reduced=fit.objective / max(fit.dof, 1),
         )
         reason = axis.tau_range_reason
-        if tau_min_s is None and axis.output_filter is not None:
+        if tau_min_s is None and (axis.output_filter is not None or (
+                axis.stage is not None and axis.stage.carries_response)):
             reason = (f"GMWM's scales from tau = {wv.taus_s[0]:.3g} s, where the output filter "
                       "takes less than 1 % off white noise's Allan variance")
         axes[i] = dataclasses.replace(axis, fit=curve_fit, notes=notes, method="gmwm",
                                       tau_range_reason=reason)
         fits[axis.axis] = fit
     return dataclasses.replace(result, axes=axes), fits
+
+
+def _told(progress: Callable[[int], None], before: int, done: int) -> None:
+    """A replicate of one axis done: ``before`` are the earlier axes' replicates."""
+    progress(before + done)

@@ -24,11 +24,11 @@ from typing import Any
 
 from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
 from bmg160_emu.bus.spi import FakeSpiDev
-from bmg160_emu.traffic.transaction import TransactionLog, errno_name
 from bmg160_emu.clock import NS_PER_S, VirtualClock
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.durations import MAX_SIMULATED_S
 from bmg160_emu.serve import protocol as p
+from bmg160_emu.traffic.transaction import TransactionLog, errno_name
 
 MAX_TIME_NS = int(MAX_SIMULATED_S * NS_PER_S)  # the one cap on simulated time (durations)
 CHIP_ID = address_of("CHIP_ID")

@@ -72,7 +72,7 @@ class StaleReads:
                       f"at t={when:.6f} s with the clock standing still: every read returns "
                       "the same sample. On the board each read takes bus time while the chip "
                       "samples on; sleep between reads (time.sleep_ms) to let the clock move, "
-                      "or run with --real-time")
+                      "or run with --realtime")
 
 
 @contextlib.contextmanager

@@ -29,7 +29,7 @@ showed it: frame j of n read at t was sampled at about ``t - (n - 1 - j) / ODR``
   sample, so 8 in a row ~1e-12) is replaced by the model until it moves;
 - bias step: the residual between the gyro and a momentum model (``I dw = -dh - w x (I w
   + h) dt``, with ``h`` from the wheel tachometers, so wheel friction is included) is
-  averaged over 0.1 s; above ``STEP_THRESHOLD_DPS`` for 0.25 s the step is declared, its size
+  averaged over 0.1 s; above ``step_threshold_dps`` for 0.25 s the step is declared, its size
   is the residual's mean over that time, and it is subtracted from then on.
 
 The step works on plain Python floats (3-vectors as lists): numpy's per-call overhead on
@@ -61,7 +61,8 @@ _FRAME = struct.Struct("<3h")
 STUCK_SAMPLES = 8
 STEP_WINDOW_S = 0.1  # the residual mean (2 steps, 20 samples)
 STEP_CONFIRM_S = 0.25  # above threshold this long before a bias step is declared (5 steps)
-STEP_THRESHOLD_DPS = 0.15  # 0.1 s mean of the residual; its noise is ~0.02 deg/s rms
+STEP_THRESHOLD_DPS = 0.15  # 0.1 s mean of the residual; its noise is ~0.02 deg/s rms with
+# the paper's gyro (FlightConfig.step_threshold_dps: scaled with the flown gyro's N)
 BASELINE_TAU_S = 1.0  # the residual's level before a step: a slow mean
 OBSERVER_TAU_S = 2.0  # the model rate follows the gyro with a 2 s time constant
 ST_MAX_RATE_DPS = 1.0  # star tracker fixes are used only below this rate
@@ -85,6 +86,9 @@ class FlightConfig:
     # 0.03 deg/s under the 0.1 deg/s goal covers the estimate's residual bias (~0.02 deg/s)
     point_rate_dps: float = 0.07
     bias_gain: float = 0.3  # fraction of the star-tracker drift taken into the bias
+    # the residual's 0.1 s mean beyond this is a bias step: a noisier gyro needs a higher
+    # threshold for the same false-alarm rate (scenario.step_threshold_dps)
+    step_threshold_dps: float = 0.15
     dt_s: float = PERIOD_S  # the flight software's step (its Basilisk task's period)
 
 
@@ -300,7 +304,7 @@ class FlightSoftware(sysModel.SysModel):
             sums[axis] += residual[axis]
         if len(self.residuals) < window:
             return
-        limit = STEP_THRESHOLD_DPS * window
+        limit = self.cfg.step_threshold_dps * window
         if all(abs(x) < limit for x in sums) and not any(self.suspect):
             return
         for axis in range(3):

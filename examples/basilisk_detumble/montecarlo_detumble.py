@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import scenario
 
 from bmg160_emu.adcs.dispersion import NoiseDispersion
-from bmg160_emu.adcs.montecarlo import map_runs, reduce_runs
+from bmg160_emu.adcs.montecarlo import default_scheduler, map_runs, reduce_runs
 from bmg160_emu.adcs.results import RunResult
 from bmg160_emu.adcs.run_archive import RunArchive, RunRecord
 
@@ -44,15 +44,22 @@ class DetumbleRun:
     """``run(seed)``: picklable, so Dask workers can run it."""
 
     duration_s: float = 150.0
-    identification: str = str(scenario.IDENTIFICATION)
+    # identify --json of the gyro's record: N, B, K dispersed within its intervals and the
+    # ground calibration; None: the profile as it is, every run (nothing to disperse within)
+    identification: str | None = str(scenario.IDENTIFICATION)
     keep_series: bool = True
     setup_overrides: dict = field(default_factory=dict)
+    profile: str = "paper"  # the gyro's profile (identify --profile-out): T, bias, the rest
 
     def setup(self, seed: int) -> tuple[scenario.Setup, dict[str, float]]:
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed), DISPERSION_STREAM]))
-        profile, drawn = NoiseDispersion.from_identification(self.identification).draw(rng)
+        profile: object = self.profile
+        drawn: dict[str, float] = {}
+        if self.identification is not None:
+            rng = np.random.default_rng(np.random.SeedSequence([int(seed), DISPERSION_STREAM]))
+            profile, drawn = NoiseDispersion.from_identification(
+                self.identification, base=self.profile).draw(rng)
         setup = scenario.Setup(duration_s=self.duration_s, seed=int(seed), profile=profile,
-                               **self.setup_overrides)
+                               identification=self.identification, **self.setup_overrides)
         return setup, drawn
 
     def __call__(self, seed: int) -> DetumbleRunResult:
@@ -76,7 +83,12 @@ class DetumbleRun:
                       "pointing_error_deg": result.pointing_error_deg,
                       "wheel_rpm": result.wheel_rpm} if self.keep_series else None
         record = RunRecord(int(seed), drawn, summary, failure,
-                           setup={"duration_s": self.duration_s, **self.setup_overrides},
+                           setup={"duration_s": self.duration_s, **self.setup_overrides,
+                                  **({"profile": self.profile} if self.profile != "paper"
+                                     else {}),
+                                  **({"identification": self.identification}
+                                     if self.identification != str(scenario.IDENTIFICATION)
+                                     else {})},
                            series=series)
         extras = {k: float(v) for k, v in summary.items()
                   if isinstance(v, (int, float)) and not isinstance(v, bool)}
@@ -125,13 +137,46 @@ class Campaign:
 
 
 def run(seeds, folder, *, duration_s: float = 150.0, scheduler: str = "local",
-        workers: int | None = None, progress: bool | None = None, **overrides) -> Campaign:
-    """The campaign over ``seeds``, archived in ``folder``."""
-    runner = DetumbleRun(duration_s=duration_s, setup_overrides=overrides)
+        workers: int | None = None, progress: bool | None = None, profile: str = "paper",
+        identification: str | None = str(scenario.IDENTIFICATION), **overrides) -> Campaign:
+    """The campaign over ``seeds``, archived in ``folder``: the gyro of ``profile``, its N,
+    B, K dispersed within ``identification`` (None: not dispersed)."""
+    runner = DetumbleRun(duration_s=duration_s, setup_overrides=overrides, profile=profile,
+                         identification=identification)
     results = map_runs(runner, seeds, scheduler=scheduler, workers=workers, progress=progress)
     archive = RunArchive(folder)
     archive.write_all(r.record for r in results)
     return Campaign(results, archive)
+
+
+def add_gyro_options(parser: argparse.ArgumentParser) -> None:
+    """--profile and --identification: the user's own gyro, as identify writes it."""
+    parser.add_argument("--profile", default="paper", metavar="FILE.toml",
+                        help="the gyro's noise profile (bmg160-emu identify --profile-out; "
+                        "default: the paper's gyro)")
+    parser.add_argument("--identification", default=None, metavar="FILE.json",
+                        help="bmg160-emu identify --json of the same record: the ground "
+                        "calibration and the Monte Carlo's N, B, K intervals (default: the "
+                        "example's identification.json with the paper profile; none with "
+                        "--profile: the profile's bias, and N, B, K as they are)")
+
+
+def identification_for(args: argparse.Namespace) -> str | None:
+    """The identification the options name; the example's own only for the paper's gyro."""
+    if args.identification is not None:
+        return args.identification
+    return str(scenario.IDENTIFICATION) if args.profile == "paper" else None
+
+
+def scheduler_or_default(scheduler: str | None) -> str:
+    """The scheduler asked for, or the CLI's default (local with Dask, else this process,
+    said on stderr)."""
+    if scheduler is not None:
+        return scheduler
+    chosen, note = default_scheduler()
+    if note:
+        print(f"note: {note}", file=sys.stderr)
+    return chosen
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -139,21 +184,29 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("archive", help="archive folder")
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--duration", type=float, default=150.0)
-    parser.add_argument("--scheduler", default="local")
+    add_gyro_options(parser)
+    parser.add_argument("--scheduler", default=None,
+                        help="sync, local or a Dask address (default: local with Dask, else sync)")
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--rerun", type=int, default=None, metavar="SEED",
                         help="rerun one archived seed and compare it with its record")
     args = parser.parse_args(argv)
+    args.scheduler = scheduler_or_default(args.scheduler)
     if args.rerun is not None:
         archive = RunArchive(args.archive)
         setup = archive.read(args.rerun).setup
-        runner = DetumbleRun(duration_s=setup.pop("duration_s"), setup_overrides=setup)
+        runner = DetumbleRun(duration_s=setup.pop("duration_s"),
+                             profile=setup.pop("profile", "paper"),
+                             identification=setup.pop("identification",
+                                                      str(scenario.IDENTIFICATION)),
+                             setup_overrides=setup)
         again, same = archive.rerun(args.rerun, runner.record)
         print(f"seed {args.rerun}: {'identical to' if same else 'DIFFERS from'} the archive; "
               f"failure: {again.failure}")
         return 0 if same else 1
     campaign = run(range(args.runs), args.archive, duration_s=args.duration,
-                   scheduler=args.scheduler, workers=args.workers)
+                   scheduler=args.scheduler, workers=args.workers, profile=args.profile,
+                   identification=identification_for(args))
     print(campaign.describe())
     return 0
 

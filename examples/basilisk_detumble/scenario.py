@@ -22,7 +22,7 @@ import numpy as np
 from Basilisk.architecture import messaging, sysModel
 from Basilisk.simulation import reactionWheelStateEffector, spacecraft
 from Basilisk.utilities import SimulationBaseClass, macros, simIncludeRW
-from flight_software import PERIOD_S, FlightConfig, FlightSoftware
+from flight_software import PERIOD_S, STEP_THRESHOLD_DPS, FlightConfig, FlightSoftware
 
 from bmg160_emu.adcs.attitude import angle_between_deg
 from bmg160_emu.adcs.basilisk import EmulatedGyro, quaternion_from_mrp
@@ -64,17 +64,49 @@ FAULTS = [  # during detumble (docs: bmg160_emu.adcs.faults)
 ]
 
 
-def bias_calibration_dps(path: Path = IDENTIFICATION) -> np.ndarray:
-    """The ground calibration the flight software carries: the identified mean rate."""
-    axes = json.loads(path.read_text())["axes"]
+def bias_calibration_dps(setup: Setup | None = None) -> np.ndarray:
+    """The ground calibration the flight software carries: the identified mean rate of each
+    axis, from ``setup.identification`` (``identify --json`` output), else from the bias of
+    ``setup.profile`` when it is the user's own (``identify --profile-out`` writes the
+    identified mean there), else from the example's identification.json (the paper's gyro)."""
+    from bmg160_emu.adcs.dispersion import identified_axes
+
+    identification = setup.identification if setup is not None else None
+    if identification is None and setup is not None and setup.profile != "paper":
+        return np.array([axis.bias for axis in profile_axes(setup)])
+    path = Path(identification) if identification is not None else IDENTIFICATION
+    axes = identified_axes(json.loads(path.read_text()), str(path))
     return np.array([axes[a]["mean"]["value"] for a in "xyz"])
+
+
+def step_threshold_dps(setup: Setup) -> float:
+    """The bias-step threshold for the gyro that flies: 0.15 deg/s (set for the paper's
+    gyro: about 7 times its residual's noise) scaled with the noisiest axis's N against the
+    paper gyro's, never below it. A gyro three times as noisy as the paper's raised a false
+    bias step every few tenths of a second at 0.15 deg/s; at its own threshold, a step
+    smaller than it goes unseen, which the report and the Monte Carlo then say."""
+    from bmg160_emu.noise import load_profile
+
+    paper = max(axis.N for axis in load_profile("paper").axes)
+    flown = max(axis.N for axis in profile_axes(setup))
+    return STEP_THRESHOLD_DPS * max(1.0, flown / paper)
+
+
+def profile_axes(setup: Setup) -> list:
+    """The noise of each axis of the gyro the loop flies (noise.profile.AxisNoise: N, B, T,
+    K, the Gauss-Markov terms), for the report's predictions from the user's own numbers."""
+    from bmg160_emu.noise import load_profile
+
+    return list(load_profile(setup.profile).axes)
 
 
 @dataclass
 class Setup:
     duration_s: float = 400.0
     seed: int = 1
-    profile: Any = "paper"  # a built-in name or a {axis: {N, B, T, K, bias}} mapping
+    profile: Any = "paper"  # a built-in name, a profile file (identify --profile-out) or a
+    # {axis: {N, B, T, K, bias}} mapping
+    identification: str | None = None  # identify --json of the same record: calibration
     faults: list = field(default_factory=lambda: [dict(f) for f in FAULTS])
     rate0_dps: list = field(default_factory=lambda: (RATE0_DIRECTION / np.linalg.norm(
         RATE0_DIRECTION) * RATE0_DPS).tolist())
@@ -167,8 +199,9 @@ def build(setup: Setup):
     tracker.scStateInMsg.subscribeTo(sc.scStateOutMsg)
 
     cfg = FlightConfig(inertia=INERTIA, wheel_axes=np.eye(3), wheel_js=float(first.Js),
-                       wheel_u_max=float(first.u_max), bias_cal_dps=bias_calibration_dps(),
-                       dt_s=FSW_STEP_S, kd=setup.kd)
+                       wheel_u_max=float(first.u_max), bias_cal_dps=bias_calibration_dps(setup),
+                       dt_s=FSW_STEP_S, kd=setup.kd,
+                       step_threshold_dps=step_threshold_dps(setup))
     fsw = FlightSoftware(cfg, log_every=max(1, round(setup.log_period_s / FSW_STEP_S)))
     fsw.rwSpeedInMsg.subscribeTo(wheels.rwSpeedOutMsg)
     fsw.starTrackerInMsg.subscribeTo(tracker.attOutMsg)
