@@ -170,6 +170,8 @@ class VirtioGPIODevice(VhostUserDevice):
         self.clock = clock if isinstance(clock, GuestPacedClock) else None
         # read_taken(address): the guest has the answer to its last rate read (virtio-i2c)
         self.read_taken = read_taken
+        # could the last transfers have changed a pin (virtio-i2c); None: always look
+        self.pins_may_have_changed: Callable[[], bool] | None = None
         self._pace: dict[int, _Pace] = {}
         self._armed = False  # a line has a trigger type set
         self.given_up = 0  # samples whose edge the guest never answered (paced)
@@ -542,8 +544,12 @@ class VirtioGPIODevice(VhostUserDevice):
     def after_transfer(self) -> None:
         """Hook for the I2C device: a transfer may have changed a line (clear-on-read...).
         With no trigger on any line there is nothing to follow and nothing to pace (the
-        look after the request that cleared the last one left it so): no look."""
-        if self._armed:
+        look after the request that cleared the last one left it so): no look. Unpaced
+        (virtual time), none either after transfers that cannot have changed a pin
+        (``pins_may_have_changed``, the I2C device's answer); paced, each rate read is
+        what the pacing waits for."""
+        if self._armed and (self.clock is not None or self.pins_may_have_changed is None
+                            or self.pins_may_have_changed()):
             self.look()
 
     def line_summary(self) -> list[dict[str, Any]]:

@@ -154,6 +154,7 @@ class Backend:
             else:
                 self.server.pollers.append(self.gpio.poll)
                 self.gpio.wake = lambda at_s: self.server.schedule(gpio_device.poll, at_s)
+            self.gpio.pins_may_have_changed = self.i2c.pins_may_have_changed
             self.i2c.after_transfer.insert(0, self.gpio.after_transfer)
         if self.agent_lines is not None:
             self.agent_lines.on_reply = self._replied
