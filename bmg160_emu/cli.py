@@ -97,7 +97,9 @@ def build_parser() -> CommandLine:
         module = importlib.import_module(f"{commands.__name__}.{info.name}")
         module.register(sub)
     helper = sub.add_parser("help", help="describe bmg160-emu or one of its commands",
-                            description="Describe bmg160-emu, or the command named.")
+                            description="Describe bmg160-emu, or the command named.",
+                            epilog="examples:\n  bmg160-emu help\n  bmg160-emu help identify\n",
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
     helper.add_argument("topic", nargs="?", metavar="COMMAND", help="a command (default: all)")
     helper.set_defaults(func=lambda args: _help(parser, args.topic))
     parser.command_parsers = dict(sub.choices)
