@@ -16,7 +16,8 @@ while it is written; one after), and checks what it left:
 - no temporary ``.NAME.*.part*`` file is left beside it.
 
 One exception, counted apart: a signal in the interpreter's own start-up, before the first
-line of the package runs (``site``: ~15-35 ms here), gets CPython's KeyboardInterrupt; a
+line of the package runs (``site``: ~20 ms with a regular install, ~50 ms with the editable
+install's import finder, docs/outputs.md), gets CPython's KeyboardInterrupt; a
 traceback none of whose frames is in the package is counted as ``start-up``, not a failure.
 """
 
