@@ -110,6 +110,7 @@ def edges_main(argv: list[str]) -> int:
     seeds each: hostile paths on every path option, scheduler strings (1,000 a seed),
     thermal blocks, and the memory-cap commands (``--cap-gib``, 20 s each) once."""
     import random
+    import shutil
 
     from _fuzz_edges import (
         CAPPED,
@@ -164,6 +165,9 @@ def edges_main(argv: list[str]) -> int:
                           if outcome.broken else None)
         if "memory" in kinds:
             for capped in CAPPED:
+                if any(shutil.which(program) is None for program in capped.needs):
+                    print(f"memory: {capped.name}: skipped (needs {', '.join(capped.needs)})")
+                    continue
                 work = tmp / "memory"
                 work.mkdir(exist_ok=True)
                 outcome = run_capped(capped, work, int(args.cap_gib * 2**30), 20.0)
