@@ -99,6 +99,28 @@ class Progress:
         finally:
             stage.close()
 
+    @contextmanager
+    def beside(self, total: int, unit: str, print_line: Callable[[str], None]
+               ) -> Iterator[tuple[Update, Callable[[str], None]]]:
+        """A stage whose command prints lines of its own to the same terminal (demo's
+        table on stdout): yields ``update(done)`` and ``say(line)``, which takes the
+        progress line off the terminal, prints the command's line and puts the progress
+        line back under it, so that neither garbles the other."""
+        stage = self.start(total, unit)
+
+        def say(line: str) -> None:
+            drawn = stage.drawn_at >= 0 and not stage.closed
+            if drawn:
+                self._write("\r\x1b[K")
+            print_line(line)
+            if drawn:
+                self._write(stage._line(self.clock() - stage.started))
+
+        try:
+            yield stage.update, say
+        finally:
+            stage.close()
+
     def start(self, total: int, unit: str = "", what: str = "") -> _Stage:
         """A stage without a ``with`` block: ``.update(done)``; it ends its terminal line
         when ``done`` reaches ``total`` (``.close()`` ends it earlier)."""

@@ -127,3 +127,19 @@ def test_a_long_advance_tells_its_simulated_minutes():
     run_script("advance 150s\n", BMG160(seed=1), lambda line: None,
                progress=Progress("bmg160-emu script", stream=out, terminal=False, enabled=True))
     assert "bmg160-emu script: 1/3 simulated minutes (33 %)" in out.getvalue()
+
+
+def test_a_command_s_own_lines_print_above_the_progress_line():
+    # demo's table on stdout and the progress line on stderr share the terminal: each row
+    # takes the progress line off, prints, and puts it back under it
+    clock, err, rows = Clock(), io.StringIO(), []
+    progress = Progress("x", stream=err, terminal=True, clock=clock)
+    with progress.beside(4, "samples", rows.append) as (update, say):
+        for k in range(1, 5):
+            clock.now += 1.0
+            say(f"row {k}")
+            update(k)
+    assert rows == ["row 1", "row 2", "row 3", "row 4"]
+    text = err.getvalue()
+    assert text.count("\r\x1b[K") == 3  # cleared before rows 2, 3, 4 (drawn after row 1)
+    assert text.endswith("x: 4/4 samples (100 %), 4 s so far\x1b[K\n")
