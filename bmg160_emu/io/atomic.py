@@ -174,16 +174,22 @@ def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iter
     special = _is_special(target)
     suffix = target.suffix if suffix is None else suffix
     folder = None if special else target.parent
-    fd, temp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}",
-                                     dir=folder)
+    try:
+        fd, temp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}",
+                                         dir=folder)
+    except OSError as exc:  # named by the output asked for, not by its temporary name
+        raise OSError(exc.errno, exc.strerror, os.fspath(path)) from None
     os.close(fd)
     temp = Path(temp_name)
     placed = False
     try:
         yield temp
         if special:
-            with temp.open("rb") as source, target.open("wb") as sink:
-                shutil.copyfileobj(source, sink)
+            try:
+                with temp.open("rb") as source, target.open("wb") as sink:
+                    shutil.copyfileobj(source, sink)
+            except OSError as exc:  # /dev/full: ENOSPC, named by the target
+                raise OSError(exc.errno, exc.strerror, os.fspath(path)) from None
         else:
             with temp.open("rb+") as done:
                 os.fsync(done.fileno())
