@@ -100,6 +100,9 @@ COMMANDS = [
                               "--duration", "1s", "--trace", "{work}/v.jsonl",
                               "--stats", "{work}/v.json", "--log", "{work}/v.log"],
             ["v.jsonl", "v.json", "v.log"], server=True),
+    Command("serve", ["serve", "--socket", "{work}/sv.sock", "--seed", "9", "--duration", "1s",
+                      "--stats", "{work}/sv.json", "--log", "{work}/sv.log"],
+            ["sv.json", "sv.log"], server=True),
     Command("montecarlo-dask", ["montecarlo", "{work}/s.toml", "--runs", "4", "--workers", "1",
                                 "--output", "{work}/curves.csv"], ["curves.csv"],
             campaign_only=True),
@@ -205,7 +208,7 @@ def reference(command: Command, work: Path) -> Reference:
 def read_output(path: Path) -> object:
     """The output as its format's reader gives it (a format error propagates)."""
     suffix = path.suffix.lower()
-    if path.name in ("v.json",):  # vhost stats: JSON, its timings differ run to run
+    if path.name in ("v.json", "sv.json"):  # servers' stats: JSON, timings differ run to run
         return {"keys": sorted(json.loads(path.read_text()))}
     if suffix == ".jsonl":
         from bmg160_emu.io.trace import read_trace
@@ -305,7 +308,7 @@ def plan(seed: int, wall_s: float, writing_at_s: float) -> tuple[signal.Signals,
 
 def trial(command: Command, work: Path, ref: Reference, seed: int) -> Outcome:
     prepare(work)
-    for name in [*command.outputs, "i2c.sock"]:
+    for name in [*command.outputs, "i2c.sock", "sv.sock"]:
         (work / name).unlink(missing_ok=True)
     number, delay, from_writing = plan(seed, ref.wall_s, ref.writing_at_s)
     process = start(command, work)
