@@ -248,9 +248,12 @@ def _leading(kept: object, whole: object) -> bool:
         assert isinstance(whole, list)
         return kept == whole[: len(kept)]
     if isinstance(kept, dict) and "seeds" in kept:
+        # the seeds that finished, in seed order: on Dask any of them, not only the first
+        # ones (runs end out of order; the file lists which), in one process the first ones
         assert isinstance(whole, dict)
-        return kept["times_s"] == whole["times_s"] and kept["seeds"] == whole["seeds"][
-            : len(kept["seeds"])]
+        seeds = kept["seeds"]
+        return (kept["times_s"] == whole["times_s"] and set(seeds) <= set(whole["seeds"])
+                and seeds == [s for s in whole["seeds"] if s in set(seeds)])
     return kept == whole
 
 
