@@ -22,7 +22,10 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu import __version__, commands, startup
-from bmg160_emu.commands._common import CommandError  # what the commands raise: one line
+from bmg160_emu.commands._common import (  # what the commands raise: one line
+    CommandError,
+    add_command_parser,
+)
 from bmg160_emu.commands._extras import missing_message
 
 
@@ -96,10 +99,10 @@ def build_parser() -> CommandLine:
             continue
         module = importlib.import_module(f"{commands.__name__}.{info.name}")
         module.register(sub)
-    helper = sub.add_parser("help", help="describe bmg160-emu or one of its commands",
-                            description="Describe bmg160-emu, or the command named.",
-                            epilog="examples:\n  bmg160-emu help\n  bmg160-emu help identify\n",
-                            formatter_class=argparse.RawDescriptionHelpFormatter)
+    helper = add_command_parser(
+        sub, "help", "describe bmg160-emu or one of its commands",
+        "Describe bmg160-emu, or the command named.",
+        "examples:\n  bmg160-emu help\n  bmg160-emu help identify")
     helper.add_argument("topic", nargs="?", metavar="COMMAND", help="a command (default: all)")
     helper.set_defaults(func=lambda args: _help(parser, args.topic))
     parser.command_parsers = dict(sub.choices)

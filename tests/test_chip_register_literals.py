@@ -17,6 +17,8 @@ ALLOWED_HEX = {
     ("regmap.py", 0xB6),  # the soft-reset command value (4.13)
     ("spec_choices.py", 0x00),  # FIFO empty tag byte value (6.5)
     ("spec_choices.py", 0xF),  # NVM cycles left at delivery (6.10), a counter value
+    # a stand-in's SPI command byte: the R/W bit and the 7 address bits; an undriven line
+    ("standin_spi.py", 0x80), ("standin_spi.py", 0x7F), ("standin_spi.py", 0x00),
 }
 
 

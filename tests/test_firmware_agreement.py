@@ -121,6 +121,23 @@ def test_addresses_outside_the_map_read_zero_and_ignore_writes(bus):
     assert bus.read_i2c_block_data(ADDRESS, 0x7E, 4) == [0, 0, 0, 0]
 
 
+def test_bit_7_of_the_register_byte_is_not_decoded(bus):
+    # spec 2.4's choice (docs/unconfirmed-choices.md): 0x80..0xFF reach 0x00..0x7F, as
+    # Zephyr's bmi08x driver reads them (reg | BIT(7))
+    assert bus.read_byte_data(ADDRESS, 0x80) == 0x0F
+    bus.write_byte_data(ADDRESS, 0x80 | RANGE, 0x02)
+    assert bus.read_byte_data(ADDRESS, RANGE) == 0x02
+    assert bus.read_i2c_block_data(ADDRESS, 0x80 | 0x1B, 2) == list(RESET_VALUES[0x1B:0x1D])
+    # a transaction starts at the decoded address; the burst itself does not wrap
+    assert bus.read_i2c_block_data(ADDRESS, 0xFE, 4) == [0, 0, 0, 0]
+
+
+def test_a_read_from_a_pointer_a_burst_left_past_0x7f_starts_at_the_decoded_address(bus):
+    bus.write_byte(ADDRESS, 0x70)  # the pointer, then single-byte reads walk it on
+    assert [bus.read_byte(ADDRESS) for _ in range(0x10)] == [0] * 0x10  # 0x70..0x7F
+    assert bus.read_byte(ADDRESS) == 0x0F  # pointer 0x80: CHIP_ID
+
+
 def test_soft_reset_restores_reset_values(bus, chip):
     for reg, value in ((RANGE, 0x03), (BW, 0x05), (RATE_HBW, 0xC0), (0x16, 0x00), (0x1B, 0x7F)):
         bus.write_byte_data(ADDRESS, reg, value)

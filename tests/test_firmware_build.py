@@ -46,6 +46,15 @@ def test_generated_register_header_defines_every_register_and_field():
             assert f"#define BMG_{reg.name}_{f.name.upper()}_MASK 0x{f.mask:02X}\n" in header
 
 
+def test_the_header_carries_the_decoded_register_address_bits_of_the_spec_choice(monkeypatch):
+    # spec 2.4: the firmware takes the model's choice, so a correction of it reaches both
+    from bmg160_emu.device import spec_choices
+
+    assert "#define BMG_REGISTER_ADDRESS_MASK 0x7F\n" in register_table.render_registers_header()
+    monkeypatch.setattr(spec_choices, "REGISTER_ADDRESS_MASK", 0xFF)
+    assert "#define BMG_REGISTER_ADDRESS_MASK 0xFF\n" in register_table.render_registers_header()
+
+
 def test_header_carries_the_discretization_of_the_noise_engine_for_every_bw_code():
     header = render_params_header(profile="paper", mode="physical")
     axes = load_profile("paper").axes

@@ -46,6 +46,29 @@ def test_an_unknown_engine_is_named():
     assert "unknown engine 'bochs'" in result.stderr and "Traceback" not in result.stderr
 
 
+def test_prepare_fails_when_no_engine_is_ready_and_says_a_missing_tool_once(tmp_path):
+    """A host with apt-cache and dpkg but no depmod (and no QEMU): QEMU's prepare stops at
+    depmod, its list of what is missing names it too; the line comes once, exit status 1."""
+    import shutil
+
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    for tool in ("apt-cache", "dpkg"):
+        found = shutil.which(tool)
+        if found is None:
+            pytest.skip(f"{tool} is not on this host")
+        (bin_dir / tool).symlink_to(found)
+    result = subprocess.run(
+        [sys.executable, "-m", "bmg160_emu", "kernel", "prepare", "--engine", "qemu"],
+        capture_output=True, text=True, timeout=120, check=False,
+        env={**os.environ, "PYTHONPATH": str(REPO), "PATH": str(bin_dir),
+             "BMG160_EMU_CACHE": str(tmp_path / "cache")})
+    assert result.returncode == 1, result.stderr
+    assert result.stdout.strip() == "qemu: not ready"
+    assert result.stderr.count("depmod is missing (Debian package kmod)") == 1, result.stderr
+    assert "Traceback" not in result.stderr
+
+
 def _ready() -> None:
     from bmg160_emu.linux.guest.engine import EngineError, choose
 
@@ -92,7 +115,7 @@ def test_a_users_module_from_a_kbuild_folder_binds_and_reads_the_chip(tmp_path):
 def test_the_kernels_bmg160_driver_built_out_of_tree_as_a_users_module(tmp_path):
     _ready()
     from bmg160_emu.linux.guest.debian import build_tree, find_kernel
-    from bmg160_emu.linux.guest.kmod import extract_sources
+    from bmg160_emu.linux.guest.debian_modules import extract_sources
 
     guest_kernel = find_kernel()
     if guest_kernel is None:

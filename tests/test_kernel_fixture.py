@@ -46,10 +46,12 @@ def test_each_test_starts_at_the_probe_state(bmg160_kernel):
 @pytest.mark.bmg160_kernel(addresses=[0x69])
 def test_raw_reads_follow_the_true_rate(bmg160_kernel):
     bmg160_kernel.chip.set_true_rate((20.0, -10.0, 5.0))
+    # the new rate reaches the registers with the chip's next sample (10 ms at the driver's
+    # 100 Hz): each read comes 50 ms after the last, the first too
     values = [int(v) for v in bmg160_kernel.run(
-        f"for i in 1 2 3 4 5 6 7 8; do cat {bmg160_kernel.iio()}/in_anglvel_x_raw; "
-        "sleep 0.05; done").stdout.split()]
-    # 20 deg/s at 500 deg/s full scale: 655.4 counts; the model's noise at the driver's
+        f"for i in 1 2 3 4 5 6 7 8; do sleep 0.05; cat {bmg160_kernel.iio()}/in_anglvel_x_raw; "
+        "done").stdout.split()]
+    # 20 deg/s at 500 deg/s full scale: 1310.7 counts; the model's noise at the driver's
     # 32 Hz bandwidth is ~0.2 deg/s rms (13 counts): 8 samples' mean within 40 counts
     assert abs(statistics.fmean(values) - 20.0 * 32768 / 500) < 40, values
 

@@ -1,10 +1,12 @@
 """The guest harness without a kernel (no ``kernel`` marker): the engine registry and its
-missing-package lines, QEMU's command line for a Boot, the agent protocol and Guest.run over
-a stand-in engine that runs the boot script on this host, driver load order and binding."""
+missing-package lines, QEMU's command line for a Boot, the agent (agent.c, built here) and
+its protocol over a stand-in engine that runs it on this host with named pipes for its
+channel, the orphan guard, driver load order and binding."""
 
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -12,10 +14,12 @@ from pathlib import Path
 
 import pytest
 
-from bmg160_emu.linux.guest import drivers
+from bmg160_emu.linux.guest import agent, drivers
 from bmg160_emu.linux.guest.engine import Boot, EngineError, choose, default_engine, engines
 from bmg160_emu.linux.guest.harness import Guest, GuestDied
 from bmg160_emu.linux.guest.qemu import QemuEngine
+
+needs_gcc = pytest.mark.skipif(bool(agent.missing()), reason="; ".join(agent.missing()))
 
 
 class Fake:
@@ -27,8 +31,8 @@ class Fake:
 
 
 class LocalEngine:
-    """Runs the boot script on this host as the guest would (the agent included): the
-    harness's protocol, without a kernel."""
+    """Runs the agent on this host as a guest would, its channel two named pipes (``agent
+    serve FOLDER fifo fifo``): the harness's protocol, without a kernel."""
 
     name = "local"
 
@@ -39,9 +43,10 @@ class LocalEngine:
         pass
 
     def start(self, boot: Boot) -> subprocess.Popen[bytes]:
+        assert boot.agent is not None
         env = {**os.environ, **boot.environment, "BMG160_RESULTS": str(boot.results)}
-        return subprocess.Popen(["/bin/sh", str(boot.script)], env=env,
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        return subprocess.Popen(agent.guarded([str(agent.binary()), "serve", *boot.agent.words]),
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 
 
 def test_qemu_is_registered_and_the_first_ready_engine_is_the_default():
@@ -91,6 +96,7 @@ def test_qemu_command_line_for_a_boot(tmp_path, monkeypatch):
                                   environment={"NAME": "two words"}))
 
 
+@needs_gcc
 def test_guest_runs_commands_through_the_agent_and_reports_a_death(tmp_path):
     guest = Guest(LocalEngine(), tmp_path)
     guest.start(timeout_s=30)
@@ -99,18 +105,82 @@ def test_guest_runs_commands_through_the_agent_and_reports_a_death(tmp_path):
     assert guest.run("pwd", cwd=tmp_path).stdout.strip() == str(tmp_path)
     with pytest.raises(AssertionError, match="exited with 1"):
         guest.run("false", check=True)
-    with pytest.raises(GuestDied, match="took over"):
+    with pytest.raises(GuestDied, match="'sleep 5' took over 0.5 s"):
         guest.run("sleep 5", timeout_s=0.5)
     assert not guest.alive
     with pytest.raises(GuestDied):
         guest.run("true")
 
 
+@needs_gcc
+def test_the_agent_reads_writes_and_stops_a_batch_at_a_checked_failure(tmp_path):
+    guest = Guest(LocalEngine(), tmp_path)
+    guest.start(timeout_s=30)
+    try:
+        target = guest.agent_dir / "attr"
+        replies = guest.call([agent.write(str(target), "0.000266\n"),
+                              agent.read(str(target)),
+                              agent.glob(str(guest.agent_dir / "at*")),
+                              agent.read(str(tmp_path / "absent"), check=True),
+                              agent.read(str(target))])
+        assert [r.status for r in replies[:3]] == [0, 0, 0]
+        assert replies[1].text == "0.000266\n"
+        assert replies[2].text.split() == [str(target)]
+        assert replies[3].error().startswith("ENOENT")
+        assert replies[4].status == agent.SKIPPED  # after the checked failure
+        # a wait for a path that never comes ends on its own, in the guest's time
+        started = time.monotonic()
+        late = guest.call([agent.wait(str(tmp_path / "never"), 0.2)])[0]
+        assert late.error().startswith("ETIMEDOUT") and time.monotonic() - started < 10
+        assert guest.read(str(target)) == "0.000266\n"
+        with pytest.raises(OSError, match="ENOENT"):
+            guest.read(str(tmp_path / "absent"))
+    finally:
+        guest.close(timeout_s=30)
+    assert guest.process is not None and guest.process.returncode == 0
+
+
+def test_the_wire_format_round_trips_and_a_stale_response_is_refused():
+    ops = [agent.write("/sys/x", b"\n\x00binary\n"), agent.stop()]
+    encoded = agent.encode(7, ops)
+    assert encoded.startswith(b"BGQ1 7 2\nwrite 0 2\n6\n/sys/x\n9\n\n\x00binary\n\n")
+    response = b"BGR1 7 2\n0 1\n3\na\nb\n22 0\n"
+    replies = agent.decode(response, 7)
+    assert replies[0] == agent.Reply(0, [b"a\nb"]) and replies[1].status == 22
+    with pytest.raises(agent.ProtocolError, match="does not answer request 8"):
+        agent.decode(response, 8)
+
+
+@needs_gcc
 def test_a_guest_that_stops_ends_cleanly(tmp_path):
     guest = Guest(LocalEngine(), tmp_path)
     guest.start(timeout_s=30)
     guest.close(timeout_s=30)
     assert guest.process is not None and guest.process.returncode == 0
+
+
+@needs_gcc
+def test_the_orphan_guard_ends_the_group_with_the_command_and_with_its_parent(tmp_path):
+    marker = tmp_path / "alive"
+    # a helper the command leaves behind (as UML leaves its helper processes) is ended
+    # with it: the console pipe reaches its end at once
+    left = subprocess.run(agent.guarded(["sh", "-c", f"(sleep 30; touch {marker}) & exit 3"]),
+                          capture_output=True, timeout=20, check=False)
+    assert left.returncode == 3
+    # the harness that started it dies: the guard ends the command's whole group
+    script = ("import subprocess, sys, time; from bmg160_emu.linux.guest import agent; "
+              f"subprocess.Popen(agent.guarded(['sh', '-c', 'sleep 30; touch {marker}']));"
+              "time.sleep(0.3)")
+    subprocess.run([sys.executable, "-c", script], timeout=30, check=True)
+    # SIGTERM ignored: SIGKILL follows the guard's grace
+    stubborn = subprocess.Popen(agent.guarded(["sh", "-c", "trap '' TERM; sleep 30"]))
+    time.sleep(0.3)
+    stubborn.send_signal(signal.SIGTERM)
+    assert stubborn.wait(timeout=20) == 128 + signal.SIGKILL
+    time.sleep(0.5)
+    assert not marker.exists()
+    assert not subprocess.run(["pgrep", "-f", f"touch {marker}"], capture_output=True,
+                              check=False).stdout
 
 
 def test_modules_load_after_their_dependencies(monkeypatch, tmp_path):
@@ -128,28 +198,41 @@ def test_modules_load_after_their_dependencies(monkeypatch, tmp_path):
 
 
 def test_binding_with_and_without_the_irq():
-    plain = drivers.bind_command("gyro_chipid", [0x68])
-    assert "echo gyro_chipid 0x68 > /sys/bus/i2c/devices/i2c-$GUEST_I2C_BUS/new_device" in plain
-    assert "$GUEST_I2C_BUS-0068/driver" in plain and "modprobe" not in plain
-    board = drivers.bind_command("bmg160", [0x68, 0x69], [0, 2], Path("/b/bmg160-board.ko"),
-                                 kernel_driver=True)
-    assert "addr=0x68,0x69 line=0,2 name=bmg160" in board
-    assert board.startswith("modprobe -q") and "i2c:bmg160" in board
-    assert drivers.unbind_command([0x68], board=True) == "rmmod bmg160_board\n"
+    plain = drivers.bind_ops("gyro_chipid", [0x68], bus=3)
+    assert [(op.name, op.fields) for op in plain] == [
+        ("write", ("/sys/bus/i2c/devices/i2c-3/new_device", "gyro_chipid 0x68\n")),
+        ("wait", ("/sys/bus/i2c/devices/3-0068/driver", "5000000000"))]
+    board = drivers.bind_ops("bmg160", [0x68, 0x69], 0, [0, 2], Path("/b/bmg160-board.ko"),
+                             gpio_base=506, kernel_driver=True)
+    assert board[0] == agent.modprobe("i2c:bmg160", check=False)
+    assert board[1] == agent.insmod("/b/bmg160-board.ko", "bus=0 gpio_base=506 "
+                                    "addr=0x68,0x69 line=0,2 name=bmg160")
+    assert [op.name for op in board[2:]] == ["wait", "wait"]
+    assert drivers.unbind_ops([0x68], 0, board=True) == [agent.rmmod("bmg160_board")]
+    failed = [agent.Reply(0), agent.Reply(0), agent.Reply(110), agent.Reply(agent.SKIPPED)]
+    assert drivers.bind_failure(failed, board) == (
+        "no driver bound (/sys/bus/i2c/devices/0-0068/driver did not appear)")
+    assert drivers.bind_failure([agent.Reply(0)] * 4, board) is None
 
 
-def test_the_agent_runs_as_a_script(tmp_path):
-    folder = tmp_path / "agent"
-    folder.mkdir()
-    agent = subprocess.Popen([sys.executable, str(Path(drivers.__file__).parent / "agent.py"),
-                              str(folder)])
-    (folder / "1.tmp").write_text("echo hi\n")
-    (folder / "1.tmp").rename(folder / "1.sh")
-    for _ in range(500):
-        if (folder / "1.rc").exists():
-            break
-        time.sleep(0.01)
-    (folder / "stop").write_text("")
-    assert agent.wait(timeout=10) == 0
-    assert (folder / "1.out").read_text() == "hi\n" and (folder / "1.rc").read_text() == "0\n"
-    assert (folder / "ready").exists()
+def test_assert_wrote_lists_the_writes_for_a_wrong_order_as_for_a_missing_one():
+    from types import SimpleNamespace
+
+    from bmg160_emu.bus.i2c import I2CBus
+    from bmg160_emu.device.chip import BMG160
+    from bmg160_emu.pytest_kernel import KernelTest
+
+    bus = I2CBus(0, {0x68: BMG160(seed=1)})
+    session = SimpleNamespace(guest=None, backend=SimpleNamespace(bus=bus, chips=bus.devices))
+    test = KernelTest(session, (0x68,))
+    bus.write_byte_data(0x68, 0x0F, 0x02)  # RANGE first, then BW: the wrong order below
+    bus.write_byte_data(0x68, 0x10, 0x07)
+    test.assert_wrote(RANGE=0x02, before="BW")
+    writes = "its writes: 0x0f=0x02, 0x10=0x07"
+    with pytest.raises(AssertionError, match=f"never wrote RANGE = 0x03; {writes}"):
+        test.assert_wrote(RANGE=0x03)
+    with pytest.raises(AssertionError, match=rf"BW = 0x07 was not written before RANGE "
+                                             rf"\(written in the wrong order\); {writes}"):
+        test.assert_wrote(BW=0x07, before="RANGE")
+    with pytest.raises(AssertionError, match=rf"\(it never wrote LPM1\); {writes}"):
+        test.assert_wrote(BW=0x07, before="LPM1")

@@ -35,11 +35,11 @@ SAMPLES = 12  # per axis and configuration (kernel_checks.sh)
 
 
 def _hrtimer_modules(engine):
-    """The folder of the IIO software-trigger modules for the QEMU engine's kernel, or None
-    (another engine's kernel has them built in, or they cannot be built here)."""
-    from bmg160_emu.linux.guest.kmod import bundled_dir
+    """The folder of the IIO software-trigger modules for the QEMU engine's kernel (None
+    when they cannot be built here), or "builtin" where the kernel has them (uml.config)."""
+    from bmg160_emu.linux.guest.debian_modules import bundled_dir
 
-    return bundled_dir() if engine.name == "qemu" else None
+    return bundled_dir() if engine.name == "qemu" else "builtin"
 
 
 @dataclass(frozen=True)

@@ -165,10 +165,7 @@ def guest(bmg160_kernel_session, tmp_path_factory):
     adapters.write_text(ADAPTERS)
     out = session_guest.results / "parts"
     out.mkdir(exist_ok=True)
-    # the bmc150-accel probe against the stand-in hung the UML guest once in CI (its CPU busy
-    # for the whole 400 s, 2026-12-03; it passed in the engine's own runs): QEMU runs it
-    accel = 0 if session_guest.engine.name == "uml" else 1
-    command = (f"export WITH_ACCEL={accel}\n"
+    command = ("export WITH_ACCEL=1\n"
                f"export PY={shlex.quote(sys.executable)} ADAPTERS={shlex.quote(str(adapters))}\n"
                f"export PYTHONPATH={shlex.quote(str(REPO))} GUEST_OUT={shlex.quote(str(out))}\n"
                + GUEST_SCRIPT)
@@ -244,11 +241,7 @@ def test_driver_writes_to_registers_the_bmi088_lacks_are_dropped(guest):
     assert final[0x21] == 0x00  # INT_RST_LATCH is absent on the BMI088: it still reads 0
 
 
-def test_the_kernels_bmc150_accel_driver_binds_to_the_bma2x2_stand_in(guest,
-                                                                       bmg160_kernel_session):
-    if bmg160_kernel_session.ensure().engine.name == "uml":
-        pytest.skip("the bmc150-accel probe hung the UML guest once in CI; run with "
-                    "BMG160_KERNEL_ENGINE=qemu (docs/kernel-engines.md)")
+def test_the_kernels_bmc150_accel_driver_binds_to_the_bma2x2_stand_in(guest):
     # the stand-in behind i2c-stub (linux/i2c_stub_standin.py): chip ID 0xFA, found by the
     # driver's probe; it holds registers and produces no motion data, so the raw value is 0
     assert text(guest, "accel_chip_id.txt").strip() == "0xfa"

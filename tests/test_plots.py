@@ -190,13 +190,15 @@ def test_adev_every_listed_point_and_line_is_seen(result):
             if line.get_label().startswith("_") or line.get_transform() != ax.transData:
                 continue  # unlabelled, or the flicker line (drawn across the axes)
             x, y = (np.asarray(v, dtype=float) for v in line.get_data())
-            if x.size == 0:  # a legend note: K too small to be drawn, or 0
-                assert line.get_label().startswith("K = "), line.get_label()
+            if x.size == 0:  # a legend note: K too small to be drawn, or 0; no K read-off
+                assert line.get_label().startswith(("K = ", "K read-off (IEEE 952): not found")
+                                                   ), line.get_label()
                 continue
             seen = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
             assert seen.any(), (ax.get_title(), line.get_label())
             points += x.size == 1
-    assert points == 3 * 3 or points >= 6  # N, flicker B (and K when drawn) on each axis
+    # N, flicker B (and K and the K read-off when drawn) on each axis
+    assert points in (3 * 3, 3 * 4) or points >= 6
 
 
 def test_a_random_walk_of_zero_or_far_below_the_curve_is_named_not_drawn(result):
@@ -204,8 +206,8 @@ def test_a_random_walk_of_zero_or_far_below_the_curve_is_named_not_drawn(result)
         result.axes[0].fit, K=dataclasses.replace(result.axes[0].fit.K, value=k)))
         for k in (0.0, 1e-9)]
     fig = plots.adev_figure(axes)
-    notes = [[line.get_label() for line in ax.get_lines() if not np.size(line.get_xdata())]
-             for ax in _plot_axes(fig)]
+    notes = [[line.get_label() for line in ax.get_lines() if not np.size(line.get_xdata())
+              and not line.get_label().startswith("K read-off")] for ax in _plot_axes(fig)]
     assert notes[0] == ["K = 0: no +1/2 slope (random walk) in this record"]
     assert len(notes[1]) == 1 and notes[1][0].startswith("K = 1e-09 deg/s/\u221as: its +1/2 line")
     for ax in _plot_axes(fig):  # the axes keep to the curve: 2 decades under it at most
@@ -278,9 +280,24 @@ def test_each_read_off_marker_sits_at_the_value_its_legend_names(result):
     checked = 0
     for ax in _plot_axes(fig):
         for line in ax.get_lines():
-            match = re.match(r"(flicker B|N|K) = ([0-9.e+-]+) ", line.get_label())
+            match = re.match(r"(flicker B|N \(fit\)|K \(fit\)|K read-off) = ([0-9.e+-]+) ",
+                             line.get_label())
             if match and np.size(line.get_ydata()) == 1:
                 named = float(match.group(2))
                 assert float(line.get_ydata()[0]) == pytest.approx(named, rel=1e-3), line.get_label()
                 checked += 1
     assert checked >= 2 * len(result.axes)  # N and flicker B on every axis
+
+
+def test_the_k_read_off_is_labelled_as_the_summary_gives_it(result):
+    # issue 35: the figure labelled the fitted K as if read off where the summary said the
+    # read-off was not found; now the fitted K and the read-off are told apart
+    fig = plots.adev_figure(result.axes)
+    for ax, axis in zip(_plot_axes(fig), result.axes):
+        labels = [line.get_label() for line in ax.get_lines()]
+        found = axis.readoffs["K_at_tau_3s"]["value"]
+        if found is None:
+            assert "K read-off (IEEE 952): not found, no +1/2 segment" in labels
+        else:
+            assert any(label.startswith(f"K read-off = {found:.4g}") for label in labels)
+        assert not any(label.startswith("K = ") and "(tau 3 s)" in label for label in labels)

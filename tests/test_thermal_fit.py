@@ -3,7 +3,9 @@ thermal cycle (bmg160_emu.adcs.thermal)."""
 
 from __future__ import annotations
 
+import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -163,6 +165,23 @@ def test_the_thermal_command_fits_a_chamber_log_and_exports(tmp_path, capsys):
                  "--px4-params", str(params), "--errors-out", str(errors)]) == 0
     out = capsys.readouterr().out
     assert "x  c1 = " in out and "reduced chi-square" in out
+    # each coefficient is quoted to the place of its standard error's second significant digit
+    # (GUM 7.2.6), no further: the digits beyond differ with the machine's BLAS kernel
+    assert main(["thermal", str(log), "--reference", "20", "--noise-profile", "paper",
+                 "--json"]) == 0
+    axes = json.loads(capsys.readouterr().out)["axes"]
+    quoted = re.findall(r"^  ([xyz])  c(\d) = +(\S+) ", out, flags=re.MULTILINE)
+    assert len(quoted) == 12
+    for axis, k, text in quoted:
+        value = axes[axis]["coefficients"][int(k)]
+        lo, hi = axes[axis]["intervals_95"][int(k)]
+        place = math.floor(math.log10((hi - lo) / 2 / 1.959964)) - 1
+        assert abs(float(text) - value) <= 0.5001 * 10.0 ** place, (axis, k, text, value)
+        mantissa = text.split("e")[0].lstrip("-")
+        digits = len(mantissa.replace(".", "").lstrip("0"))
+        exponent = int(text.split("e")[1]) if "e" in text else 0
+        last_place = exponent - (len(mantissa.split(".")[1]) if "." in mantissa else 0)
+        assert last_place == place or digits == 1, (axis, k, text, place)
     assert "\tTC_G0_X1_0\t" in params.read_text()
     table = tomllib.loads(errors.read_text())["errors"]
     unit = SensorErrors.from_dict(table)

@@ -85,3 +85,39 @@ def test_the_xsave_probe_reads_the_cpus_area(tmp_path: Path,
     # The legacy region (512) plus the XSAVE header (64) is the least an XSAVE area holds
     # (Intel SDM vol. 1, 13.4); AVX-512 with AMX tiles tops out near 11 KB.
     assert 576 <= size <= 16384
+
+
+def test_an_interrupted_build_goes_on_where_it_stopped(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    root = tmp_path / "uml-key"
+    tree = root / uml_build.SOURCE_PACKAGE
+    (tree / "include" / "config").mkdir(parents=True)
+    (tree / "include" / "config" / "kernel.release").write_text("6.1.176\n")
+    (tree / "init").mkdir()
+    (tree / "init" / "main.o").write_text("")  # what make had compiled when it was stopped
+    for mark in ("unpacked", "configured"):
+        (root / mark).write_text("")
+    commands: list[list[str]] = []
+    monkeypatch.setattr(uml_build, "_run", lambda command, *a, **k: commands.append(command))
+    said: list[str] = []
+    uml_build._build_locked(root, "6.1.176-1", said.append)
+    # nothing unpacked, patched or configured again: make goes on from its objects
+    assert [c[:2] for c in commands] == [["make", "ARCH=um"], ["make", "ARCH=um"]]
+    assert "linux" in commands[0] and "modules_install" in commands[1][-1]
+    assert said[0] == f"uml: resuming the unfinished build in {root}"
+    assert f"about {uml_build.BUILD_OBJECTS - 1:,} files to compile (1 already built" in said[1]
+    assert (root / "ready").exists() and (tree / "init" / "main.o").exists()
+    # a build stopped while unpacking starts over
+    shutil.rmtree(root)
+    (root / "half").mkdir(parents=True)
+    commands.clear()
+    with pytest.raises(FileNotFoundError):  # (tar is not run here: no tree appears)
+        uml_build._build_locked(root, "6.1.176-1", said.append)
+    assert commands[0][0] == "tar" and not (root / "half").exists()
+
+
+def test_the_builds_progress_says_how_much_is_left_and_for_how_long() -> None:
+    assert uml_build._progress_line(200, 0, 60.0, 0.0) == "uml: 200 files compiled"
+    assert uml_build._progress_line(200, 800, 60.0, 240.0) == (
+        "uml: 200 of 800 files compiled (25 %), about 3 min 0 s left")
+    assert uml_build._progress_line(790, 800, 300.0, 240.0).endswith("about 4 s left")

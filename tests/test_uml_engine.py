@@ -1,6 +1,7 @@
 """The uml engine: its command line keeps the engine contract (hostfs root read-only, the
-back ends as virtio_uml devices, the script's environment on the kernel command line), it
-says what is missing in one line each, and it registers ahead of QEMU."""
+back ends as virtio_uml devices, the agent as init, the script's environment on the kernel
+command line, the calendar's socket for virtual time), it says what is missing in one line
+each, and it registers ahead of QEMU."""
 
 from __future__ import annotations
 
@@ -9,9 +10,11 @@ from pathlib import Path
 
 import pytest
 
+from bmg160_emu.linux.guest import agent, uml, uml_build
 from bmg160_emu.linux.guest import engine as engine_module
-from bmg160_emu.linux.guest import uml, uml_build
-from bmg160_emu.linux.guest.engine import Boot, EngineError
+from bmg160_emu.linux.guest.engine import AgentBoot, Boot, EngineError
+
+needs_gcc = pytest.mark.skipif(bool(agent.missing()), reason="; ".join(agent.missing()))
 
 
 @pytest.fixture
@@ -28,6 +31,7 @@ def built(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> uml_build.UmlKerne
     return kernel
 
 
+@needs_gcc
 def test_the_command_line_serves_both_back_ends_on_a_read_only_host_root(
         built: uml_build.UmlKernel, tmp_path: Path) -> None:
     boot = Boot(script=tmp_path / "run.sh", results=tmp_path / "out",
@@ -37,7 +41,7 @@ def test_the_command_line_serves_both_back_ends_on_a_read_only_host_root(
     command = uml.engine().command(boot)
     assert command[0] == str(built.binary)
     words = command[1:]
-    for word in ("mem=256M", "rootfstype=hostfs", "rootflags=/", "ro", f"init={uml.INIT}",
+    for word in ("mem=256M", "rootfstype=hostfs", "rootflags=/", "ro", f"init={agent.binary()}",
                  f"virtio_uml.device={tmp_path / 'i2c.sock'}:34",
                  f"virtio_uml.device={tmp_path / 'gpio.sock'}:41",
                  f"guest_script={tmp_path / 'run.sh'}", f"guest_out={tmp_path / 'out'}",
@@ -47,9 +51,20 @@ def test_the_command_line_serves_both_back_ends_on_a_read_only_host_root(
     writable = uml.engine().command(Boot(script=boot.script, results=boot.results,
                                          host_root_readonly=False))
     assert "rw" in writable and "ro" not in writable
-    assert not any(w.startswith(("virtio_uml.device=", "guest_vio=")) for w in writable)
+    assert not any(w.startswith(("virtio_uml.device=", "guest_vio=", "time-travel"))
+                   for w in writable)
+    # the harness's guests: the agent serves a folder on two virtio-gpio lines, and in
+    # virtual time the calendar's socket is UML's clock (time-travel=ext)
+    served = uml.engine().command(Boot(results=boot.results, time_travel=tmp_path / "t.sock",
+                                       agent=AgentBoot(tmp_path / "out" / ".agent", "4", "5")))
+    assert f"guest_agent={tmp_path / 'out' / '.agent'},4,5" in served
+    assert f"time-travel=ext:{tmp_path / 't.sock'}" in served
+    assert not any(w.startswith("guest_script=") for w in served)
+    with pytest.raises(EngineError, match="a script or the agent"):
+        uml.engine().command(Boot(results=boot.results))
 
 
+@needs_gcc
 @pytest.mark.parametrize("environment", [{"lower": "1"}, {"KEY": "two words"}])
 def test_an_environment_word_the_command_line_cannot_carry_is_refused(
         built: uml_build.UmlKernel, tmp_path: Path, environment: dict[str, str]) -> None:
@@ -58,6 +73,7 @@ def test_an_environment_word_the_command_line_cannot_carry_is_refused(
                                   environment=environment))
 
 
+@needs_gcc
 def test_more_than_one_cpu_is_refused(built: uml_build.UmlKernel, tmp_path: Path) -> None:
     with pytest.raises(EngineError, match="one CPU"):
         uml.engine().command(Boot(script=tmp_path / "s", results=tmp_path / "o", cpus=2))

@@ -18,6 +18,7 @@ and sample).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import numpy as np
@@ -71,6 +72,33 @@ def time_filtered(samples: int) -> float:
     return time.perf_counter() - start
 
 
+def measured_response(taps: int) -> tuple[float, ...]:
+    """A measured output response of ``taps`` taps, as identify writes it (issue 37): the
+    cosine series of a moving average's |H|^2 over that many samples, normalised at DC."""
+    h = np.ones(taps) / taps
+    r = np.correlate(h, h, "full")[taps - 1:]
+    return tuple(float(v) for v in r / (r[0] + 2.0 * r[1:].sum()))
+
+
+def time_identified(samples: int, taps: int) -> float:
+    """The paper profile through a measured output response of ``taps`` taps at the rate it
+    was measured at (200 Hz): what generate writes from an identified profile (issue 37)."""
+    from bmg160_emu.noise import load_profile
+    from bmg160_emu.noise.profile import OutputStage
+
+    paper = load_profile("paper")
+    axis = dataclasses.replace(paper.x, response=measured_response(taps))
+    profile = Profile("identified", axis, axis, axis, output=OutputStage(rate_hz=200.0))
+    gen = profile_noise(profile, seed=0)
+    start = time.perf_counter()
+    left = samples
+    while left > 0:
+        m = min(left, CHUNK)
+        gen.generate(m)
+        left -= m
+    return time.perf_counter() - start
+
+
 def time_small_calls(calls: int) -> tuple[float, float]:
     gen = NoiseGenerator("paper", rate_hz=200.0, seed=0)
     start = time.perf_counter()
@@ -96,11 +124,14 @@ def main() -> None:
     four = Profile("four-poles", FOUR_POLES, FOUR_POLES, FOUR_POLES)
     normals4 = 3 * 6 * samples  # white, four Gauss-Markov drives, random walk per axis
     refs, ours_runs, paper_runs, refs4, four_runs, filtered_runs = [], [], [], [], [], []
+    identified_runs: dict[int, list[float]] = {5: [], 65: []}
     for _ in range(args.repeat):
         refs.append(time_reference(normals))
         ours_runs.append(time_generator(samples, "physical"))
         paper_runs.append(time_generator(samples, "paper"))
         filtered_runs.append(time_filtered(samples))
+        for taps, runs in identified_runs.items():
+            runs.append(time_identified(samples, taps))
         refs4.append(time_reference(normals4))
         four_runs.append(time_generator(samples, "physical", four))
     ref, ours, paper = min(refs), min(ours_runs), min(paper_runs)
@@ -115,6 +146,10 @@ def main() -> None:
     print(f"generator  through BW code 4's filter         : {filtered:8.2f} s  "
           f"ratio {filtered / ref:.2f}")
     print("target: ratio <= 1.5 (issue 23)")
+    for taps, runs in identified_runs.items():
+        print(f"generator  through a measured {taps:2d}-tap response : {min(runs):8.2f} s  "
+              f"ratio {min(runs) / ref:.2f}")
+    print("target: ratio <= 1.5 (issue 37: through an identified output stage)")
     print(f"reference  numpy standard_normal x {normals4 / 1e6:.1f} M : {ref4:8.2f} s")
     print(
         f"generator  four Gauss-Markov terms            : {ours4:8.2f} s  "

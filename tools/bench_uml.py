@@ -1,28 +1,26 @@
-"""Benchmark: one guest boot per engine (uml, and qemu for reference, same run) against the
-vhost-user back end (`bmg160-emu vhost-user-i2c`, two chips, INT lines on virtio-gpio).
+"""Benchmark: a guest of each engine from its start to the driver's first read, and 6-byte
+reads/s through the model, in virtual time (uml's time travel) and against wall time.
 
-Each boot runs one guest script that prints marker lines on the console; the host stamps
-each marker as it arrives (host clock, from the engine's start with the back end already
-listening):
+Per engine and time mode, one fresh guest beside the in-process back ends (two chips, INT
+lines on virtio-gpio, the agent on two more lines), host clock from the engine's start:
 
-- ``init``: the script starts (virtio-i2c and -gpio up, i2c-virtio loaded);
-- ``chipid``: ``i2cget`` of CHIP_ID (0x0F) on 0x68 through the model;
-- ``first``: the kernel's bmg160 driver bound (bmg160-board gives it its IRQ) and its first
-  ``in_anglvel_x_raw`` read: "boot to the driver's first read";
-- ``loop``: 6-byte register reads from a C program through /dev/i2c-N (reads/s, p50, p99);
-- ``capture``: the driver's data-ready trigger at 100 Hz feeding a triggered buffer for
-  CAPTURE seconds: records read and the GPIO interrupt count (interrupts working).
+- ``agent``: the agent (the guest's init) is serving;
+- ``first read``: the kernel's bmg160 driver bound through bmg160-board with its IRQ and its
+  ``in_anglvel_x_raw`` read, by the agent (one request batch, no program started);
+- ``reads/s``: ``tests/kernel_guest/i2c_read_loop.c`` (I2C_RDWR write [0x02] + read 6, no
+  clock read per read) timed on the host around the agent's run of it, less an empty run.
 
-Prints one row per engine and the uml/qemu ratios.
+Beside each wall time: the CPU seconds of this process (the back ends) plus the guest's
+processes (UML's process group, or QEMU's), and the host's load average.
 
-    python tools/bench_uml.py [--engines uml,qemu] [--reads 20000] [--capture 2]
+    python tools/bench_uml.py [--engines uml,qemu] [--reads 20000] [--repeat 3]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import re
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -32,111 +30,132 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from bmg160_emu.linux.guest.engine import Boot, EngineError, choose
-
 READ_LOOP_SOURCE = REPO / "tests" / "kernel_guest" / "i2c_read_loop.c"
-CAPTURE_SOURCE = REPO / "tests" / "kernel_guest" / "guest_iio_capture.py"
-
-SCRIPT = r"""
-set -u
-B=$GUEST_I2C_BUS
-echo "MARK init bus=$B gpio=$GUEST_GPIO_BASE"
-echo "MARK chipid $(i2cget -y "$B" 0x68 0x00)"
-modprobe -d "$GUEST_ROOT" bmg160_i2c || echo "modprobe bmg160_i2c failed"
-insmod "$BOARD" bus="$B" gpio_base="$GUEST_GPIO_BASE" addr=0x68 line=0 || echo "board failed"
-for i in $(seq 200); do
-    D=$(ls -d /sys/bus/iio/devices/iio:device* 2>/dev/null | head -1)
-    [ -n "$D" ] && break; sleep 0.01
-done
-echo "MARK first $(cat "$D/in_anglvel_x_raw")"
-echo "MARK loop $("$READ_LOOP" "$B" 0x68 0x02 6 "$READS")"
-kw() { sh -c 'echo "$1" > "$2"' kw "$1" "$2"; }
-kw 100 "$D/in_anglvel_sampling_frequency"
-for e in "$D"/scan_elements/*_en; do echo 1 > "$e"; done
-cat /sys/bus/iio/devices/trigger*/name | head -1 > "$D/trigger/current_trigger"
-echo 4096 > "$D/buffer/length"; echo 32 > "$D/buffer/watermark"
-before=$(grep -i gpio /proc/interrupts | awk '{print $2}')
-kw 1 "$D/buffer/enable"
-"$PY" "$CAPTURE" "$CAPTURE_S" "/dev/${D##*/}" "$BMG160_RESULTS/capture.bin"
-kw 0 "$D/buffer/enable"
-after=$(grep -i gpio /proc/interrupts | awk '{print $2}')
-echo "MARK capture bytes=$(stat -c %s "$BMG160_RESULTS/capture.bin") irqs=$((after - before))"
-"""
+TICK_S = 1.0 / os.sysconf("SC_CLK_TCK")
 
 
-def run_engine(name: str, reads: int, capture_s: float, work: Path) -> dict[str, float]:
-    engine = choose(name)
-    board = getattr(engine, "board_module", None)
-    if board is None:
-        raise EngineError(f"engine {name} does not say where its bmg160-board.ko is")
-    loop = work / "i2c_read_loop"
-    if not loop.exists():
-        subprocess.run(["gcc", "-O2", "-o", str(loop), str(READ_LOOP_SOURCE)], check=True)
-    results = work / f"results-{name}"
-    results.mkdir()
-    script = work / f"script-{name}.sh"
-    script.write_text(SCRIPT)
-    i2c, gpio, ready = work / f"{name}-i2c.sock", work / f"{name}-gpio.sock", work / f"{name}.ready"
-    backend = subprocess.Popen(
-        [sys.executable, "-m", "bmg160_emu", "vhost-user-i2c", "--socket", str(i2c),
-         "--gpio-socket", str(gpio), "--ready-file", str(ready), "--address", "0x68",
-         "--seed", "1"],
-        env=dict(os.environ, PYTHONPATH=str(REPO)))
-    while not ready.exists():
-        if backend.poll() is not None:
-            raise RuntimeError("the back end ended before it listened")
-        time.sleep(0.01)
-    env = {"BOARD": str(board()), "READ_LOOP": str(loop), "READS": str(reads),
-           "PY": sys.executable, "CAPTURE": str(CAPTURE_SOURCE), "CAPTURE_S": str(capture_s)}
-    start = time.monotonic()
-    guest = engine.start(Boot(script=script, results=results, i2c_socket=i2c,
-                              gpio_socket=gpio, environment=env))
-    row: dict[str, float] = {}
-    assert guest.stdout is not None
-    console = []
-    for raw in guest.stdout:
-        line = raw.decode(errors="replace").rstrip()
-        console.append(line)
-        match = re.search(r"MARK (\w+) ?(.*)", line)
-        if match is None:
+def group_cpu_s(process: subprocess.Popen[bytes] | None) -> float:
+    """CPU seconds (user + system) of the guest: every process in the process group the
+    orphan guard gave it (its leader is the guard's child), read from /proc while alive."""
+    if process is None:
+        return 0.0
+    total = 0.0
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
             continue
-        key, rest = match.groups()
-        row[f"{key}_s"] = time.monotonic() - start
-        for word, value in re.findall(r"(\w+)=([-\d.]+)", rest):
-            row[f"{key}_{word}"] = float(value)
-        if key == "chipid":
-            row["chip_id"] = int(rest.split()[0], 16)
-    guest.wait()
-    row["total_s"] = time.monotonic() - start
-    backend.terminate()
-    backend.wait()
-    Path(f"/tmp/bench-uml-{name}.console").write_text("\n".join(console) + "\n")
-    if "capture_bytes" not in row:
-        sys.stderr.write("\n".join(console[-40:]) + "\n")
+        try:
+            fields = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        # fields[0] is state: ppid 1, pgrp 2, ... utime 11, stime 12, and the reaped
+        # children's 13, 14 (proc(5), counted from field 3)
+        if int(fields[1]) == process.pid or int(fields[2]) in _groups(process):
+            total += sum(int(v) for v in fields[11:15]) * TICK_S
+    return total
+
+
+def _groups(process: subprocess.Popen[bytes]) -> set[int]:
+    groups = set()
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                fields = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == process.pid:
+                groups.add(int(fields[2]))
+    return groups
+
+
+def own_cpu_s() -> float:
+    t = os.times()
+    return t.user + t.system
+
+
+def one_guest(engine_name: str, virtual: bool, reads: int, loop: Path) -> dict[str, float]:
+    from bmg160_emu.clock import VirtualClock
+    from bmg160_emu.device.chip import BMG160
+    from bmg160_emu.linux.guest import agent
+    from bmg160_emu.linux.guest.drivers import bind_failure, bind_ops
+    from bmg160_emu.linux.guest.engine import choose
+    from bmg160_emu.linux.guest.harness import Backend, Guest, temporary_work
+    from bmg160_emu.linux.guest_pace import GuestPacedClock
+
+    engine = choose(engine_name)
+    clock = VirtualClock() if virtual else GuestPacedClock()
+    chips = {a: BMG160(seed=7 + i, clock=clock, address=a) for i, a in enumerate((0x68, 0x69))}
+    work = temporary_work()
+    backend = Backend(chips, work / "s", gpio=True, clock=clock, time_travel=virtual)
+    guest = Guest(engine, work, backend)
+    row: dict[str, float] = {}
+    cpu0, wall0 = own_cpu_s(), time.monotonic()
+    try:
+        guest.start(timeout_s=300)
+        row["agent_s"] = time.monotonic() - wall0
+        row["agent_cpu_s"] = own_cpu_s() - cpu0 + group_cpu_s(guest.process)
+        board = engine.board_module()  # type: ignore[attr-defined]
+        ops = bind_ops("bmg160", [0x68], guest.i2c_bus, [backend.line_of(0x68)], board,
+                       int(guest.facts["gpio_base"]), kernel_driver=True)
+        ops.append(agent.read(f"/sys/bus/i2c/devices/{guest.i2c_bus}-0068/iio:device0/"
+                              "in_anglvel_x_raw", check=True))
+        replies = guest.call(ops)
+        row["first_read_s"] = time.monotonic() - wall0
+        row["first_read_cpu_s"] = own_cpu_s() - cpu0 + group_cpu_s(guest.process)
+        failure = bind_failure(replies, ops)
+        if failure or not replies[-1].text.strip().lstrip("-").isdigit():
+            raise RuntimeError(f"no first read: {failure or replies[-1].error()}")
+        empty = guest.call([agent.run("/", "true", guest.agent_dir / "e.out",
+                                      guest.agent_dir / "e.err")])  # warm: sh is cached
+        started, cpu1, guest_cpu1 = time.monotonic(), own_cpu_s(), group_cpu_s(guest.process)
+        empty = guest.call([agent.run("/", "true", guest.agent_dir / "e.out",
+                                      guest.agent_dir / "e.err")])
+        empty_s = time.monotonic() - started
+        started = time.monotonic()
+        done = guest.call([agent.run("/", f"{loop} {guest.i2c_bus} 0x68 0x02 6 {reads} nolat",
+                                     guest.agent_dir / "l.out", guest.agent_dir / "l.err")],
+                          timeout_s=600)
+        loop_s = time.monotonic() - started - empty_s
+        assert not empty[0].status and done[0].text == "0", (guest.agent_dir / "l.err")
+        row["reads_per_s"] = reads / loop_s
+        row["us_cpu_per_read"] = (own_cpu_s() - cpu1 + group_cpu_s(guest.process)
+                                  - guest_cpu1) / reads * 1e6
+    finally:
+        guest.close()
+        backend.close()
     return row
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--engines", default="uml,qemu")
+    parser.add_argument("--engines", default="uml", help="comma-separated: uml,qemu")
     parser.add_argument("--reads", type=int, default=20000)
-    parser.add_argument("--capture", type=float, default=2.0, help="seconds of capture")
+    parser.add_argument("--repeat", type=int, default=3, help="guests per engine and mode")
     args = parser.parse_args()
-    rows = {}
+    from bmg160_emu.linux.guest.engine import choose
+
     with tempfile.TemporaryDirectory(prefix="bench-uml-") as tmp:
+        loop = Path(tmp) / "i2c_read_loop"
+        subprocess.run(["gcc", "-O2", "-o", str(loop), str(READ_LOOP_SOURCE)], check=True)
+        rows: dict[str, list[dict[str, float]]] = {}
         for name in args.engines.split(","):
-            rows[name] = run_engine(name, args.reads, args.capture, Path(tmp))
-    keys = ["init_s", "chipid_s", "first_s", "loop_per_s", "loop_p50_us", "loop_p99_us",
-            "capture_bytes", "capture_irqs", "total_s"]
-    print(f"{'':14}" + "".join(f"{name:>12}" for name in rows))
-    for key in keys:
-        print(f"{key:14}" + "".join(f"{row.get(key, float('nan')):12.3f}"
-                                    for row in rows.values()))
-    if "uml" in rows and "qemu" in rows:
-        for key in ("init_s", "first_s", "loop_per_s", "total_s"):
-            u, q = rows["uml"].get(key), rows["qemu"].get(key)
-            if u and q:
-                print(f"uml/qemu {key}: {u / q:.2f}")
+            modes = [True, False] if getattr(choose(name), "time_travel", False) else [False]
+            for virtual in modes:
+                key = f"{name} {'virtual' if virtual else 'real-time'}"
+                rows[key] = [one_guest(name, virtual, args.reads, loop)
+                             for _ in range(args.repeat)]
+                print(f"{key}: done (load average {os.getloadavg()[0]:.1f})", file=sys.stderr)
+    print(f"median of {args.repeat} guests each; {args.reads} reads; load average "
+          f"{os.getloadavg()[0]:.1f} / {os.getloadavg()[1]:.1f} (1 / 5 min) at the end")
+    keys = [("agent serving", "agent_s", "agent_cpu_s"),
+            ("driver's first read", "first_read_s", "first_read_cpu_s")]
+    for key, runs in rows.items():
+        print(key)
+        for label, wall, cpu in keys:
+            print(f"  {label:<22} {statistics.median(r[wall] for r in runs):7.3f} s wall, "
+                  f"{statistics.median(r[cpu] for r in runs):6.3f} s CPU")
+        print(f"  {'6-byte reads/s':<22} {statistics.median(r['reads_per_s'] for r in runs):7.0f}"
+              f"      ({statistics.median(r['us_cpu_per_read'] for r in runs):.0f} us CPU per "
+              "read, guest and back end)")
     return 0
 
 

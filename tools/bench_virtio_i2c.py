@@ -186,9 +186,9 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.serve_bare:
         return serve_bare(*args.serve_bare)
+    from bmg160_emu.linux.guest.debian_modules import bundled_dir
     from bmg160_emu.linux.guest.engine import Boot
     from bmg160_emu.linux.guest.harness import run_script
-    from bmg160_emu.linux.guest.kmod import bundled_dir
     from bmg160_emu.linux.guest.qemu import QemuEngine
 
     missing = QemuEngine().missing()

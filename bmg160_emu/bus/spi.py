@@ -23,6 +23,7 @@ from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any, Literal
 
 from bmg160_emu.bus.i2c import os_error
+from bmg160_emu.device.contract import SpiFramedDevice
 from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of, field_of
 from bmg160_emu.traffic.transaction import TransactionLog
 
@@ -59,19 +60,39 @@ def next_address(address: int, count: int) -> int:
     return min(address + count, 0x7F)
 
 
+_OWN_FRAMING: dict[type, bool] = {}  # device type -> decodes its own SPI frames
+
+
+def _frames_itself(chip: Any) -> bool:
+    kind = type(chip)
+    known = _OWN_FRAMING.get(kind)
+    if known is None:
+        known = _OWN_FRAMING[kind] = isinstance(chip, SpiFramedDevice)
+    return known
+
+
 class SpiFrame:
     """One chip-select-low frame as the chip decodes it; ``clock`` may be called several times
-    while CS stays low (the frame goes on)."""
+    while CS stays low (the frame goes on). Created when chip select falls. A device that
+    decodes its own frames (``contract.SpiFramedDevice``: a register-file stand-in with its
+    dummy byte or I2C start) is handed the frame; any other is framed as the BMG160
+    (spec 2.2-2.4)."""
 
     def __init__(self, chip: Any) -> None:
         self.chip = chip
         self.state = _COMMAND
         self.address = 0
         self.command: int | None = None
+        self.own = chip.spi_frame() if _frames_itself(chip) else None
+        self._start = (_COMMAND, 0)
+        self._mosi = self._driven = b""
 
     def clock(self, mosi: bytes) -> bytes:
         """Shift ``mosi`` into the chip; returns what the chip drives (UNDRIVEN_BYTE where it
         does not drive its output)."""
+        if self.own is not None:
+            return bytes(self.own.clock(mosi))
+        self._start, self._mosi = (self.state, self.address), mosi
         out = bytearray()
         count = len(mosi)
         chip = self.chip
@@ -101,7 +122,51 @@ class SpiFrame:
                 self.state = _WRITE_DATA
             out.append(UNDRIVEN_BYTE)
             i += 1
-        return bytes(out)
+        self._driven = bytes(out)
+        return self._driven
+
+    def access(self) -> tuple[str, int | None, bytes, bytes]:
+        """The last ``clock`` in register terms for a log: (kind, register, written, read):
+        ``spi_read``/``spi_write`` from the frame's register, the data bytes after the
+        command byte (as for I2C transactions)."""
+        if self.own is not None:
+            return self.own.access()
+        (state, address), mosi, driven = self._start, self._mosi, self._driven
+        offset = 0
+        if state == _COMMAND and mosi:
+            state = _READ if mosi[0] & 0x80 else _WRITE_DATA
+            address = mosi[0] & 0x7F
+            offset = 1
+        if state == _READ:
+            return ("spi_read", address, b"", driven[offset:])
+        return ("spi_write", address, mosi[offset:], b"")
+
+    def three_wire(self) -> bool:
+        """Whether the chip answers on its one data line (spi3, spec 4.23)."""
+        if self.own is not None:
+            return bool(self.own.three_wire())
+        return bool(self.chip.peek(SPI3_ADDRESS) & SPI3_BIT)
+
+    @property
+    def dummy_bytes(self) -> int:
+        """Bytes a read shifts out between the command byte and the data (0 on the BMG160)."""
+        return int(self.own.dummy_bytes) if self.own is not None else 0
+
+
+def chip_select_of(name: Any) -> int | None:
+    """The chip select of a logged SPI device name ``spi<bus>.<cs>`` (FakeSpiDev's, serve's),
+    or None for any other name. Where a session has several devices, chip select i is the
+    i-th in address order (serve's board)."""
+    if not isinstance(name, str) or not name.startswith("spi"):
+        return None
+    _, dot, cs = name[3:].partition(".")
+    return int(cs) if dot and cs.isdigit() else None
+
+
+def read_dummy_bytes(chip: Any) -> int:
+    """Bytes ``chip`` shifts out between a read's command byte and its data (without
+    starting a frame): what a replayed read must clock besides its data."""
+    return int(chip.spec.spi.dummy_bytes) if _frames_itself(chip) else 0
 
 
 def spi_frame(chip: Any, mosi: bytes | Sequence[int]) -> bytes:
@@ -353,15 +418,15 @@ class FakeSpiDev:
         if mode & SPI_LSB_FIRST:
             wire_tx = wire_tx.translate(_REVERSED)
         chip = self.chip
+        heard = True  # whether the host hears what the chip drives
         with chip.lock:
             selected = not (mode & SPI_CS_HIGH) and (mode & (SPI_CPHA | SPI_CPOL)) in (0, 3)
             if selected:
                 frame = self._frame if self._frame is not None else SpiFrame(chip)
-                start_state, start_address = frame.state, frame.address
                 driven = frame.clock(wire_tx)
-                chip_3wire = bool(chip.peek(SPI3_ADDRESS) & SPI3_BIT)
                 self._frame = frame if mode & SPI_NO_CS else None
-                if host_3wire != chip_3wire:
+                heard = host_3wire == frame.three_wire()
+                if not heard:
                     driven = bytes([UNDRIVEN_BYTE]) * count  # the chip answers on the other line
             else:
                 driven = bytes([UNDRIVEN_BYTE]) * count
@@ -373,22 +438,12 @@ class FakeSpiDev:
         if self.log.enabled:
             if not selected:  # the chip took no part: log the raw frame
                 self.log.record(time, self.name, None, "spi_frame", None, tx or b"", rx)
-            else:
-                self._log_frame(time, start_state, start_address, wire_tx, driven)
+            else:  # what the chip saw, in register terms
+                kind, register, written, read = frame.access()
+                if not heard:
+                    read = bytes([UNDRIVEN_BYTE]) * len(read)
+                self.log.record(time, self.name, None, kind, register, written, read)
         return rx
-
-    def _log_frame(self, time: float, state: int, address: int, mosi: bytes, driven: bytes) -> None:
-        """Log what the chip saw, in register terms: ``spi_read``/``spi_write`` from the
-        frame's register, data bytes after the command byte (as for I2C transactions)."""
-        offset = 0
-        if state == _COMMAND and mosi:
-            state = _READ if mosi[0] & 0x80 else _WRITE_DATA
-            address = mosi[0] & 0x7F
-            offset = 1
-        if state == _READ:
-            self.log.record(time, self.name, None, "spi_read", address, b"", driven[offset:])
-        else:
-            self.log.record(time, self.name, None, "spi_write", address, mosi[offset:])
 
     def readbytes(self, length: int) -> list[int]:
         """Read len bytes from SPI device (1..4096; other lengths are clamped, as spidev does)."""

@@ -151,6 +151,8 @@ def run(args: argparse.Namespace) -> int:
         if text.startswith("unsupported output data rate"):  # paper mode (docs/limits.md)
             text = f"rate {args.rate:g} Hz in paper mode: {text}"
         raise CommandError(f"--{text}" if text.startswith("rate ") else text) from None
+    for note in gen.notes:  # what of the profile's output stage is left out, and why
+        print(f"bmg160-emu generate: note: {note}", file=sys.stderr)
     total = round(duration * gen.rate_hz)
     if total < 1:
         raise CommandError(f"duration {args.duration!r} is shorter than one sample period")

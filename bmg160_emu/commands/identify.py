@@ -91,7 +91,18 @@ def register(subparsers: Subparsers) -> None:
     parser.add_argument(
         "--compare",
         action="store_true",
-        help="with --figures: overlay an emulator record from the result",
+        help="with --figures: the recording over the band of emulated records from the result "
+        "(median and 2.5-97.5 %%, --verdict-seeds of them) and the verdict",
+    )
+    parser.add_argument(
+        "--verdict-seeds", type=bounded_option(limits.RUNS), default=20, metavar="N",
+        help="emulated records of the verdict (bmg160-emu compare) printed after "
+        "--profile-out and drawn by --compare (default 20, fewer when they would take over "
+        "a minute)",
+    )
+    parser.add_argument(
+        "--no-verdict", action="store_true",
+        help="do not print the verdict after --profile-out",
     )
     parser.add_argument(
         "--seed",
@@ -270,13 +281,22 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(text if text.startswith(str(args.file)) else f"{args.file}: {text}") \
             from None
 
+    verdict = None
+    if record is not None and (args.compare or (args.profile_out is not None
+                                                and not args.no_verdict)):
+        verdict = _verdict(args, record, result)
     jobs = _output_jobs(args, result)
     if args.figures is not None:
         jobs += _figure_jobs(args, record, result)
-    written = _write_all(args, jobs)
-
+        if verdict is not None and args.compare:
+            jobs += _verdict_figure_jobs(args, verdict)
+    written = _write_all(args, jobs)  # all together, or none (issue 35)
     if args.json:
         out = result.as_dict(args.units)
+        if verdict is not None:
+            from bmg160_emu.noise.verdict import verdict_dict
+
+            out["verdict"] = verdict_dict(verdict)
         for name, fit in (gmwm_fits or {}).items():
             out["axes"][name]["fit"] = fit.as_dict()  # the fit that gave the values
         out["written"] = [str(p) for p in written]
@@ -288,6 +308,8 @@ def run(args: argparse.Namespace) -> int:
         stage = _output_stage_line(result)
         if stage:
             print(stage)
+        if verdict is not None:
+            print(verdict.text())
         for path in written:
             print(f"wrote {path}")
     for axis in result.axes:  # a curve in the wrong units: said where it cannot be missed
@@ -295,6 +317,51 @@ def run(args: argparse.Namespace) -> int:
             if note.startswith("implausible"):
                 print(f"bmg160-emu identify: warning: axis {axis.axis}: {note}", file=sys.stderr)
     return 0
+
+
+READING_NOTE_BYTES = 20_000_000  # files from this size get a line before and after reading
+VERDICT_BUDGET_S = 60.0  # the verdict after --profile-out takes at most about this long
+VERDICT_MIN_SEEDS = 5  # fewer emulated records say too little: the verdict is left out
+
+
+def _verdict(args: argparse.Namespace, record, result):
+    """The verdict of the identified profile against the record (noise.verdict), with as
+    many of --verdict-seeds as fit in VERDICT_BUDGET_S (one record timed first), or None
+    with a line saying why and how to get it."""
+    import time
+
+    from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
+    from bmg160_emu.noise.verdict import compare_profile
+
+    how = f"bmg160-emu compare {args.file} {args.profile_out or 'PROFILE'}"
+    if float(record.rate_hz) not in SUPPORTED_RATES_HZ:
+        print(f"bmg160-emu identify: no verdict: the record's rate {record.rate_hz:g} Hz is not "
+              "an output data rate the generator draws (100, 200, 400, 1000, 2000 Hz)",
+              file=sys.stderr)
+        return None
+    profile = result.to_profile(args.profile_out.stem if args.profile_out else "identified")
+    names = tuple(a.axis for a in result.axes)
+    started = time.perf_counter()
+    compare_profile(record.rate_dps[: min(record.rate_dps.shape[0], 1 << 16)], record.rate_hz,
+                    profile, 1, names)
+    per_seed = (time.perf_counter() - started) * max(record.rate_dps.shape[0] / (1 << 16), 1.0)
+    seeds = min(args.verdict_seeds, int(VERDICT_BUDGET_S / max(per_seed, 1e-9)))
+    if seeds < VERDICT_MIN_SEEDS and not args.compare:
+        print(f"bmg160-emu identify: no verdict: {VERDICT_MIN_SEEDS} emulated records would "
+              f"take about {VERDICT_MIN_SEEDS * per_seed:.0f} s; run `{how} --seeds N`",
+              file=sys.stderr)
+        return None
+    seeds = max(seeds, VERDICT_MIN_SEEDS)
+    print(f"bmg160-emu identify: verdict over {seeds} emulated records (about "
+          f"{seeds * per_seed:.0f} s; `{how}` gives more) ...", file=sys.stderr, flush=True)
+    return compare_profile(record.rate_dps, record.rate_hz, profile, seeds, names)
+
+
+def _verdict_figure_jobs(args: argparse.Namespace, verdict) -> list[tuple[Path, Any]]:
+    from bmg160_emu.noise.verdict import verdict_figure
+
+    return [(args.figures / f"compare.{args.format}",
+             partial(_save_figure, verdict_figure(verdict)))]
 
 
 def _output_stage_line(result) -> str:
@@ -325,7 +392,18 @@ def _identify_record(args: argparse.Namespace, options: dict):
     from bmg160_emu.noise.identify import STAGES_PER_AXIS, identify
 
     columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
+    import time
+
+    size = args.file.stat().st_size if args.file.is_file() else 0
+    started = time.perf_counter()
+    if size >= READING_NOTE_BYTES:  # a large text file takes 10-20 s: say so, then how long
+        print(f"bmg160-emu identify: reading {args.file} ({size / 1e6:.0f} MB) ...",
+              file=sys.stderr, flush=True)
     record = load_rate_record(args.file, args.rate, columns)
+    if size >= READING_NOTE_BYTES:
+        print(f"bmg160-emu identify: read {record.rate_dps.shape[0]:,} samples x "
+              f"{record.rate_dps.shape[1]} axes in {time.perf_counter() - started:.1f} s",
+              file=sys.stderr, flush=True)
     from bmg160_emu.io.partial import partial_note
 
     cut = partial_note(args.file)
@@ -501,7 +579,6 @@ def _figure_jobs(args: argparse.Namespace, record, result) -> list[tuple[Path, A
     }
     if args.compare:
         from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
-        from bmg160_emu.noise.identify import identify_axis
         from bmg160_emu.noise.sensor_noise import profile_noise
 
         chip_rate = min(SUPPORTED_RATES_HZ, key=lambda r: abs(r / record.rate_hz - 1))
@@ -510,14 +587,13 @@ def _figure_jobs(args: argparse.Namespace, record, result) -> list[tuple[Path, A
                 f"--compare: the record's rate {record.rate_hz:g} Hz is not a BMG160 output "
                 "data rate (100, 200, 400, 1000, 2000 Hz)"
             )
-        # what generate writes from the profile: its output stage included
+        # what generate writes from the profile: its output stage included; one record for
+        # the look of the time series (its ADEV and PSD are drawn as the band of many
+        # records: compare.png, _write_verdict_figure; one record's ADEV at L/10 scatters by
+        # a factor 2-4 from seed to seed, issue 35)
         gen = profile_noise(result.to_profile(), chip_rate, seed=args.seed)
         emulated = gen.generate(record.rate_dps.shape[0])
         for i, axis in enumerate(result.axes):
-            emu = identify_axis(emulated[:, i], record.rate_hz, axis.axis)
-            overlays = plots.overlay_figures(
-                record.rate_dps[:, i], emulated[:, i], record.rate_hz, axis, emu
-            )
-            for key, fig in overlays.items():
-                figs[f"{key}_{axis.axis}"] = fig
+            figs[f"overlay_time_{axis.axis}"] = plots.overlay_time_figure(
+                record.rate_dps[:, i], emulated[:, i], record.rate_hz, axis.axis)
     return [(folder / f"{key}{ext}", partial(_save_figure, fig)) for key, fig in figs.items()]

@@ -20,11 +20,14 @@ examples:
   bmg160-emu kernel run --engine qemu --true-rate 20 -10 5 -- sh -c 'cat $IIO/name'
   bmg160-emu kernel run --module ./my-driver/ --results out/ -- ./read-test.sh
   bmg160-emu kernel run --no-driver -- i2cget -y '$GUEST_I2C_BUS' 0x68 0x00
+  bmg160-emu kernel run --real-time -- 'sleep 1; cat $IIO/in_anglvel_x_raw'
 
 The guest mounts the host's root read-only and runs COMMAND (with /bin/sh -c when it is one
 word with spaces) in the current folder; --results DIR is writable inside at the same path
 (BMG160_RESULTS). Before COMMAND, the driver (the kernel's bmg160, or --module's) is bound
 to every chip with its INT1 line as IRQ; IIO names the first chip's device in $IIO.
+On the uml engine the guest runs in virtual time (its clock is the chips': the same seed and
+COMMAND give the same values on any host); --real-time runs it against wall time.
 Exit status: COMMAND's. Docs: docs/commands/kernel.md, docs/kernel-test.md.
 """
 
@@ -67,6 +70,9 @@ def register(subparsers: Subparsers) -> None:
                           "kept by bmg160-emu's adapter inside the guest (no IRQ)")
     run.add_argument("--no-irq", action="store_true",
                      help="bind through new_device, without the INT1 line as IRQ")
+    run.add_argument("--real-time", action="store_true",
+                     help="run the guest against wall time (default on uml: virtual time, the "
+                          "guest's clock is the chips'; qemu always runs in real time)")
     run.add_argument("--results", type=Path, default=None, metavar="DIR",
                      help="a folder COMMAND may write (created; default: a temporary one, "
                           "removed afterwards)")
@@ -97,25 +103,31 @@ def run_prepare(args: argparse.Namespace) -> int:
     available = engines()
     if args.engine is not None and args.engine not in available:
         raise CommandError(f"--engine {args.engine}: unknown (have: {', '.join(available)})")
-    status = 0
+    ready = []
     for name, engine in available.items():
         if args.engine is not None and name != args.engine:
             continue
+        failure = None
         try:
             engine.prepare(_progress)
         except EngineError as exc:
-            print(f"bmg160-emu kernel: {name}: {exc}", file=sys.stderr)
-        missing = engine.missing()
+            failure = str(exc)
+            print(f"bmg160-emu kernel: {name}: {failure}", file=sys.stderr)
+        missing = [line for line in engine.missing() if line != failure]
         for line in missing:
             print(f"bmg160-emu kernel: {name}: missing: {line}", file=sys.stderr)
-        print(f"{name}: {'ready' if not missing else 'not ready'}")
-        status = status or (1 if missing and args.engine is not None else 0)
-    return status
+        print(f"{name}: {'ready' if not missing and failure is None else 'not ready'}")
+        if not missing and failure is None:
+            ready.append(name)
+    return 0 if ready else 1
 
 
 def run_command(args: argparse.Namespace) -> int:
+    from bmg160_emu.clock import VirtualClock
+    from bmg160_emu.commands._chip_options import configs_from_args, session_seed
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.linux.guest.drivers import bind_command, driver_name, load_order
+    from bmg160_emu.linux.guest import stub_route
+    from bmg160_emu.linux.guest.drivers import bind_failure, bind_ops, driver_name, load_order
     from bmg160_emu.linux.guest.engine import EngineError, choose
     from bmg160_emu.linux.guest.harness import Backend, Guest, GuestDied, temporary_work
 
@@ -134,89 +146,66 @@ def run_command(args: argparse.Namespace) -> int:
     name = args.driver or (driver_name(kos, prefer=["bmg160"]) if kos else "bmg160")
     if not args.no_driver and name is None:
         raise CommandError("--module declares no I2C device name (i2c: alias): give --driver")
-    args.realtime = True  # a guest kernel lives in real time
+    virtual = bool(getattr(engine, "time_travel", False)) and not args.real_time
     stub = args.route == "stub"
-    clock = None
-    if not args.no_irq and not stub:
+    clock: Any = VirtualClock() if virtual else None
+    if clock is None and not args.no_irq and not stub:
         from bmg160_emu.linux.guest_pace import GuestPacedClock
 
         clock = GuestPacedClock()
-    chips = chips_from_args(args, clock=clock)  # a random seed is said, so a run can be repeated
+    args.realtime = not virtual  # a guest kernel on wall time lives in real time
+    if stub:  # the chips are built in the guest, from their configs (stub_route)
+        configs, seed = configs_from_args(args), session_seed(args)
+        try:
+            stub_route.describe(configs, seed)
+        except ValueError as exc:
+            raise CommandError(f"--route stub: {exc}") from None
+        chips: dict[int, Any] = {}
+        addresses = [c.address for c in configs]
+    else:
+        # a random seed is said, so a run can be repeated
+        chips = chips_from_args(args, clock=clock)
+        addresses = sorted(chips)
     work = temporary_work()
     results = args.results
     if results is not None:
         results.mkdir(parents=True, exist_ok=True)
-    backend = None if stub else Backend(chips, work / "s", gpio=True, clock=clock)
+    backend = Backend(chips, work / "s", gpio=True, clock=clock or VirtualClock(),
+                      time_travel=virtual)
     guest = Guest(engine, work, backend, modules=modules, results=results)
     board = None if stub else getattr(engine, "board_module", lambda: None)()
-    addresses = sorted(chips)
-    prefix = ""
     try:
         guest.start()
-        if stub:
-            prefix = _start_stub(guest, args, addresses, work)
+        bus = stub_route.start(guest, configs, seed) if stub else guest.i2c_bus
         if not args.no_driver and name is not None:
-            lines = (None if args.no_irq or board is None or backend is None
-                     else [backend.line_of(a) for a in addresses])
-            bound = guest.run(prefix + bind_command(name, addresses, lines, board,
-                                                    kernel_driver=not kos), timeout_s=60)
-            if bound.returncode:
-                sys.stderr.write(bound.stdout + bound.stderr)
-                raise CommandError(f"the driver {name!r} did not bind to the chips")
+            irq = not (args.no_irq or board is None or stub)
+            lines = [backend.line_of(a) for a in addresses] if irq else None
+            ops = bind_ops(name, addresses, bus, lines, board,
+                           int(guest.facts.get("gpio_base") or 0), kernel_driver=not kos)
+            failure = bind_failure(guest.call(ops, timeout_s=120), ops)
+            if failure:
+                sys.stderr.write(guest.run("dmesg | tail -n 8", check=False).stdout)
+                raise CommandError(f"the driver {name!r} did not bind to the chips: {failure}")
         text = command[0] if len(command) == 1 else " ".join(_quote(w) for w in command)
-        iio = (f"IIO=$(ls -d /sys/bus/i2c/devices/$GUEST_I2C_BUS-{addresses[0]:04x}"
-               "/iio:device* 2>/dev/null | head -n 1); export IIO\n")
-        result = guest.run(prefix + iio + text, timeout_s=args.timeout)
+        prefix = (f"GUEST_I2C_BUS={bus}; export GUEST_I2C_BUS\n"
+                  f"IIO=$(ls -d /sys/bus/i2c/devices/{bus}-{addresses[0]:04x}/iio:device* "
+                  "2>/dev/null | head -n 1); export IIO\n")
+        result = guest.run(prefix + text, timeout_s=args.timeout)
         sys.stdout.write(result.stdout)
         sys.stderr.write(result.stderr)
         if stub:
-            guest.run(f"kill -TERM $(cat {guest.agent_dir}/stub.pid) 2>/dev/null", check=False)
+            stub_route.stop(guest)
         return result.returncode
-    except GuestDied as exc:
+    except (GuestDied, EngineError) as exc:
         raise CommandError(str(exc).splitlines()[0]) from None
     finally:
         console = guest.close()
         if args.console is not None:
             args.console.write_text(console)
-        if backend is not None:
-            backend.close()
+        backend.close()
         if results is not None:
             shutil.rmtree(results / ".agent", ignore_errors=True)
         shutil.rmtree(work, ignore_errors=True)
-
-
-def _start_stub(guest: Any, args: argparse.Namespace, addresses: list[int], work: Path) -> str:
-    """Load i2c-stub with the chips' addresses and start the adapter in the guest; the
-    shell prefix that names its bus for later commands."""
-    import pickle
-
-    from bmg160_emu.commands._common import CommandError
-
-    options = work / "chips.pickle"
-    options.write_bytes(pickle.dumps(argparse.Namespace(
-        **{k: v for k, v in vars(args).items() if k != "func"})))
-    load = guest.run(
-        'm="modprobe ${GUEST_ROOT:+-d $GUEST_ROOT}"\n'
-        f"$m i2c-stub chip_addr={','.join(f'0x{a:02x}' for a in addresses)} && $m i2c-dev "
-        "|| exit 1\n"
-        "for d in /sys/bus/i2c/devices/i2c-*; do\n"
-        '  grep -q "SMBus stub" "$d/name" 2>/dev/null && echo "${d##*/i2c-}"\n'
-        "done", timeout_s=60)
-    bus = load.stdout.split()
-    if load.returncode or not bus:
-        raise CommandError(f"i2c-stub did not load in the guest: {load.stderr.strip()}")
-    prefix = f"GUEST_I2C_BUS={bus[0]}; export GUEST_I2C_BUS\n"
-    run = guest.agent_dir  # writable in the guest (the host's /tmp is not)
-    started = guest.run(
-        prefix + f'"$BMG160_PY" -m bmg160_emu.commands._kernel_stub {options} $GUEST_I2C_BUS '
-        f"{run}/stub.ready > {run}/stub.log 2>&1 &\necho $! > {run}/stub.pid\n"
-        f"i=0; while [ ! -e {run}/stub.ready ] && [ $i -lt 1200 ] && kill -0 $! 2>/dev/null; "
-        "do sleep 0.1; i=$((i + 1)); done\n"
-        f"[ -e {run}/stub.ready ] || {{ cat {run}/stub.log >&2; exit 1; }}", timeout_s=180)
-    if started.returncode:
-        raise CommandError(f"the i2c-stub adapter did not start in the guest: "
-                           f"{started.stderr.strip().splitlines()[-1:]}")
-    return prefix
 
 
 def _module(engine: object, path: Path) -> list[Path]:

@@ -198,10 +198,29 @@ def _summary(fit: Any, source: Path) -> str:
     for name, a in zip(fit.axis_names, fit.axes):
         for k in range(fit.order + 1):
             lo, hi = a.intervals[k]
-            lines.append(f"  {name}  c{k} = {a.coefficients[k]: .6g} {units[k]}  "
-                         f"[{lo:.6g}, {hi:.6g}]")
+            place = _last_digit_place(a.standard_errors[k])
+            lines.append(f"  {name}  c{k} = {_to_place(a.coefficients[k], place, ' ')} "
+                         f"{units[k]}  [{_to_place(lo, place)}, {_to_place(hi, place)}]")
         lines.append(f"  {name}  reduced chi-square {a.reduced_chi2:.2f}")
     return "\n".join(lines)
+
+
+def _last_digit_place(standard_error: float) -> int:
+    """The decimal place (a power of ten) of a standard error's second significant digit: an
+    estimate is quoted to that place and no further (GUM, JCGM 100:2008, 7.2.6). The digits
+    beyond it are noise, and they differ with the BLAS kernel of the machine."""
+    if not (standard_error > 0 and math.isfinite(standard_error)):
+        return -6
+    return math.floor(math.log10(standard_error)) - 1
+
+
+def _to_place(value: float, place: int, sign: str = "") -> str:
+    """``value`` rounded to the decimal place ``10**place``, in the shortest notation."""
+    if value == 0 or not math.isfinite(value):
+        return f"{value:{sign}g}"
+    digits = max(1, math.floor(math.log10(abs(value))) - place + 1)
+    keep_zeros = "#" if digits > 1 else ""  # 0.01540, not 0.0154: the place is the point
+    return f"{value:{sign}{keep_zeros}.{digits}g}"
 
 
 def _errors_toml(errors: dict[str, Any], source: Path) -> str:

@@ -59,6 +59,22 @@ class RateSensor(RegisterDevice, Protocol):
     def set_true_rate(self, rate: Any) -> None: ...
 
 
+@runtime_checkable
+class SpiFramedDevice(RegisterDevice, Protocol):
+    """A register device that decodes its SPI frames itself: a register-file stand-in
+    (``device.standin``), whose chip may shift out a dummy byte before read data, start in
+    I2C mode, or have its 3-wire bit elsewhere. Every other device is framed as the BMG160
+    frames SPI (spec 2.2-2.4, ``bus.spi.SpiFrame``).
+
+    ``spi_frame()`` is called when chip select falls; the frame it returns offers
+    ``clock(mosi) -> bytes`` (what the chip drives), ``access()`` (the last clock in register
+    terms: kind, register, written, read), ``three_wire()``, ``dummy_bytes`` and ``chip``."""
+
+    def spi_frame(self) -> Any: ...
+
+    def spi_three_wire(self) -> bool: ...
+
+
 PRIMITIVES = ("write", "read", "i2c_write", "i2c_read", "peek", "dump", "advance")
 NOISE_MODES = ("physical", "paper")
 

@@ -9,10 +9,17 @@ else. It holds registers and produces no motion data: its data registers keep th
 values whatever is done to it, and no time-dependent behaviour (start-up delays, data
 ready, FIFO filling) is modelled.
 
+The bus side is declared too: how many bits of the register byte the chip decodes (7 for
+the Bosch parts, whose SPI frame carries a 7-bit address after the R/W bit; 8 for a plain
+register file) and how it frames SPI (:class:`SpiInterface`: the BMI088 accelerometer's
+dummy byte before read data, its start in I2C mode, a 3-wire bit); the frames themselves are
+decoded in :mod:`bmg160_emu.device.standin_spi`.
+
 The declaration is data (:class:`StandinSpec`), read from a small TOML or a register dump
 by :mod:`bmg160_emu.io.standin_file`; this module knows no file. The device offers the chip
-primitives of :class:`~bmg160_emu.device.contract.RegisterDevice`, so I2CBus, FakeSMBus,
-``bmg160-emu run`` and trace replay take it like a chip.
+primitives of :class:`~bmg160_emu.device.contract.RegisterDevice` and its own SPI framing
+(:class:`~bmg160_emu.device.contract.SpiFramedDevice`), so I2CBus, FakeSMBus, FakeSpiDev,
+``bmg160-emu run``, ``serve`` and trace replay take it like a chip.
 """
 
 from __future__ import annotations
@@ -23,9 +30,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bmg160_emu.device import contract
+from bmg160_emu.device.standin_spi import StandinSpiFrame
 
 REGISTER_SPACE = 1 << 8  # an 8-bit register pointer: 256 registers
 ALL_BITS = REGISTER_SPACE - 1  # every bit of a byte (a register's default write mask)
+ADDRESS_BITS = (7, 8)  # register-address widths a declaration may give
+DEFAULT_ADDRESS_BITS = 8  # a plain register file decodes the whole register byte
 
 
 @dataclass(frozen=True)
@@ -69,8 +79,40 @@ class PowerGate:
 
 
 @dataclass(frozen=True)
+class SpiInterface:
+    """How the chip frames SPI. The first byte of a frame is R/W (bit 7, 1 = read) and a
+    7-bit register address; a read then shifts out ``dummy_bytes`` bytes before the data
+    (1 on the BMI088 accelerometer, data sheet 6.1.2), a write writes the following bytes
+    from the address on, or with ``write_pairs`` takes the bytes after the first data byte
+    as (address, data) pairs (the BMA2x2's SPI write, as Bosch's support code sends it).
+    ``starts_in_i2c`` : the chip is in I2C mode after power-on and after a soft reset and
+    ignores a frame until chip select rises once (the BMI088 accelerometer, data sheet
+    6.1). ``three_wire_register`` / ``three_wire_mask``: the bit that puts the chip's SPI in
+    3-wire mode (None: it has none)."""
+
+    dummy_bytes: int = 0
+    starts_in_i2c: bool = False
+    three_wire_register: int | None = None
+    three_wire_mask: int = 0
+    write_pairs: bool = False
+
+    def to_dict(self) -> dict[str, Any]:
+        document: dict[str, Any] = {"dummy_bytes": self.dummy_bytes,
+                                    "starts_in_i2c": self.starts_in_i2c,
+                                    "write_pairs": self.write_pairs}
+        if self.three_wire_register is not None:
+            document["three_wire_register"] = self.three_wire_register
+            document["three_wire_mask"] = self.three_wire_mask
+        return document
+
+
+@dataclass(frozen=True)
 class StandinSpec:
-    """A stand-in's declaration: what it answers at which addresses."""
+    """A stand-in's declaration: what it answers at which addresses.
+
+    ``register_address_bits``: how many low bits of the register byte the chip decodes (an
+    I2C register byte or a register primitive's argument); with 7, 0x80..0xFF reach
+    0x00..0x7F, as on the gyroscope (docs/unconfirmed-choices.md, spec 2.4)."""
 
     name: str
     chip_id_register: int
@@ -83,6 +125,13 @@ class StandinSpec:
     soft_reset: SoftReset | None = None
     power_gate: PowerGate | None = None
     source: str = ""  # where the declaration came from (a file, a built-in name)
+    register_address_bits: int = DEFAULT_ADDRESS_BITS
+    spi: SpiInterface = field(default_factory=SpiInterface)
+
+    @property
+    def address_mask(self) -> int:
+        """The register-byte bits the chip decodes."""
+        return (1 << self.register_address_bits) - 1
 
     def reset_image(self) -> bytearray:
         regs = bytearray([self.absent_value]) * REGISTER_SPACE
@@ -100,6 +149,8 @@ class StandinSpec:
             "addresses": list(self.addresses),
             "absent_value": self.absent_value,
             "no_increment": list(self.no_increment),
+            "register_address_bits": self.register_address_bits,
+            "spi": self.spi.to_dict(),
         }
         if self.soft_reset is not None:
             s = self.soft_reset
@@ -135,8 +186,11 @@ class StandinDevice:
         self.clock = clock
         self.lock = threading.RLock()
         self._own_time_s = 0.0
+        self._mask = spec.address_mask
         self.regs = spec.reset_image()
         self.pointer = 0
+        self.spi_mode = not spec.spi.starts_in_i2c  # False: I2C mode, SPI frames ignored
+        self.last_shifted_out = 0  # the byte the SPI output register holds
 
     # ----------------------------------------------------------------- time
 
@@ -178,14 +232,16 @@ class StandinDevice:
             if reg in reset.keeps:  # the rest of the written byte applies; the command bits clear
                 value &= ~reset.mask
                 self.regs[reg] = (self.regs[reg] & ~declared.writable) | (value & declared.writable)
+            self.spi_mode = not self.spec.spi.starts_in_i2c  # "largely a power cycle"
             return
         self.regs[reg] = (self.regs[reg] & ~declared.writable & ALL_BITS) | (value & declared.writable)
 
     def _next(self, reg: int) -> int:
-        return reg if reg in self.spec.no_increment else (reg + 1) % REGISTER_SPACE
+        return reg if reg in self.spec.no_increment else (reg + 1) & self._mask
 
     def read(self, reg: int, n: int) -> bytes:
-        reg, n = contract.check_register(reg), contract.check_count(n)
+        """``n`` registers from ``reg`` on (the register byte's undecoded bits ignored)."""
+        reg, n = contract.check_register(reg) & self._mask, contract.check_count(n)
         with self.lock:
             out = bytearray()
             for _ in range(n):
@@ -195,7 +251,7 @@ class StandinDevice:
             return bytes(out)
 
     def write(self, reg: int, data: bytes) -> None:
-        reg, data = contract.check_register(reg), contract.check_data(data)
+        reg, data = contract.check_register(reg) & self._mask, contract.check_data(data)
         with self.lock:
             for value in data:
                 self._store(reg, value)
@@ -207,7 +263,7 @@ class StandinDevice:
         if not data:
             return
         with self.lock:
-            self.pointer = data[0]
+            self.pointer = data[0] & self._mask
             if len(data) > 1:
                 self.write(data[0], data[1:])
 
@@ -217,20 +273,37 @@ class StandinDevice:
 
     def peek(self, reg: int) -> int:
         """A register as a read would give it, without moving the pointer."""
-        reg = contract.check_register(reg)
+        reg = contract.check_register(reg) & self._mask
         with self.lock:
             return self._value(reg)
 
     def dump(self) -> bytes:
-        """All 256 registers as reads would give them (no side effects)."""
+        """All 256 register bytes as reads would give them (no side effects): with a 7-bit
+        address, 0x80..0xFF repeat 0x00..0x7F, as an i2cdump of the chip would show."""
         with self.lock:
-            return bytes(self._value(reg) for reg in range(REGISTER_SPACE))
+            return bytes(self._value(reg & self._mask) for reg in range(REGISTER_SPACE))
 
     def reset(self) -> None:
-        """Power-on reset: every register back to its reset value."""
+        """Power-on reset: every register back to its reset value, the interface as at
+        power-on."""
         with self.lock:
             self.regs[:] = self.spec.reset_image()
             self.pointer = 0
+            self.spi_mode = not self.spec.spi.starts_in_i2c
+            self.last_shifted_out = 0
+
+    # ----------------------------------------------------------------- SPI
+
+    def spi_frame(self) -> StandinSpiFrame:
+        """Chip select has fallen: the frame, decoded as this chip decodes SPI."""
+        return StandinSpiFrame(self)
+
+    def spi_three_wire(self) -> bool:
+        """Whether the chip answers on its one data line (its 3-wire bit is set)."""
+        spi = self.spec.spi
+        if spi.three_wire_register is None:
+            return False
+        return bool(self.peek(spi.three_wire_register) & spi.three_wire_mask)
 
     def __repr__(self) -> str:
         return f"StandinDevice({self.name!r}, address=0x{self.address:02x})"

@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from bmg160_emu.device import registers
+from bmg160_emu.device import registers, spec_choices
 
 REGISTERS_HEADER = "bmg160_registers.h"
 
@@ -102,9 +102,10 @@ def _c_bytes(values: list[int]) -> str:
 
 
 def render_registers_header() -> str:
-    """The text of bmg160_registers.h: register count, an address macro per register
+    """The text of bmg160_registers.h: register count, the register-byte bits the chip
+    decodes (``BMG_REGISTER_ADDRESS_MASK``, spec 2.4's choice), an address macro per register
     (``BMG_REG_<NAME>``), mask and shift per field (``BMG_<REG>_<FIELD>_MASK/_SHIFT``), the
-    reset values and the write masks, all from the register table."""
+    reset values and the write masks, all from the register table and the spec choices."""
     lines = [
         "/* Generated from bmg160_emu/device/registers.py by `bmg160-emu firmware build`:",
         " * do not edit; correct the register table instead. */",
@@ -114,6 +115,8 @@ def render_registers_header() -> str:
         "#include <stdint.h>",
         "",
         f"#define BMG_REG_COUNT {registers.REGISTER_COUNT}",
+        "/* register-byte bits decoded: a transaction starts at (byte & mask), spec 2.4 */",
+        f"#define BMG_REGISTER_ADDRESS_MASK 0x{spec_choices.REGISTER_ADDRESS_MASK:02X}",
         "",
     ]
     for r in registers.REGISTERS:

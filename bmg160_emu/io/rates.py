@@ -137,7 +137,10 @@ def _resolve_rate(table: RateTable, rate_hz: float | None, n: int) -> float:
         raise RateFileError(f"sample rate must be a positive number of Hz, got {rate_hz!r}")
     if t is None:
         if rate_hz is None:
-            raise RateFileError("no time column: give the sample rate (--rate HZ)", path=path)
+            raise RateFileError("no time column (a column named "
+                                + ", ".join(TIME_COLUMN_NAMES[:-1]) + f" or {TIME_COLUMN_NAMES[-1]}"
+                                "): give the sample rate (--rate HZ) or name the time column "
+                                "so", path=path)
         return float(rate_hz)
     check_time_column(t, table.where, GAP_FACTOR)
     if n < 2:

@@ -15,9 +15,12 @@ from pathlib import Path
 from typing import Any
 
 from bmg160_emu.device.standin import (
+    ADDRESS_BITS,
+    DEFAULT_ADDRESS_BITS,
     REGISTER_SPACE,
     PowerGate,
     SoftReset,
+    SpiInterface,
     StandinRegister,
     StandinSpec,
 )
@@ -62,8 +65,12 @@ def load_standin(name_or_path: str | Path) -> StandinSpec:
 # --------------------------------------------------------------------------- TOML
 
 _TOP_KEYS = {"name", "description", "chip_id_register", "chip_id", "addresses", "absent_value",
-             "no_increment", "soft_reset", "power_gate", "registers"}
+             "no_increment", "soft_reset", "power_gate", "registers", "register_address_bits",
+             "spi"}
 _REGISTER_KEYS = {"name", "reset", "writable", "write_only"}
+_SPI_KEYS = {"dummy_bytes", "starts_in_i2c", "three_wire_register", "three_wire_mask",
+             "write_pairs"}
+MAX_DUMMY_BYTES = 4  # more than any part of the family shifts out (the BMI088 accelerometer: 1)
 
 
 def spec_from_toml(text: str, where: str, source: str = "") -> StandinSpec:
@@ -135,6 +142,10 @@ def spec_from_dict(data: Any, where: str, source: str = "") -> StandinSpec:
     addresses = _bytes(data["addresses"], where, "addresses", 0x7F)  # [] : any address
     absent = _byte(data.get("absent_value", 0x00), where, "absent_value")
     no_increment = _bytes(data.get("no_increment", []), where, "no_increment")
+    bits = data.get("register_address_bits", DEFAULT_ADDRESS_BITS)
+    if isinstance(bits, bool) or bits not in ADDRESS_BITS:
+        raise StandinFormatError(f"{where}: register_address_bits must be 7 or 8, not {bits!r}")
+    top = (1 << bits) - 1  # the highest register the chip can address
 
     table = data["registers"]
     if not isinstance(table, dict) or not table:
@@ -156,6 +167,10 @@ def spec_from_dict(data: Any, where: str, source: str = "") -> StandinSpec:
                                    _byte(entry.get("writable", 0xFF), here, "writable"),
                                    write_only, label)
         for reg in _register_keys(str(key), where):
+            if reg > top:
+                raise StandinFormatError(
+                    f"{here}: register 0x{reg:02X} is beyond a {bits}-bit register address "
+                    f"(0x00..0x{top:02X}: register_address_bits)")
             if reg in registers:
                 raise StandinFormatError(f"{here}: register 0x{reg:02X} is declared twice")
             registers[reg] = register
@@ -194,8 +209,44 @@ def spec_from_dict(data: Any, where: str, source: str = "") -> StandinSpec:
         if gate is None or not gate.writable & power_gate.mask or power_gate.mask == 0:
             raise StandinFormatError(f"{here}: register 0x{power_gate.register:02X} must be "
                                      "declared with the mask's bits writable")
+    for reg, what in ((chip_id_register, "chip_id_register"),
+                      *((r, "no_increment") for r in no_increment)):
+        if reg > top:
+            raise StandinFormatError(f"{where}: {what} 0x{reg:02X} is beyond a {bits}-bit "
+                                     f"register address (0x00..0x{top:02X})")
+    spi = _spi_interface(data, where, registers)
     return StandinSpec(name, chip_id_register, chip_id, addresses, registers, description,
-                       absent, no_increment, soft_reset, power_gate, source)
+                       absent, no_increment, soft_reset, power_gate, source, bits, spi)
+
+
+def _spi_interface(data: dict, where: str, registers: dict[int, StandinRegister]) -> SpiInterface:
+    """The ``[spi]`` table: dummy bytes, the I2C start, the 3-wire bit (all optional)."""
+    entry = _table(data, "spi", where, _SPI_KEYS)
+    if entry is None:
+        return SpiInterface()
+    here = f"{where}: [spi]"
+    dummy = entry.get("dummy_bytes", 0)
+    if isinstance(dummy, bool) or not isinstance(dummy, int) or not 0 <= dummy <= MAX_DUMMY_BYTES:
+        raise StandinFormatError(f"{here}: dummy_bytes must be an integer 0..{MAX_DUMMY_BYTES}, "
+                                 f"not {dummy!r}")
+    flags = {}
+    for key in ("starts_in_i2c", "write_pairs"):
+        flags[key] = entry.get(key, False)
+        if not isinstance(flags[key], bool):
+            raise StandinFormatError(f"{here}: {key} must be true or false, "
+                                     f"not {flags[key]!r}")
+    register = entry.get("three_wire_register")
+    if register is None:
+        if "three_wire_mask" in entry:
+            raise StandinFormatError(f"{here}: three_wire_mask needs three_wire_register")
+        return SpiInterface(dummy, **flags)
+    register = _byte(register, here, "three_wire_register")
+    mask = _byte(entry.get("three_wire_mask", 0x01), here, "three_wire_mask")
+    declared = registers.get(register)
+    if declared is None or mask == 0 or declared.writable & mask != mask:
+        raise StandinFormatError(f"{here}: three_wire_register 0x{register:02X} must be "
+                                 "declared with the three_wire_mask bits writable")
+    return SpiInterface(dummy, three_wire_register=register, three_wire_mask=mask, **flags)
 
 
 # --------------------------------------------------------------------------- dumps

@@ -49,6 +49,7 @@ SET_VRING_ENDIAN = 23
 GET_CONFIG = 24
 SET_CONFIG = 25
 RESET_DEVICE = 34
+VRING_KICK = 35  # in-band notifications: a kick as a message (no kick eventfd)
 
 MESSAGE_NAMES = {
     value: name for name, value in list(globals().items())
@@ -71,6 +72,13 @@ PROTOCOL_F_REPLY_ACK = 3
 # against the timer (linux-kernel-notes.md, "User-mode Linux", fix 3).
 PROTOCOL_F_SLAVE_REQ = 5
 PROTOCOL_F_CONFIG = 9
+# Kicks as VRING_KICK messages and calls as SLAVE_VRING_CALL messages on the SLAVE_REQ
+# channel, each answered: what UML's time travel needs, since then the guest learns of a
+# completion as an event of the calendar (arch/um/drivers/virtio_uml.c), not as a signal
+# that may come at any instant. Offered only by a device told to (``inband``).
+PROTOCOL_F_INBAND_NOTIFICATIONS = 14
+# Back-end requests (the spec's "back-end message types")
+SLAVE_VRING_CALL = 4
 
 # Virtio feature bits (virtio 1.x, 6 "Reserved Feature Bits") and vhost-user's own bit 30.
 VIRTIO_RING_F_INDIRECT_DESC = 28
@@ -81,6 +89,7 @@ VIRTIO_F_VERSION_1 = 32
 VRING_FD_INVALID = 0x100  # bit 8 of the u64 of SET_VRING_KICK/CALL/ERR: no fd passed
 
 U64 = struct.Struct("<Q")  # a u64 payload (features, status)
+_HEADER = struct.Struct("<III")  # request, flags, size (as HEADER; here for the back end's own)
 _STATE = struct.Struct("<II")  # vring index, number
 _ADDR = struct.Struct("<IIQQQQ")  # index, flags, descriptor, used, available, log addresses
 _CONFIG_HEAD = struct.Struct("<III")  # offset, size, flags
@@ -102,8 +111,13 @@ class VhostUserDevice:
         self.features = 0
         self.protocol_features = 0
         self.owner = False
-        self.slave_req_fd: int | None = None  # SET_SLAVE_REQ_FD's socket, kept, unused
+        self.slave_req_fd: int | None = None  # SET_SLAVE_REQ_FD's socket (in-band calls)
         self.on_fds_changed: Callable[[], None] | None = None  # the server re-reads kick fds
+        # in-band notifications (time travel): offered when set; a call then waits for the
+        # front end's answer through ``wait_readable`` (the calendar serves UML meanwhile)
+        self.inband = False
+        self.wait_readable: Callable[[int], None] | None = None
+        self.inband_calls = 0
 
     # ---------------------------------------------------------------- feature words
 
@@ -118,7 +132,13 @@ class VhostUserDevice:
         features = 1 << PROTOCOL_F_REPLY_ACK | 1 << PROTOCOL_F_SLAVE_REQ
         if self.config:
             features |= 1 << PROTOCOL_F_CONFIG
+        if self.inband:
+            features |= 1 << PROTOCOL_F_INBAND_NOTIFICATIONS
         return features
+
+    @property
+    def _inband_active(self) -> bool:
+        return bool(self.protocol_features >> PROTOCOL_F_INBAND_NOTIFICATIONS & 1)
 
     # ---------------------------------------------------------------- to override
 
@@ -180,6 +200,8 @@ class VhostUserDevice:
         return self.rings[index]
 
     def _setup_queue(self, ring: Vring) -> None:
+        if self._inband_active:
+            ring.call = lambda index=ring.index: self._call_inband(index)
         self.queues[ring.index] = VirtQueue(
             ring, self.memory,
             event_idx=bool(self.features >> VIRTIO_RING_F_EVENT_IDX & 1),
@@ -255,6 +277,8 @@ class VhostUserDevice:
             index, enable = _STATE.unpack_from(payload)
             ring = self._ring(index)
             ring.enabled = bool(enable)
+            if self._inband_active and ring.kick_fd is None:
+                ring.started = ring.enabled  # no SET_VRING_KICK comes: kicks are messages
             if ring.ready:
                 self.ring_started(index)
                 self.kick(index)  # entries added before the ring was enabled
@@ -267,6 +291,10 @@ class VhostUserDevice:
                 raise VhostUserError(f"SET_SLAVE_REQ_FD with {len(fds)} file descriptors")
             self._close_slave_req()
             self.slave_req_fd = fds[0]
+            return None
+        if request == VRING_KICK:
+            index, _ = _STATE.unpack_from(payload)
+            self.kick(self._ring(index).index)
             return None
         if request == GET_QUEUE_NUM:
             return U64.pack(self.num_queues)
@@ -302,9 +330,10 @@ class VhostUserDevice:
             os.close(old)
         setattr(ring, name[request], fd)  # the latest call fd is the one the guest listens on
         if request == SET_VRING_KICK:
-            if fd is None:
+            if fd is None and not self._inband_active:
                 raise VhostUserError("polling rings (no kick fd) are not supported")
-            os.set_blocking(fd, False)
+            if fd is not None:
+                os.set_blocking(fd, False)
             ring.started = True
             if not self.features >> VHOST_USER_F_PROTOCOL_FEATURES & 1:
                 ring.enabled = True  # without PROTOCOL_FEATURES a ring starts enabled
@@ -312,6 +341,24 @@ class VhostUserDevice:
             if ring.ready:
                 self.ring_started(ring.index)
                 self.kick(ring.index)
+
+    def _call_inband(self, index: int) -> None:
+        """Call the driver with a SLAVE_VRING_CALL message and wait for its answer: by
+        then UML has made the completion an event of its calendar (vu_req_read_message)."""
+        fd = self.slave_req_fd
+        if fd is None:
+            raise VhostUserError("in-band call without the SLAVE_REQ channel")
+        os.write(fd, _HEADER.pack(SLAVE_VRING_CALL, VERSION | FLAG_NEED_REPLY, _STATE.size)
+                 + _STATE.pack(index, 0))
+        if self.wait_readable is not None:
+            self.wait_readable(fd)
+        reply = b""
+        while len(reply) < _HEADER.size + 8:
+            chunk = os.read(fd, _HEADER.size + 8 - len(reply))
+            if not chunk:
+                raise VhostUserError("the front end closed the SLAVE_REQ channel")
+            reply += chunk
+        self.inband_calls += 1
 
     def _fds_changed(self) -> None:
         if self.on_fds_changed is not None:

@@ -12,6 +12,7 @@ directory or socket another user owns, and a socket some back end still listens 
 
 from __future__ import annotations
 
+import collections
 import errno
 import logging
 import math
@@ -42,10 +43,12 @@ log = logging.getLogger(__name__)
 class Connection:
     """One front end (QEMU) on a connected socket, for one device."""
 
-    def __init__(self, sock: socket.socket, device: VhostUserDevice) -> None:
+    def __init__(self, sock: socket.socket, device: VhostUserDevice,
+                 before_reply: Callable[[], None] | None = None) -> None:
         self.sock = sock
         self.device = device
         self.messages = 0
+        self.before_reply = before_reply  # e.g. the calendar's last word before a kick's reply
 
     def receive(self) -> bool:
         """Read and answer one message; False when the front end has gone."""
@@ -99,10 +102,15 @@ class Connection:
             status = exc.errno or errno.EIO
         except struct.error as exc:
             raise VhostUserError(f"{name}: malformed payload ({exc})") from None
+        if reply is None and flags & FLAG_NEED_REPLY and (
+                device.protocol_features >> PROTOCOL_F_REPLY_ACK & 1):
+            reply = U64.pack(status)
         if reply is not None:
+            # the front end waits for this reply (UML reading only it and its calendar):
+            # the one moment the calendar may add a word of its own
+            if self.before_reply is not None:
+                self.before_reply()
             self._send(request, reply)
-        elif flags & FLAG_NEED_REPLY and device.protocol_features >> PROTOCOL_F_REPLY_ACK & 1:
-            self._send(request, U64.pack(status))
 
     def _send(self, request: int, payload: bytes) -> None:
         self.sock.sendall(HEADER.pack(request, VERSION | FLAG_REPLY, len(payload)) + payload)
@@ -195,9 +203,11 @@ class Server:
         self._watch(self._wake_r, self._drain_wake)
         self.listeners: list[tuple[socket.socket, str]] = []
         self.connections: dict[VhostUserDevice, Connection] = {}
+        self.before_reply: Callable[[], None] | None = None  # every connection's (calendar)
         self._kicks: dict[VhostUserDevice, list[int]] = {}  # our duplicates of its kick fds
         self._deadlines: dict[Poller, float] = {}  # {poller: monotonic time to call it}
         self._next_due = math.inf  # the earliest of them
+        self._calls: collections.deque[Callable[[], None]] = collections.deque()
 
     def _watch(self, fd: int, handler: Callable[[], None]) -> None:
         self._epoll.register(fd, select.EPOLLIN)
@@ -206,6 +216,9 @@ class Server:
     def _unwatch(self, fd: int) -> None:
         if self._handlers.pop(fd, None) is not None:
             self._epoll.unregister(fd)
+
+    watch = _watch  # for what shares the loop (the time-travel calendar)
+    unwatch = _unwatch
 
     def add(self, path: str, device: VhostUserDevice) -> None:
         sock = listen(path)
@@ -221,11 +234,21 @@ class Server:
         except OSError:
             pass
 
+    def call_soon(self, action: Callable[[], None]) -> None:
+        """Run ``action`` on the loop's thread at its next turn (safe from any thread)."""
+        self._calls.append(action)
+        try:
+            os.write(self._wake_w, b"c")
+        except BlockingIOError:
+            pass  # the pipe is full of wake-ups already: the loop will look
+
     def _drain_wake(self) -> None:
         try:
-            os.read(self._wake_r, 64)
+            os.read(self._wake_r, 4096)
         except BlockingIOError:
             pass
+        while self._calls:
+            self._calls.popleft()()
 
     def _update_kicks(self, device: VhostUserDevice) -> None:
         for fd in self._kicks.pop(device, []):
@@ -263,7 +286,7 @@ class Server:
             log.warning("%s: a second front end connected; refused", device.name)
             sock.close()
             return
-        connection = Connection(sock, device)
+        connection = Connection(sock, device, self.before_reply)
         self.connections[device] = connection
         self._watch(sock.fileno(), lambda: self._message(connection))
         log.info("%s: front end connected", device.name)

@@ -43,6 +43,8 @@ from typing import Any
 
 from bmg160_emu.clock import NS_PER_S
 from bmg160_emu.device.registers import address_of
+from bmg160_emu.linux import agent_lines
+from bmg160_emu.linux.agent_lines import AgentLines, RequestLine
 from bmg160_emu.linux.guest_pace import NEVER, GuestPacedClock
 from bmg160_emu.linux.vhost_user import VhostUserDevice
 from bmg160_emu.linux.virtqueue import Chain, VhostUserError, VirtQueue, fence
@@ -80,6 +82,10 @@ INT_EN_1 = address_of("INT_EN_1")
 INT_MAP_1 = address_of("INT_MAP_1")
 DATA_EN = 0x80  # INT_EN_0 bit 7: data_en (4.14)
 INT1_DATA, INT2_DATA = 0x01, 0x80  # INT_MAP_1 bits 0 and 7 (4.16)
+# Every status routed to a pin (4.16): INT_MAP_0 bits 1 and 3 (any-motion, high-rate to
+# INT1), INT_MAP_1 bits 0-3 to INT1 and 4-7 to INT2, INT_MAP_2 bits 1 and 3 (to INT2)
+PIN_ROUTES = {1: ((address_of("INT_MAP_0"), 0x0A), (INT_MAP_1, 0x0F)),
+              2: ((INT_MAP_1, 0xF0), (address_of("INT_MAP_2"), 0x0A))}
 POLL_IDLE_S = 0.005  # no sample expected (suspend, no ODR): look again this often
 POLL_MARGIN_S = 50e-6  # wake just after the sample is due
 # Pacing. The driver's read is over for the guest when it has taken the transfer's answer
@@ -152,8 +158,10 @@ class VirtioGPIODevice(VhostUserDevice):
     name = "virtio-gpio"
 
     def __init__(self, chips: dict[int, Any], rate_reads: dict[int, float] | None = None,
-                 clock: Any = None, read_taken: Callable[[int], bool] | None = None) -> None:
+                 clock: Any = None, read_taken: Callable[[int], bool] | None = None,
+                 agent: AgentLines | None = None) -> None:
         super().__init__()
+        self.agent = agent  # two more lines after the chips': the guest agent's channel
         self.lines: list[GpioLine] = []
         # {address: chip time of the last rate read} (VirtioI2CDevice.rate_reads)
         self.rate_reads: dict[int, float] = rate_reads if rate_reads is not None else {}
@@ -173,14 +181,17 @@ class VirtioGPIODevice(VhostUserDevice):
             counter = _SampleCounter()  # hooked in while a line of the chip has a trigger
             for pin in (1, 2):
                 self.lines.append(GpioLine(chip, pin, f"bmg160-0x{address:02x}-INT{pin}", counter))
-        names = b"".join(line.name.encode() + b"\0" for line in self.lines)
+        extra = agent_lines.NAMES if agent is not None else ()
+        names = b"".join(n.encode() + b"\0" for n in [*(line.name for line in self.lines), *extra])
         self.names = names
-        self.config = struct.pack("<HxxI", len(self.lines), len(names))
+        self.config = struct.pack("<HxxI", len(self.lines) + len(extra), len(names))
 
     def ring_stopped(self, index: int) -> None:
         if index == EVENT_QUEUE:
             for line in self.lines:
                 line.buffer = None  # the front end takes the ring back as it stands
+            if self.agent is not None:
+                self.agent.request.buffer = None
             if self.clock is not None:
                 self.clock.limit_ns = NEVER  # no guest to wait for
                 self._pace.clear()
@@ -206,7 +217,10 @@ class VirtioGPIODevice(VhostUserDevice):
         if kind == MSG_GET_NAMES:
             return bytes([STATUS_OK]) + self.names
         if gpio >= len(self.lines):
-            return bytes([STATUS_ERR, 0])
+            offset = gpio - len(self.lines)
+            if self.agent is None or offset > 1:
+                return bytes([STATUS_ERR, 0])
+            return self.agent.answer(offset, kind, value, self._set_request_irq_type)
         line = self.lines[gpio]
         if kind == MSG_GET_DIRECTION:
             return bytes([STATUS_OK, DIRECTION_IN])
@@ -235,6 +249,25 @@ class VirtioGPIODevice(VhostUserDevice):
 
     # ---------------------------------------------------------------- interrupts
 
+    def _set_request_irq_type(self, line: RequestLine, irq_type: int) -> None:
+        line.irq_type = irq_type
+        line.pending = False
+        if irq_type == IRQ_TYPE_NONE and line.buffer is not None:
+            self._answer_event(line, IRQ_STATUS_INVALID)
+
+    def pulse_agent_request(self) -> None:
+        """A rising edge on the agent's request line (on the back end's thread): its
+        interrupt now, or when the guest queues its next event buffer."""
+        if self.agent is None:
+            raise RuntimeError("this virtio-gpio device has no agent lines")
+        line = self.agent.request
+        if line.irq_type == IRQ_TYPE_NONE:
+            line.pending = True  # the agent has not asked for edges yet: kept for it
+        elif line.buffer is not None:
+            self._answer_event(line, IRQ_STATUS_VALID)
+        else:
+            line.pending = True
+
     def _set_irq_type(self, line: GpioLine, irq_type: int) -> None:
         line.irq_type = irq_type
         self._armed = any(o.irq_type != IRQ_TYPE_NONE for o in self.lines)
@@ -248,7 +281,12 @@ class VirtioGPIODevice(VhostUserDevice):
             hooks.remove(line.counter)
         line.pending = False
         line.last_active = self._active(line)
-        line.last_was_pulse = False
+        # armed at a sample's instant (as virtual time often does), an active line is that
+        # sample's data-ready pulse when data-ready reaches the pin: the next sample's
+        # pulse is then a new edge, not the same level still asserted
+        data_bit = INT1_DATA if line.pin == 1 else INT2_DATA
+        line.last_was_pulse = line.last_active and bool(
+            line.chip.peek(INT_EN_0) & DATA_EN and line.chip.peek(INT_MAP_1) & data_bit)
         line.seen_samples = line.counter.count
         if irq_type == IRQ_TYPE_NONE and line.buffer is not None:
             self._answer_event(line, IRQ_STATUS_INVALID)
@@ -258,6 +296,17 @@ class VirtioGPIODevice(VhostUserDevice):
         if len(request) < _IRQ_REQUEST.size or not chain.writable:
             raise VhostUserError("virtio-gpio event buffer without its line or status")
         gpio = _IRQ_REQUEST.unpack_from(request)[0]
+        if self.agent is not None and gpio == len(self.lines):
+            request_line = self.agent.request
+            if request_line.buffer is not None:
+                raise VhostUserError(f"virtio-gpio line {gpio}: a second event buffer")
+            request_line.buffer = chain
+            if request_line.irq_type == IRQ_TYPE_NONE:
+                self._answer_event(request_line, IRQ_STATUS_INVALID)
+            elif request_line.pending:
+                request_line.pending = False
+                self._answer_event(request_line, IRQ_STATUS_VALID)
+            return
         if gpio >= len(self.lines):
             raise VhostUserError(f"virtio-gpio event buffer for line {gpio} of {len(self.lines)}")
         line = self.lines[gpio]
@@ -267,7 +316,7 @@ class VirtioGPIODevice(VhostUserDevice):
         if line.irq_type == IRQ_TYPE_NONE:
             self._answer_event(line, IRQ_STATUS_INVALID)
 
-    def _answer_event(self, line: GpioLine, status: int) -> None:
+    def _answer_event(self, line: GpioLine | RequestLine, status: int) -> None:
         chain, line.buffer = line.buffer, None
         queue = self.queues[EVENT_QUEUE]
         if chain is None or queue is None:
@@ -318,7 +367,9 @@ class VirtioGPIODevice(VhostUserDevice):
         elif pulses and line.last_was_pulse:
             edges = [False, True]  # the last pulse ended, a new one is under way
         line.last_active = active
-        line.last_was_pulse = active and pulses
+        # still the same pulse when no sample came since (a second look at one instant, as
+        # virtual time gives after a transfer): it is not a level that stayed asserted
+        line.last_was_pulse = active and (pulses or (line.last_was_pulse and not new_samples))
         active_high = chip.peek(INT_EN_1) >> (0 if line.pin == 1 else 2) & 1
         kind = line.irq_type
         fire = False
@@ -362,6 +413,40 @@ class VirtioGPIODevice(VhostUserDevice):
             if held is not None:
                 deadline = held if deadline is None else min(deadline, held)
         return deadline
+
+    # ---------------------------------------------------------------- virtual time
+
+    def next_event_ns(self) -> int | None:
+        """Virtual time (the calendar's source): the chips' next sample instant (ns, their
+        clock) at which a line with a trigger can change: a status is routed to its pin, or
+        it is active (a latch ends at a sample). None when no line can."""
+        best: int | None = None
+        for line in self.lines:
+            if line.irq_type == IRQ_TYPE_NONE:
+                continue
+            chip = line.chip
+            odr = chip.odr_hz
+            if not odr or chip.power_mode != "normal":
+                continue
+            if not (line.last_active or any(chip.peek(register) & bits
+                                            for register, bits in PIN_ROUTES[line.pin])):
+                continue
+            period = NS_PER_S // odr
+            now = chip.clock.now_ns()
+            last = line.counter.last_ns
+            # the sample after the last one the line saw (until it has seen one, a period
+            # from now: no later than the chip's next sample)
+            due = last + period if last is not None else now + period
+            if due <= now:
+                due = now + period - (now - due) % period  # (samples the line has not seen)
+            best = due if best is None else min(best, due)
+        return best
+
+    def fire(self, now_ns: int) -> None:
+        """Virtual time: the calendar's time is a sample instant: follow the lines."""
+        for line in self.lines:
+            if line.irq_type != IRQ_TYPE_NONE:
+                self._update(line)
 
     def look(self) -> None:
         """Poll now and tell the server when to look next (after a transfer or a kick)."""

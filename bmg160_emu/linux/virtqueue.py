@@ -20,6 +20,7 @@ import mmap
 import os
 import struct
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 # Split virtqueue descriptor and ring flags (virtio 1.x, 2.7.5 and 2.7.6).
@@ -161,6 +162,7 @@ class Vring:
     kick_fd: int | None = None
     call_fd: int | None = None
     err_fd: int | None = None
+    call: Callable[[], None] | None = None  # in-band notifications: the call as a message
     enabled: bool = False
     started: bool = False
     signalled_used: int = 0  # used index at the last call (EVENT_IDX suppression)
@@ -348,7 +350,7 @@ class VirtQueue:
         """Call the driver if it wants an interrupt for the entries used since ``old_used``
         (after :meth:`settle` or :func:`fence`: the used index out before used_event in)."""
         ring = self.ring
-        if ring.call_fd is None or ring.used_idx == old_used:
+        if (ring.call_fd is None and ring.call is None) or ring.used_idx == old_used:
             return
         if self.event_idx:
             used_event = _U16.unpack_from(self._avail_map,
@@ -358,5 +360,8 @@ class VirtQueue:
                 return
         elif _U16.unpack_from(self._avail_map, self._avail_base)[0] & VRING_AVAIL_F_NO_INTERRUPT:
             return
-        os.eventfd_write(ring.call_fd, 1)
+        if ring.call_fd is not None:
+            os.eventfd_write(ring.call_fd, 1)
+        else:
+            ring.call()  # type: ignore[misc]
         ring.notifications += 1

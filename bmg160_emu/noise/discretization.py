@@ -28,7 +28,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from bmg160_emu.noise.gauss_markov import PoleCoefficients, pole_coefficients, walk_coefficients
+from bmg160_emu.noise.gauss_markov import (
+    PoleCoefficients,
+    ResonanceCoefficients,
+    pole_coefficients,
+    resonance_coefficients,
+    walk_coefficients,
+)
 from bmg160_emu.noise.profile import AxisNoise, ProfileError
 
 MODES = ("physical", "paper")
@@ -51,6 +57,9 @@ class AxisCoefficients:
     bias: float
     poles: tuple[PoleCoefficients, ...] = ()  # every Gauss-Markov term, B, T first
     walk: PoleCoefficients | None = None  # the random walk's block tables (rw_step)
+    # each resonator of the axis's bands; None: its centre is not below this rate's Nyquist
+    # frequency (it is left out there: a sampled output cannot carry it)
+    bands: tuple[ResonanceCoefficients | None, ...] = ()
 
 
 def check_rate(rate_hz: float) -> float:
@@ -135,4 +144,5 @@ def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoeffic
         bias=axis.bias,
         poles=tuple(poles),
         walk=walk_coefficients(rw_step) if axis.K > 0 else None,
+        bands=tuple(resonance_coefficients(f, w, B, dt) for f, w, B in axis.band),
     )

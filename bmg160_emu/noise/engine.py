@@ -43,7 +43,7 @@ from bmg160_emu.noise.discretization import (
     check_mode,
     check_rate,
 )
-from bmg160_emu.noise.gauss_markov import Pole
+from bmg160_emu.noise.gauss_markov import Pole, ResonancePole
 from bmg160_emu.noise.profile import AxisNoise, Profile, load_profile
 
 __all__ = ["NoiseGenerator", "load_profile"]
@@ -66,6 +66,9 @@ class _AxisStream:
         if axis.sine:  # spawned last: the other streams are those of a profile without it
             children += seed_seq.spawn(1)
             names.append("sine")
+        if axis.band:  # after the sines: a profile without bands draws what it drew before
+            children += seed_seq.spawn(len(axis.band))
+            names += [f"band{i}" for i in range(len(axis.band))]
         self.rng = {
             name: np.random.Generator(np.random.PCG64(s)) for name, s in zip(names, children)
         }
@@ -86,7 +89,11 @@ class _AxisStream:
         self.poles = [Pole(self.rng[name], B) for name, (B, _) in zip(self.gm_names, terms)]
         # the random walk is the same recursion with a = 1, starting at 0
         self.walk = Pole(self.rng["rw"], None) if self.uses["rw"] else None
-        self._all = self.poles + ([self.walk] if self.walk is not None else [])
+        # each resonator of a band: a complex Gauss-Markov term (gauss_markov.ResonancePole)
+        self.resonators = [ResonancePole(self.rng[f"band{i}"])
+                           for i in range(len(axis.band))]
+        self._all = (self.poles + ([self.walk] if self.walk is not None else [])
+                     + list(self.resonators))
         self.quant_prev = float(self.rng["quant"].standard_normal()) if self.uses["quant"] else 0.0
         self.coef: AxisCoefficients | None = None
 
@@ -98,6 +105,8 @@ class _AxisStream:
         if self.walk is not None:
             assert coef.walk is not None
             self.walk.restart(coef.walk)
+        for resonator, rc in zip(self.resonators, coef.bands):
+            resonator.restart_resonance(rc)
 
     def draw(self, n: int) -> dict[str, np.ndarray | None]:
         out: dict[str, np.ndarray | None] = {"white": None, "quant": None}

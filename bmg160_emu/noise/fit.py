@@ -34,6 +34,7 @@ the whole searched range when B's interval reaches 0 (a term that may be absent 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -98,6 +99,9 @@ class CurveFit:
     output_filter: FilterFit | None = None  # the sensor's filter, part of the white term
     lsb_dps: float | None = None  # the output's quantization step (a known white floor)
     sines: list[tuple[Estimate, float]] = field(default_factory=list)  # (A, f Hz) per line
+    # the record's measured output response (noise.output_response): the white term through it
+    response: Any = None
+    known_avar: Callable[[np.ndarray], np.ndarray] | None = None  # e.g. resonant bands
 
     def gauss_markov_terms(self) -> tuple[tuple[float, float], ...]:
         """(B, T) of every term the generator draws, the flicker bank included."""
@@ -106,6 +110,8 @@ class CurveFit:
 
     def white_avar(self, tau: np.ndarray) -> np.ndarray:
         """The white term alone: N^2 / tau, through the output filter when there is one."""
+        if self.response is not None and self.rate_hz:
+            return self.N.value**2 * self.response.white_avar_unit(tau)
         flt = self.output_filter.design if self.output_filter is not None else None
         if flt is None or not self.rate_hz:
             return self.N.value**2 / np.asarray(tau, dtype=float)
@@ -117,7 +123,9 @@ class CurveFit:
         if self.rate_hz:
             out = out + quantization_avar(self.lsb_dps, self.rate_hz, tau)
         for amplitude, frequency in self.sines:
-            out = out + amplitude.value**2 * sine_avar_unit(tau, frequency)
+            out = out + amplitude.value**2 * sine_avar_unit(tau, frequency, self.rate_hz or None)
+        if self.known_avar is not None:
+            out = out + self.known_avar(tau)
         for B, T in self.gauss_markov_terms():
             out = out + B * B * gauss_markov_avar_unit(tau, T)
         if self.Q is not None:
@@ -136,11 +144,14 @@ class _Design:
     roll_off: bool = False  # a sensor filter's deficit -c / tau^2 (see fit_curve)
     white: np.ndarray | None = None  # the white column (None: 1 / tau)
     fixed: np.ndarray | None = None  # the known part of the Allan variance (rounding, lines)
+    free_sines: tuple[float, ...] = ()  # lines of these frequencies (Hz), amplitude fitted
+    rate_hz: float = 0.0  # the samples' rate (the free lines' Allan variance is of samples)
 
     def extras(self) -> list[str]:
         """Names of the columns after the Gauss-Markov ones, in order."""
         names = ["F"] if self.bank is not None else []
         names += ["filter"] if self.roll_off else []
+        names += [f"S{i}" for i in range(len(self.free_sines))]
         return names + (["Q"] if self.with_q else []) + (["R"] if self.with_r else [])
 
     def matrix(self, Ts: np.ndarray) -> np.ndarray:
@@ -150,6 +161,8 @@ class _Design:
         extra = {"filter": -1.0 / tau**2, "Q": 3.0 / tau**2, "R": tau**2 / 2.0}
         if self.bank is not None:
             extra["F"] = self.bank
+        for i, frequency in enumerate(self.free_sines):
+            extra[f"S{i}"] = sine_avar_unit(tau, frequency, self.rate_hz or None)
         cols += [extra[name] for name in self.extras()]
         return np.column_stack(cols)
 
@@ -158,8 +171,8 @@ class _Design:
         return avar if self.fixed is None else avar - self.fixed
 
     @property
-    def n_fixed(self) -> int:  # N, K and the extra columns
-        return 2 + len(self.extras())
+    def n_fixed(self) -> int:  # N, K and the extra columns (a free line: A and f)
+        return 2 + len(self.extras()) + len(self.free_sines)
 
 
 def _solve(design: _Design, avar: np.ndarray, w: np.ndarray, Ts) -> tuple[np.ndarray, float]:
@@ -244,6 +257,7 @@ def _select(design, avar, w, bounds, poles: int | None) -> dict[str, Any]:
     for row in table:
         row["chosen"] = row["terms"] == best["terms"]
     best["table"] = table
+    best["forced"] = poles is not None
     return best
 
 
@@ -270,11 +284,17 @@ def fit_curve(
     output_filter: FilterFit | None = None,
     lsb_dps: float | None = None,
     sines: tuple[tuple[Estimate, float], ...] = (),
+    response: Any = None,
+    known_avar: Callable[[np.ndarray], np.ndarray] | None = None,
+    free_sines: tuple[float, ...] = (),
 ) -> CurveFit:
     """Fit the curve; poles = None chooses the number of Gauss-Markov terms by AICc;
     roll_off adds the first-order deficit of a sensor filter (a term -c / tau^2) where the
     filter itself is not known; output_filter makes the white term filtered white noise,
-    lsb_dps adds its quantization floor, sines (amplitude, Hz) the known lines.
+    lsb_dps adds its quantization floor, sines (amplitude, Hz) the known lines; response (an
+    output_response.OutputResponse: any measured shape) makes the white term white noise
+    through it instead, known_avar(tau) adds a known Allan variance (resonant bands);
+    free_sines (Hz) adds lines whose amplitude is fitted (a curve's periodic shoulder).
 
     record (the samples, None for a curve input) is part of the signature every method of
     identification.FIT_METHODS takes, for methods that fit the samples themselves; this
@@ -301,15 +321,14 @@ def fit_curve(
     # N^2 / tau by about N^2 c / tau^2 (c ~ 0.15 / BW for a 2nd-order filter: the missing
     # power above BW seen through the Allan transfer function): a column -1 / tau^2 takes
     # that deficit instead of N or a short Gauss-Markov term
-    design = _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, lsb_dps,
-                          sines)
+    stage = (output_filter, lsb_dps, sines, response, known_avar, free_sines)
+    design = _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, *stage)
     w = np.sqrt(curve.edf[sel] / 2.0) / avar
     best = _select(design, avar, w, bounds, poles)
     for _ in range(3):  # weights from the model, not the noisy estimate (less bias)
         model = design.matrix(best["Ts"]) @ best["theta"]
         model = np.maximum(model if design.fixed is None else model + design.fixed, 1e-300)
-        full = np.maximum(_design_all(curve.taus, design, best, rate_hz, output_filter, lsb_dps,
-                                      sines), 1e-300)
+        full = np.maximum(_design_all(curve.taus, design, best, rate_hz, *stage), 1e-300)
         curve = allan_confidence(curve.taus, curve.adev, curve.n_terms,
                                  _alphas(curve.taus, full), n_samples, rate_hz, curve.ci,
                                  curve.overlapping)
@@ -320,31 +339,38 @@ def fit_curve(
     fit = _estimates(design, avar, w, best, bounds, max(chi2_red, 1.0), curve, sel, chi2_red,
                      bank_Ts)
     fit.rate_hz, fit.output_filter, fit.lsb_dps = float(rate_hz), output_filter, lsb_dps
-    fit.sines = list(sines)
+    fit.response, fit.known_avar = response, known_avar
+    fit.sines = list(sines) + fit.sines  # the known lines, then the fitted ones
     return fit
 
 
 def _make_design(tau, rate_hz, with_q, with_r, bank, roll_off, output_filter, lsb_dps,
-                 sines) -> _Design:
+                 sines, response=None, known_avar=None, free_sines=()) -> _Design:
     white = (None if output_filter is None
              else white_avar_unit(tau, rate_hz, output_filter.design))
+    if response is not None:
+        white = response.white_avar_unit(tau)
     fixed = None
+    if known_avar is not None:
+        fixed = known_avar(tau)
     if lsb_dps or sines:
-        fixed = quantization_avar(lsb_dps, rate_hz, tau)
+        fixed = quantization_avar(lsb_dps, rate_hz, tau) + (0.0 if fixed is None else fixed)
         for amplitude, frequency in sines:
-            fixed = fixed + amplitude.value**2 * sine_avar_unit(tau, frequency)
-    return _Design(tau, with_q, with_r, bank, roll_off, white, fixed)
+            fixed = fixed + amplitude.value**2 * sine_avar_unit(tau, frequency, rate_hz or None)
+    return _Design(tau, with_q, with_r, bank, roll_off, white, fixed, tuple(free_sines),
+                   float(rate_hz))
 
 
 def _design_all(taus: np.ndarray, design: _Design, best: dict[str, Any],
                 rate_hz: float, output_filter: FilterFit | None, lsb_dps: float | None,
-                sines: tuple = ()) -> np.ndarray:
+                sines: tuple = (), response: Any = None, known_avar: Any = None,
+                free_sines: tuple = ()) -> np.ndarray:
     """The fitted model at every tau of the curve (for the noise types of the intervals)."""
     bank = None
     if design.bank is not None:
         bank = np.interp(np.log(taus), np.log(design.tau), design.bank)
     whole = _make_design(taus, rate_hz, design.with_q, design.with_r, bank, design.roll_off,
-                         output_filter, lsb_dps, sines)
+                         output_filter, lsb_dps, sines, response, known_avar, free_sines)
     model = whole.matrix(best["Ts"]) @ best["theta"]
     return model if whole.fixed is None else model + whole.fixed
 
@@ -383,7 +409,7 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         sd[usable] = np.sqrt(np.clip(np.diag(cov), 0.0, None) * scale) / norms[usable]
     except (np.linalg.LinAlgError, ValueError):
         pass  # no linearized interval: every one is capped below
-    sd = np.array([s * CI_WIDENING[nm] for s, nm in zip(sd, names)])
+    sd = np.array([s * CI_WIDENING.get(nm, CI_WIDENING["B"]) for s, nm in zip(sd, names)])
     # the largest value each term could take alone under the curve's upper bound
     upper = (curve.ci_high[sel] ** 2) * 4.0
 
@@ -415,8 +441,9 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         column = A[:, 2 + k + (c - j)]
         if nm == "filter":  # a deficit: no cap from the curve's upper bound
             continue
-        unit = UNITS["B"] if nm == "F" else UNITS[nm]
+        unit = UNITS["B"] if nm == "F" or nm.startswith("S") else UNITS[nm]
         extra[nm] = square_root_estimate(theta[2 + k + (c - j)], sd[c], column, unit)
+    fitted_sines = [(extra.pop(f"S{i}"), float(fr)) for i, fr in enumerate(design.free_sines)]
     flicker = poles_f = None
     if "F" in extra:  # coefficient = flat ADEV^2 = 0.664^2 B_flicker^2
         f = extra.pop("F")
@@ -432,7 +459,8 @@ def _estimates(design, avar, w, best, bounds, scale, curve, sel, chi2_red, bank_
         tau_range_s=(float(tau[0]), float(tau[-1])), points=int(tau.size),
         chi2_reduced=float(chi2_red), T_search_range_s=(float(bounds[0]), float(bounds[1])),
         selection={"criterion": "AICc", "candidates": best["table"], "terms": best["terms"],
-                   "zero_terms_left_out": zero},
+                   "zero_terms_left_out": zero, "asked": bool(best.get("forced"))},
+        sines=fitted_sines,
     )
 
 

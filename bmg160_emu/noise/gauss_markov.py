@@ -44,7 +44,7 @@ _WHITE_ABOVE = 40.0  # dt / T above this: a < e^-40 = 4e-18, white to double pre
 class PoleCoefficients:
     """Per-sample coefficients of one term at one sample period, with its block tables."""
 
-    a: float  # exp(-dt / T)
+    a: complex  # exp(-dt / T); a resonance's complex pole r e^(i w0)
     g: float  # B sqrt(1 - a^2): stationary std B
     size: int  # S, samples per super-block
     up: np.ndarray | None  # (L, 1): g a^-(j+1)   (None: white)
@@ -83,7 +83,48 @@ def _tables(a: float, g: float, r: float) -> PoleCoefficients:
     )
 
 
-def _superblock(c: PoleCoefficients, w: np.ndarray, s0: float) -> np.ndarray:
+@dataclass(frozen=True, eq=False)
+class ResonanceCoefficients:
+    """A resonator x(k) = a1 x(k-1) + a2 x(k-2) + g w(k) as the real part of a complex
+    first-order recursion: with poles p, conj(p), partial fractions give
+    x(k) = Re(scale y(k)), y(k) = p y(k-1) + w(k), scale = 2 g p / (p - conj(p)); y is a
+    complex Gauss-Markov term, so the block recursion above computes it (complex tables)."""
+
+    tables: PoleCoefficients
+    scale: complex
+    stationary: np.ndarray  # (2, 2): Cholesky factor of the covariance of (Re y, Im y)
+
+
+def resonance_coefficients(f0_hz: float, width_hz: float, B: float, dt: float
+                           ) -> ResonanceCoefficients | None:
+    """The tables of a resonator (centre f0 Hz, -3 dB width Hz, std B deg/s, noise.
+    resonant_bands) at sample period dt; None when f0 is not below the Nyquist frequency."""
+    if not f0_hz < 0.5 / dt:
+        return None
+    radius = math.exp(-math.pi * width_hz * dt)
+    w0 = 2.0 * math.pi * f0_hz * dt
+    p = radius * complex(math.cos(w0), math.sin(w0))
+    a1, a2 = 2.0 * radius * math.cos(w0), -radius * radius
+    unit = (1.0 - a2) / ((1.0 + a2) * ((1.0 - a2) ** 2 - a1 * a1))  # AR(2) variance per g^2
+    g = B / math.sqrt(unit)
+    r = -complex(math.log(radius), w0)  # p = exp(-r)
+    L = int(min(_BLOCK, _LOG_RANGE // r.real)) if r.real > 0 else _BLOCK
+    nb = int(max(1, min(_MAX_BLOCKS, _LOG_RANGE // (L * r.real)))) if r.real > 0 else _MAX_BLOCKS
+    j = np.arange(1, L + 1, dtype=float)[:, None]
+    c = np.arange(nb - 1, dtype=float)
+    tables = PoleCoefficients(a=p, g=1.0, size=L * nb, up=np.exp(r * j), down=np.exp(-r * j),
+                              up_blocks=np.exp(L * r * c),
+                              down_blocks=np.exp(-L * r * (c + 1.0)))
+    # stationary y = sum_j p^j w(-j): E|y|^2 = 1 / (1 - |p|^2), E y^2 = 1 / (1 - p^2)
+    e_abs = 1.0 / (1.0 - radius * radius)
+    e_sq = 1.0 / (1.0 - p * p)
+    cov = np.array([[(e_abs + e_sq.real) / 2.0, e_sq.imag / 2.0],
+                    [e_sq.imag / 2.0, (e_abs - e_sq.real) / 2.0]])
+    return ResonanceCoefficients(tables, 2.0 * g * p / (p - p.conjugate()),
+                                 np.linalg.cholesky(cov))
+
+
+def _superblock(c: PoleCoefficients, w: np.ndarray, s0: complex) -> np.ndarray:
     """Values of the term over one super-block driven by w (S normals) from x(-1) = s0."""
     if c.up is None:
         return w * c.g
@@ -98,7 +139,7 @@ def _superblock(c: PoleCoefficients, w: np.ndarray, s0: float) -> np.ndarray:
     for j in range(1, L):
         np.add(Y[:, j - 1], Y[:, j], out=Y[:, j])
     walk = c.a == 1.0  # the random walk: every block and decay factor is exactly 1
-    starts = np.empty(nb)
+    starts = np.empty(nb, dtype=Y.dtype)  # complex for a resonance
     starts[0] = s0
     if nb > 1 and walk:
         np.cumsum(Y[:-1, -1], out=starts[1:])
@@ -123,7 +164,7 @@ class Pole:
         self.rng = rng
         # start in the stationary distribution (std B): a powered sensor has been running
         # long before the first sample; a random walk (B None) starts at 0
-        self.last = B * float(rng.standard_normal()) if B is not None else 0.0
+        self.last: complex = B * float(rng.standard_normal()) if B is not None else 0.0
         self.coef: PoleCoefficients | None = None
         self.queue = np.empty(0)  # normals drawn ahead, not yet in a computed super-block
         self.normals = np.empty(0)  # normals of the current super-block
@@ -160,7 +201,7 @@ class Pole:
             out = self.values[self.pos : self.pos + n]
             self.pos += n
         else:
-            out = np.empty(n)
+            out = np.empty(n, dtype=self.values.dtype)  # complex for a resonance
             done = 0
             while done < n:
                 if self.pos == self.values.size:
@@ -170,13 +211,13 @@ class Pole:
                 self.pos += m
                 done += m
         if n:
-            self.last = float(out[-1])
+            self.last = out[-1].item()  # a float, or a resonance's complex state
         return out
 
     def _next_superblock(self) -> None:
         c = self.coef
         assert c is not None
-        s0 = float(self.values[-1]) if self.values.size else self.last
+        s0 = self.values[-1].item() if self.values.size else self.last
         if self.queue.size == 0:  # the common case: no normals left over from a rate change
             w = self.rng.standard_normal(c.size)
         elif self.queue.size >= c.size:
@@ -187,3 +228,38 @@ class Pole:
         self.normals = w
         self.values = _superblock(c, w, s0)
         self.pos = 0
+
+
+class ResonancePole(Pole):
+    """One resonator of a band (ResonanceCoefficients): a complex Gauss-Markov term with its
+    own stream, started in its stationary distribution at its first coefficients (two normals
+    drawn first); ``take`` hands out the real output."""
+
+    __slots__ = ("scale", "start")
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        super().__init__(rng, None)
+        self.start: np.ndarray | None = rng.standard_normal(2)
+        self.scale = 0j
+
+    def restart_resonance(self, coef: ResonanceCoefficients | None) -> None:
+        """New coefficients (the first, or a rate change); None: its centre is above this
+        rate's Nyquist frequency, and it is silent there."""
+        if coef is not None and self.start is not None:
+            z = coef.stationary @ self.start
+            self.last = complex(float(z[0]), float(z[1]))
+            self.start = None
+        self.restart(coef.tables if coef is not None else None)  # type: ignore[arg-type]
+        self.scale = coef.scale if coef is not None else 0j
+
+    def state(self) -> tuple[Any, ...]:
+        return (super().state(), self.scale, self.start)
+
+    def set_state(self, state: tuple[Any, ...]) -> None:
+        inner, self.scale, self.start = state
+        super().set_state(inner)
+
+    def take(self, n: int) -> np.ndarray:
+        if self.coef is None:
+            return np.zeros(n)
+        return (super().take(n) * self.scale).real

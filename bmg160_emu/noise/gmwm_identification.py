@@ -65,6 +65,10 @@ def gmwm_identification(
             deficit = np.abs(white_avar_unit(wv.taus_s, rate_hz, axis.output_filter.design)
                              * wv.taus_s - 1.0)
             keep &= deficit < FILTER_DEFICIT
+        elif axis.stage is not None and axis.stage.carries_response:
+            # a measured output response (bands inside): the same 1 % rule through it
+            deficit = np.abs(axis.stage.response.white_avar_unit(wv.taus_s) * wv.taus_s - 1.0)
+            keep &= deficit < FILTER_DEFICIT
         if tau_max_s is not None:
             keep &= wv.taus_s <= tau_max_s
         wv = dataclasses.replace(wv, m=wv.m[keep], taus_s=wv.taus_s[keep], wv=wv.wv[keep],
@@ -100,7 +104,8 @@ def gmwm_identification(
             chi2_reduced=fit.objective / max(fit.dof, 1),
         )
         reason = axis.tau_range_reason
-        if tau_min_s is None and axis.output_filter is not None:
+        if tau_min_s is None and (axis.output_filter is not None or (
+                axis.stage is not None and axis.stage.carries_response)):
             reason = (f"GMWM's scales from tau = {wv.taus_s[0]:.3g} s, where the output filter "
                       "takes less than 1 % off white noise's Allan variance")
         axes[i] = dataclasses.replace(axis, fit=curve_fit, notes=notes, method="gmwm",

@@ -41,6 +41,9 @@ class AxisIdentification:
     spectrum: Spectrum | None
     notes: list[str] = field(default_factory=list)
     method: str = "wls"
+    # the output stage of any shape read on the record's PSD (stage_identification.RecordStage:
+    # the measured response, bands, lines); None: the Butterworth of output_stage, or none
+    stage: Any = None
 
     # the fitted parameters, by name
     @property
@@ -116,11 +119,18 @@ class AxisIdentification:
         B, T (the firmware's layout), several as a gm list."""
         terms = self.fit.gauss_markov_terms()
         B, T = terms[0] if len(terms) == 1 else (0.0, 0.0)
+        stage = self.stage
+        if stage is not None:  # lines before the response (A / |H(f)|), bands, the response
+            sine = tuple(t for t in stage.sine_terms() if t[0] > 0)
+        else:
+            sine = tuple((A.value, f) for A, f in self.sines if A.value > 0)
         return AxisNoise(
             N=self.N.value, B=B, T=T, K=self.K.value, bias=self.mean,
             Q=self.Q.value if self.Q else 0.0, R=self.R.value if self.R else 0.0,
-            gm=terms if len(terms) > 1 else (),
-            sine=tuple((A.value, f) for A, f in self.sines if A.value > 0),
+            gm=terms if len(terms) > 1 else (), sine=sine,
+            band=stage.band_terms() if stage is not None else (),
+            response=stage.response.cosine if stage is not None and stage.carries_response
+            else (),
         )
 
     def as_dict(self, units: str = "deg/s") -> dict[str, Any]:
@@ -143,6 +153,21 @@ class AxisIdentification:
             "order": flt.order, "corner_hz": flt.corner_hz,
             "ci95_hz": [flt.corner_low_hz, flt.corner_high_hz], "how": flt.how}
         out["lsb"] = None if self.lsb_dps is None else {"value": self.lsb_dps * s, "unit": units}
+        stage = self.stage
+        out["output_response"] = None if stage is None or not stage.carries_response else {
+            "taps": len(stage.response.cosine), "lag1": stage.response.lag1,
+            "corner_hz": stage.response.corner_hz(), "rate_hz": stage.response.rate_hz,
+            "cosine": list(stage.response.cosine),
+            "broadband": {"taps": len(stage.findings.response.cosine),
+                          "lag1": stage.findings.response.lag1}}
+        out["bands"] = [] if stage is None else [
+            {"centre_hz": b.centre_hz, "centre_ci95_half_hz": b.centre_half,
+             "width_hz": b.width_hz, "width_ci95_half_hz": b.width_half,
+             "B": {"value": b.B * s, "unit": units},
+             "power": b.power * s * s, "power_ci95_half": b.power_half * s * s,
+             "resonators": [{"f_hz": r.f0_hz, "width_hz": r.width_hz, "B": r.B * s}
+                            for r in b.resonances]}
+            for b in stage.findings.bands]
         for key, est in (("Q", self.Q), ("R", self.R)):
             if est is not None:
                 out[key] = est.as_dict(s, unit(key))
@@ -181,7 +206,8 @@ class AxisIdentification:
 
     def model_text(self) -> str:
         k = len(self.terms)
-        white = "filtered white" if self.output_filter is not None else "white"
+        white = ("filtered white" if self.output_filter is not None or self.stage is not None
+                 else "white")
         text = f"{white} + {k} Gauss-Markov term{'s' if k != 1 else ''} + random walk"
         text += " + 1/f bank" if self.fit.flicker is not None else ""
         m = len(self.sines)
@@ -210,7 +236,8 @@ class Identification:
         at the median of their corners, and the quantization step; None when neither."""
         filters = [a.output_filter for a in self.axes if a.output_filter is not None]
         steps = [a.lsb_dps for a in self.axes if a.lsb_dps]
-        if not filters and not steps:
+        measured = any(a.stage is not None and a.stage.carries_response for a in self.axes)
+        if not filters and not steps and not measured:
             return None
         order = corner = None
         if filters:
@@ -281,6 +308,16 @@ class Identification:
             if a.output_filter is not None:
                 lines.append(f"  output filter: {a.output_filter.text()} Hz, "
                              f"{a.output_filter.how}")
+            if a.stage is not None and a.stage.carries_response:
+                broad = a.stage.findings.response
+                lines.append(f"  output response (broadband, read on the PSD above "
+                             f"{a.stage.response.rate_hz / 100:g} Hz): {broad.text()}")
+                lines.append(f"  measured response generate draws (the record's whole fast "
+                             f"spectrum, bands included): {a.stage.response.text()}")
+            for band in (a.stage.findings.bands if a.stage is not None else []):
+                lines.append(f"  {band.text().replace('deg/s', units)}; drawn by "
+                             f"{len(band.resonances)} resonator"
+                             f"{'s' if len(band.resonances) != 1 else ''}")
             if a.lsb_dps:
                 lines.append(f"  quantized: LSB {a.lsb_dps * s:.6g} {units} (its white floor "
                              "LSB^2/12 is in the model)")

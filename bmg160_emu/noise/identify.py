@@ -236,12 +236,39 @@ def identify_axis(
     if progress is not None:
         progress(f"{axis}: Allan deviation")
     spectrum = one_sided_psd(x, rate_hz, psd_segment)
-    stage = _sensor_output(x, rate_hz, spectrum) if output_stage else SensorOutput()
     if progress is not None:
         progress(f"{axis}: PSD")
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
-    fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options, method,
-                                         record=x, stage=stage)
+    record_stage = None
+    flat = False
+    if output_stage and tau_range[0] is None and not with_q:
+        # (--with-q: angle quantization's PSD rises as f^2; a measured response would take it)
+        # the stage of any shape, read on the PSD, and the fit through it (issue 37)
+        from bmg160_emu.noise.stage_identification import fit_through_stage
+
+        grid = output_grid(x)
+
+        def fit_with(fit_range, **stage_options):
+            return _fit(method, curve, rate_hz, n, fit_range, {**options, **stage_options}, x)
+
+        through = fit_through_stage(
+            x, rate_hz, curve, grid.step if grid is not None else None, fit_with, tau_range[1],
+            spectrum)
+        flat = isinstance(through, str)
+        if through is not None and not isinstance(through, str):
+            fit, record_stage, notes = through
+            reason = ("every tau fitted: the output filter is part of the white term (the "
+                      "measured response is that filter)" if record_stage.family is not None
+                      else "every tau fitted: white noise through the measured output response "
+                      "(the record's whole fast spectrum)")
+            notes += _fit_notes(fit, n / rate_hz)
+    if record_stage is None:
+        if output_stage and flat:  # the PSD is flat: no filter to search for
+            stage = _sensor_output(x, rate_hz, spectrum, with_filter=False)
+        else:
+            stage = _sensor_output(x, rate_hz, spectrum) if output_stage else SensorOutput()
+        fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options,
+                                             method, record=x, stage=stage)
     if progress is not None:
         progress(f"{axis}: fit")
     for check in (diagnostics.warmup_check, diagnostics.step_check):
@@ -252,18 +279,19 @@ def identify_axis(
     return AxisIdentification(
         axis=axis, fit=fit, mean=mean, std=std, readoffs=ieee_readoffs(fit.curve),
         tau_range_reason=reason, psd_white_N=white_density_from_psd(spectrum, band),
-        psd_band_hz=band, spectrum=spectrum, notes=notes, method=method,
+        psd_band_hz=band, spectrum=spectrum, notes=notes, method=method, stage=record_stage,
     )
 
 
-def _sensor_output(x: np.ndarray, rate_hz: float, spectrum) -> SensorOutput:
+def _sensor_output(x: np.ndarray, rate_hz: float, spectrum, with_filter: bool = True
+                   ) -> SensorOutput:
     """The output stage the record shows: its LSB grid, its filter (on the PSD), its lines."""
     grid = output_grid(x)
     lsb = grid.step if grid is not None else None
     step = spectrum.segment_samples - spectrum.segment_samples // 2
     segments = max((x.shape[0] - spectrum.segment_samples) / step + 1, 1.0)
-    return SensorOutput(fit_filter_psd(spectrum, rate_hz, lsb), lsb,
-                        tuple(find_lines(spectrum, rate_hz, segments)))
+    flt = fit_filter_psd(spectrum, rate_hz, lsb) if with_filter else None
+    return SensorOutput(flt, lsb, tuple(find_lines(spectrum, rate_hz, segments)))
 
 
 def _curve_from_record(x: np.ndarray, rate_hz: float) -> AllanCurve:
@@ -287,11 +315,14 @@ def identify_curve(
     method: str = "wls",
     mean: float = 0.0,
     overlapping: bool = True,
+    periodic: bool = True,
 ) -> AxisIdentification:
     """Identify from an Allan deviation curve (deg/s) instead of samples: the sample count
     (or the record length times the rate) sets each point's degrees of freedom, of the
     overlapping estimator or (``overlapping`` False) of disjoint clusters; a given interval
     (ci low, high at 68.3 %) is kept for the plots, the fit weights come from edf.
+
+    ``periodic``: look for lines in the curve's shoulders and ripple (curve_periodic.py).
 
     A dense curve (allan_variance_ros writes 9,999 taus 0.1 s apart) is thinned to taus a
     factor 2 apart first: neighbouring points share nearly all their data, so weighting
@@ -318,6 +349,38 @@ def identify_curve(
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
     fit, reason, fit_notes = _fit_curve_axis(axis, curve, rate_hz, n_samples, tau_range,
                                              options, method)
+    if periodic:
+        from bmg160_emu.noise.curve_periodic import find_periodic_terms
+
+        def search(base: CurveFit, fit_range, notes_so_far):
+            def fit_with(frequencies: tuple[float, ...]) -> CurveFit:
+                return _fit(method, curve, rate_hz, n_samples, fit_range,
+                            {**options, "poles": len(base.terms) if poles is None else poles,
+                             "output_filter": base.output_filter, "free_sines": frequencies})
+
+            lined, found_notes = find_periodic_terms(fit_with, base, rate_hz, float(taus[-1]))
+            if not found_notes:
+                return base, notes_so_far, False
+            # the count of terms chosen again with the lines in the model
+            lined = _fit(method, curve, rate_hz, n_samples, fit_range,
+                         {**options, "output_filter": base.output_filter,
+                          "free_sines": tuple(f for _, f in lined.sines)})
+            return lined, _fit_notes(lined, n_samples / rate_hz) + found_notes, True
+
+        fit, fit_notes, lined = search(fit, fit.tau_range_s, fit_notes)
+        first = float(curve.taus[0])
+        if not lined and fit.tau_range_s[0] > first * 1.01 and tau_range[0] is None:
+            # a start left out as a filter may be a line's ripple (near the Nyquist frequency
+            # it ripples the first taus): the whole curve with lines, kept if it fits
+            try:
+                whole = _fit(method, curve, rate_hz, n_samples, (first, tau_range[1]), options)
+                whole, whole_notes, lined = search(whole, whole.tau_range_s, [])
+            except IdentificationError:
+                lined = False
+            if lined and whole.chi2_reduced < POOR_FIT_CHI2:
+                fit, fit_notes = whole, whole_notes
+                reason = ("every tau fitted: the start below the white line is the ripple of "
+                          "periodic terms")
     if ci is not None:
         fit.curve = AllanCurve(fit.curve.taus, fit.curve.adev, fit.curve.n_terms, fit.curve.edf,
                                np.asarray(ci[0], float), np.asarray(ci[1], float), fit.curve.ci,
@@ -403,10 +466,20 @@ def _selection_notes(fit: CurveFit) -> list[str]:
     kept = other.get("T_s", [])
     extra = [t for t in fit.terms
              if not any(abs(math.log(t.T.value / T)) < math.log(2.0) for T in kept)]
-    plural = "s are" if taken["terms"] != 1 else " is"
-    text = (f"{taken['terms']} Gauss-Markov term{plural} taken by {gap:.1f} AICc over "
-            f"{other['terms']} (a difference under {AICC_NO_EVIDENCE:g} is no evidence either "
-            "way): the simpler model is as plausible")
+    plural = "s" if taken["terms"] != 1 else ""
+    if gap < 0:  # a count asked for (--poles) that AICc does not prefer: say so the right way
+        best = min(rows, key=lambda r: r["aicc"])
+        dropped = fit.selection.get("zero_terms_left_out", 0)
+        text = (f"{taken['terms']} Gauss-Markov term{plural} asked for (--poles); AICc prefers "
+                f"{best['terms']} by {taken['aicc'] - best['aicc']:.1f} (AICc {best['aicc']:.1f} "
+                f"against {taken['aicc']:.1f}); kept: {len(fit.terms)} term"
+                f"{'s' if len(fit.terms) != 1 else ''}"
+                + (f" ({dropped} came out of size 0)" if dropped else ""))
+        return [text]
+    text = (f"{taken['terms']} Gauss-Markov term{plural} {'is' if not plural else 'are'} taken "
+            f"by {gap:.1f} AICc over {other['terms']} (a difference under "
+            f"{AICC_NO_EVIDENCE:g} is no evidence either way): the simpler model is as "
+            "plausible")
     firm = [t for t in extra if t.B.ci_low > 0]  # intervals that leave out the simpler model
     if firm:
         parts = [f"T = {t.T.value:.3g} s (B [{t.B.ci_low:.3g}, {t.B.ci_high:.3g}], "

@@ -284,8 +284,14 @@ def find_lines(spectrum: Spectrum, rate_hz: float, segments: float) -> list[Line
     return lines
 
 
-def sine_avar_unit(taus_s: np.ndarray, frequency_hz: float) -> np.ndarray:
+def sine_avar_unit(taus_s: np.ndarray, frequency_hz: float,
+                   rate_hz: float | None = None) -> np.ndarray:
     """Allan variance of A sin(2 pi f t) per unit A^2 (IEEE 952 annex C):
-    (sin^2(pi f tau) / (pi f tau))^2."""
+    (sin^2(pi f tau) / (pi f tau))^2; of its samples at ``rate_hz`` (averages of m = tau rate
+    samples), sin^4(pi f tau) / (m sin(pi f / rate))^2, which it tends to far below the
+    Nyquist frequency and which holds up to it (a line near Nyquist ripples the first taus)."""
     x = np.pi * frequency_hz * np.asarray(taus_s, dtype=float)
-    return (np.sin(x) ** 2 / x) ** 2
+    if rate_hz is None:
+        return (np.sin(x) ** 2 / x) ** 2
+    m = np.maximum(np.rint(np.asarray(taus_s, dtype=float) * rate_hz), 1.0)
+    return np.sin(x) ** 4 / (m * math.sin(math.pi * frequency_hz / rate_hz)) ** 2

@@ -224,7 +224,8 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
         lw=0.9,
         label="slope 0: minimum (flicker B x 0.664)",
     )
-    ax.plot([1.0], [N], "s", color="tab:blue", ms=7, label=f"N = {N:.4g} {_UNIT['N']} (tau 1 s)")
+    ax.plot([1.0], [N], "s", color="tab:blue", ms=7,
+            label=f"N (fit) = {N:.4g} {_UNIT['N']}: the fitted -1/2 line at tau 1 s")
     # the marker sits at the value its legend names (issue 23): flicker B itself, at the tau
     # of the minimum it is read from, 1 / 0.664 above the dotted minimum line
     ax.plot(
@@ -242,13 +243,23 @@ def draw_adev(ax, result: AxisIdentification, color=None, label: str | None = No
     if K > 0 and K >= floor:
         ax.loglog(tau, K * np.sqrt(tau / 3.0), "--", color="tab:red", lw=0.9,
                   label="slope +1/2: K")
-        ax.plot([3.0], [K], "^", color="tab:red", ms=7, label=f"K = {K:.4g} {_UNIT['K']} (tau 3 s)")
+        ax.plot([3.0], [K], "^", color="tab:red", ms=7,
+                label=f"K (fit) = {K:.4g} {_UNIT['K']}: the fitted +1/2 line at tau 3 s")
         lowest.append(K)
     elif K > 0:
         ax.plot([], [], " ", label=f"K = {K:.3g} {_UNIT['K']}: its +1/2 line is far under "
                 f"the curve (below {floor:.1g} deg/s)")
     else:
         ax.plot([], [], " ", label="K = 0: no +1/2 slope (random walk) in this record")
+    # the IEEE 952 K read-off as the summary gives it: a point where a +1/2 segment was
+    # found, else said not found (the fitted K above is no read-off; issue 35)
+    k_read = ro["K_at_tau_3s"]["value"]
+    if k_read is not None:
+        ax.plot([3.0], [k_read], "v", color="tab:purple", ms=6,
+                label=f"K read-off = {k_read:.4g} {_UNIT['K']} (+1/2 segment at tau 3 s)")
+        lowest.append(k_read)
+    else:
+        ax.plot([], [], " ", label="K read-off (IEEE 952): not found, no +1/2 segment")
     top = float(np.nanmax(np.where(np.isfinite(c.ci_high), c.ci_high, c.adev))) * 2.0
     ax.set_ylim(bottom=max(min(lowest) / 2.0, floor), top=top)
     ax.set_xlabel("tau [s]")
@@ -373,6 +384,13 @@ def psd_figure(results: Sequence[AxisIdentification], rate_hz: float) -> Figure:
     fig.suptitle("PSD and fitted asymptotes")
     fig.supxlabel(_PSD_CAPTION, fontsize="small")
     return fig
+
+
+def overlay_time_figure(recording: np.ndarray, emulated: np.ndarray, rate_hz: float,
+                        axis: str) -> Figure:
+    """The recording and one emulated record against time (Fig. 9): the look of the series;
+    their statistics are compared over many records (noise.verdict)."""
+    return _overlay_time(recording, emulated, rate_hz, axis)
 
 
 def overlay_figures(

@@ -42,7 +42,7 @@ else:  # pragma: no cover - Python 3.10
 
 AXES = ("x", "y", "z")
 REQUIRED_FIELDS = ("N", "B", "T", "K", "bias")
-OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K", "gm", "sine")
+OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K", "gm", "sine", "band", "response")
 UNITS = {
     "N": "deg/s/sqrt(Hz)",
     "B": "deg/s",
@@ -58,9 +58,13 @@ UNITS = {
     "corner_hz": "Hz",
     "lsb_dps": "deg/s",
     "rate_hz": "Hz",
+    "width": "Hz",
+    "response": "1",
 }
 GM_KEYS = ("B", "T")  # keys of one entry of an axis's gm list
 SINE_KEYS = ("A", "f")  # keys of one entry of an axis's sine list: amplitude, frequency
+BAND_KEYS = ("f", "width", "B")  # one resonator of a band: centre Hz, -3 dB width Hz, std deg/s
+MAX_RESPONSE = 257  # coefficients of a measured output response (identify writes up to 65)
 OUTPUT_KEYS = ("order", "corner_hz", "bw_code", "lsb_dps", "rate_hz")
 MAX_FILTER_ORDER = 8  # the orders of a profile's own filter (identify tries 1..4)
 # Largest value of each parameter (smallest T): far beyond any MEMS gyro (the BMG160's N is
@@ -69,7 +73,7 @@ MAX_FILTER_ORDER = 8  # the orders of a profile's own filter (identify tries 1..
 # K sqrt(t) over ten years stays below 1e7 deg/s). A value beyond is refused by name.
 LIMITS = {"N": 100.0, "B": 1e3, "K": 1.0, "bias": 1e4, "Q": 1e3, "R": 1e3,
           "sigma_gyro": 1e3, "sigma_K": 1e6, "A": 1e3, "f": 1e6, "corner_hz": 1e6,
-          "lsb_dps": 1e3, "rate_hz": 1e6}
+          "lsb_dps": 1e3, "rate_hz": 1e6, "width": 1e6}
 T_RANGE_S = (1e-6, 1e13)  # a correlation time: below any sample period to identify's search edge
 
 
@@ -96,11 +100,20 @@ class AxisNoise:
     gm: tuple[tuple[float, float], ...] = ()
     # IEEE 952 sinusoidal terms (amplitude A deg/s, frequency f Hz)
     sine: tuple[tuple[float, float], ...] = ()
+    # resonant bands (noise.resonant_bands): resonators (centre f Hz, -3 dB width Hz, std B
+    # deg/s), sensing-element noise like the white term
+    band: tuple[tuple[float, float, float], ...] = ()
+    # the record's measured output response at [output] rate_hz (noise.output_response):
+    # |H(f)|^2 = c0 + 2 sum c_k cos(2 pi k f / rate), c0 + 2 sum c_k = 1; () none
+    response: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         # lists from Python callers become tuples: the profile stays hashable and immutable
         object.__setattr__(self, "gm", tuple((float(B), float(T)) for B, T in self.gm))
         object.__setattr__(self, "sine", tuple((float(A), float(f)) for A, f in self.sine))
+        object.__setattr__(self, "band", tuple((float(f), float(w), float(B))
+                                               for f, w, B in self.band))
+        object.__setattr__(self, "response", tuple(float(c) for c in self.response))
 
     @property
     def poles(self) -> tuple[tuple[float, float], ...]:
@@ -166,11 +179,15 @@ class Profile:
         out: dict[str, Any] = {"name": self.name, "description": self.description}
         for axis_name, axis in zip(AXES, self.axes):
             table = {k: v for k, v in asdict(axis).items()
-                     if v is not None and k not in ("gm", "sine")}
+                     if v is not None and k not in ("gm", "sine", "band", "response")}
             if axis.gm:
                 table["gm"] = [{"B": B, "T": T} for B, T in axis.gm]
             if axis.sine:
                 table["sine"] = [{"A": A, "f": f} for A, f in axis.sine]
+            if axis.band:
+                table["band"] = [{"f": f, "width": w, "B": B} for f, w, B in axis.band]
+            if axis.response:
+                table["response"] = list(axis.response)
             out[axis_name] = table
         if self.output is not None:
             out["output"] = self.output.to_dict()
@@ -344,6 +361,12 @@ def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
         if key == "sine":
             values["sine"] = _sine_terms(raw, where)
             continue
+        if key == "band":
+            values["band"] = _band_terms(raw, where)
+            continue
+        if key == "response":
+            values["response"] = _response(raw, where)
+            continue
         values[key] = _number(raw, key, where)
     if values["T"] == 0 and values["B"] > 0:
         raise ProfileError(f"{where}: T must be positive when B > 0 (correlation time in s)")
@@ -411,6 +434,50 @@ def _sine_terms(raw: Any, where: str) -> tuple[tuple[float, float], ...]:
     return tuple(terms)
 
 
+def _band_terms(raw: Any, where: str) -> tuple[tuple[float, float, float], ...]:
+    if not isinstance(raw, (list, tuple)):
+        raise ProfileError(f"{where}: band must be a list of {{ f = ..., width = ..., B = ... }} "
+                           "tables")
+    terms = []
+    for i, entry in enumerate(raw):
+        at = f"{where} band[{i}]"
+        if isinstance(entry, Mapping):
+            if set(entry) != set(BAND_KEYS):
+                raise ProfileError(f"{at}: needs exactly f (Hz), width (Hz) and B (deg/s), got "
+                                   f"{sorted(entry)}")
+            values = [entry[k] for k in BAND_KEYS]
+        elif isinstance(entry, (list, tuple)) and len(entry) == 3:  # (f, width, B) in Python
+            values = list(entry)
+        else:
+            raise ProfileError(f"{at}: a resonator is {{ f = ..., width = ..., B = ... }}, got "
+                               f"{entry!r}")
+        f = _number(values[0], "f", at)
+        width = _number(values[1], "width", at)
+        B = _number(values[2], "B", at)
+        if not (f > 0 and width > 0):
+            raise ProfileError(f"{at}: f and width must be positive (Hz), got {f:g}, {width:g}")
+        terms.append((f, width, B))
+    return tuple(terms)
+
+
+def _response(raw: Any, where: str) -> tuple[float, ...]:
+    """The measured output response's cosine coefficients: finite, c0 > 0, at DC 1."""
+    if not isinstance(raw, (list, tuple)) or not 1 <= len(raw) <= MAX_RESPONSE:
+        raise ProfileError(f"{where}: response must be a list of 1 to {MAX_RESPONSE} numbers "
+                           "(identify --profile-out writes it)")
+    values = []
+    for i, item in enumerate(raw):
+        if isinstance(item, bool) or not isinstance(item, (int, float)) or not math.isfinite(
+                float(item)):
+            raise ProfileError(f"{where}: response[{i}] must be a finite number, got {item!r}")
+        values.append(float(item))
+    dc = values[0] + 2.0 * sum(values[1:])
+    if not values[0] > 0 or abs(dc - 1.0) > 1e-6:
+        raise ProfileError(f"{where}: response must hold c0 > 0 with c0 + 2 (c1 + ...) = 1 (its "
+                           f"gain at 0 Hz), got c0 = {values[0]:g}, sum {dc:g}")
+    return tuple(values)
+
+
 def format_profile(profile: Profile, header: str = "") -> str:
     """The profile as TOML text that load_profile reads back (units in comments)."""
     lines = [f"# {line}" if line else "#" for line in header.splitlines()]
@@ -426,6 +493,15 @@ def format_profile(profile: Profile, header: str = "") -> str:
                 continue
             if f.name == "sine":
                 lines += _sine_lines(value)
+                continue
+            if f.name == "band":
+                lines += _band_lines(value)
+                continue
+            if f.name == "response":
+                if value:
+                    lines.append("response = [            # the measured output response "
+                                 "at [output] rate_hz: c0, c1, ... (cosine series of |H|^2)")
+                    lines += [f"  {toml_float(c, 'response')}," for c in value] + ["]"]
                 continue
             if value is None or (f.name in ("Q", "R") and value == 0.0):
                 continue
@@ -474,6 +550,16 @@ def _sine_lines(terms: tuple[tuple[float, float], ...]) -> list[str]:
     lines = ["sine = [                # sinusoidal terms (IEEE 952): A deg/s, f Hz"]
     for A, f in terms:
         lines.append(f"  {{ A = {toml_float(A, 'A')}, f = {toml_float(f, 'f')} }},")
+    return lines + ["]"]
+
+
+def _band_lines(terms: tuple[tuple[float, float, float], ...]) -> list[str]:
+    if not terms:
+        return []
+    lines = ["band = [                # resonant band: resonators f Hz, width Hz, B deg/s"]
+    for f, w, B in terms:
+        lines.append(f"  {{ f = {toml_float(f, 'f')}, width = {toml_float(w, 'width')}, "
+                     f"B = {toml_float(B, 'B')} }},")
     return lines + ["]"]
 
 

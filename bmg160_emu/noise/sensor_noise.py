@@ -226,20 +226,41 @@ class SensorNoise:
 
 class ProfileNoise:
     """A profile's noise as ``generate`` writes it: the sensing element's noise through the
-    profile's own output filter (``[output]``: order and corner, or a BW code) or a BW
+    profile's own output stage (``[output]``: a Butterworth order and corner, or a BW code;
+    or each axis's measured ``response``, a minimum-phase FIR, noise.output_response) or a BW
     code's filter, then rounded to the profile's LSB, by the same ``SensorNoise`` a chip
-    uses. ``generate(n)``: the next n samples (n, 3) in deg/s."""
+    uses. ``generate(n)``: the next n samples (n, 3) in deg/s. ``notes``: what was left out
+    and why (a filter above the Nyquist frequency, a response measured at another rate)."""
 
     def __init__(self, generator: Any, bandwidth_hz: float | None, order: int,
-                 lsb_dps: float | None = None) -> None:
+                 lsb_dps: float | None = None,
+                 responses: list[np.ndarray | None] | None = None,
+                 notes: list[str] | None = None) -> None:
         self.generator = generator
         self.lsb_dps = lsb_dps
         self.bandwidth_hz = bandwidth_hz
         self.order = order
+        self.notes = list(notes or [])
         self._noise = SensorNoise(generator, filtered=generator.mode == "physical",
                                   sequential=True)
         self._noise.configure(generator.rate_hz, bandwidth_hz, 0, order)
         self._k = 0
+        self.responses = responses if responses and any(
+            h is not None and h.size > 1 for h in responses) else None
+        # each FIR's memory: the last len(taps) - 1 inputs (numpy's direct convolution:
+        # output k is the same dot product however the record is cut, and 5-25 ns a sample
+        # for 2-65 taps, against 8-55 for lfilter)
+        self._fir_memory: list[np.ndarray | None] = []
+        if self.responses is not None:
+            # the FIRs start settled: their memory filled with the stream's first samples
+            # (the realisation moves on by them, as SensorNoise's filter start does)
+            longest = max(h.size for h in self.responses if h is not None)
+            _, first = self._noise.take(0, longest - 1)
+            self._k = longest - 1
+            for i, h in enumerate(self.responses):
+                keep = h.size - 1 if h is not None else 0
+                self._fir_memory.append(np.array(first[first.shape[0] - keep:, i])
+                                        if keep > 0 else None)
 
     @property
     def rate_hz(self) -> float:
@@ -258,6 +279,9 @@ class ProfileNoise:
         parts = []
         if self.bandwidth_hz is not None and self.mode == "physical":
             parts.append(f"butterworth{self.order}@{self.bandwidth_hz:g}Hz")
+        if self.responses is not None:
+            taps = "/".join(str(h.size) if h is not None else "1" for h in self.responses)
+            parts.append(f"response{taps}taps")
         if self.lsb_dps:
             parts.append(f"lsb{self.lsb_dps:.6g}dps")
         return ",".join(parts) or "none"
@@ -265,6 +289,15 @@ class ProfileNoise:
     def generate(self, n: int) -> np.ndarray:
         _, out = self._noise.take(self._k, n)
         self._k += n
+        if self.responses is not None and n:
+            out = np.array(out)
+            for i, memory in enumerate(self._fir_memory):
+                h = self.responses[i]
+                if memory is None or h is None:
+                    continue
+                joined = np.concatenate([memory, out[:, i]])
+                self._fir_memory[i] = joined[joined.size - memory.size:]
+                out[:, i] = np.convolve(joined, h, "valid")
         if self.lsb_dps:
             return np.rint(out / self.lsb_dps) * self.lsb_dps
         return out  # rows handed out once: the buffer never writes them nor uses them again
@@ -275,9 +308,13 @@ def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,
                   use_output: bool = True) -> ProfileNoise:
     """The noise ``generate`` writes for a profile: at ``rate_hz`` (default: the BW code's
     ODR, else the rate the profile's output stage was found at, else 200 Hz) through the BW
-    code's filter when one is given, else the profile's own output filter (``use_output``),
+    code's filter when one is given, else the profile's own output stage (``use_output``):
+    its Butterworth, or each axis's measured response at the rate it was measured at (the
+    response holds the axis's bands as measured, so the generator leaves them out there);
     rounded to its LSB; physical mode only filters (paper mode is output-referred).
     ValueError on a rate the code does not have."""
+    import dataclasses
+
     from bmg160_emu.noise import NoiseGenerator, load_profile
 
     profile = load_profile(profile)
@@ -287,6 +324,7 @@ def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,
         code = stage.bw_code
     bandwidth: float | None = None
     order = LOWPASS_ORDER
+    notes: list[str] = []
     if code is not None:
         odr, bandwidth = code_filter(code)
         if rate_hz is not None and float(rate_hz) != odr:
@@ -297,7 +335,28 @@ def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,
         bandwidth, order = stage.corner_hz, int(stage.order or order)
     if rate_hz is None and stage is not None and stage.rate_hz is not None:
         rate_hz = stage.rate_hz
-    generator = NoiseGenerator(profile, rate_hz=200.0 if rate_hz is None else rate_hz,
-                               seed=seed, mode=mode)
+    rate = 200.0 if rate_hz is None else float(rate_hz)
+    if bandwidth is not None and code is None and not bandwidth < 0.99 * rate / 2.0:
+        notes.append(f"the profile's output filter (order {order} at {bandwidth:g} Hz) is at "
+                     f"or above the Nyquist frequency of {rate:g} Hz: left out (a filter "
+                     "there passes everything a sampled output carries)")
+        bandwidth = None
+    responses: list[np.ndarray | None] | None = None
+    measured = [a.response for a in profile.axes]
+    if use_output and code is None and any(measured):
+        found_at = stage.rate_hz if stage is not None else None
+        if found_at is not None and abs(found_at - rate) < 1e-9 * rate:
+            from bmg160_emu.noise.output_response import OutputResponse
+
+            responses = [OutputResponse(rate, c).taps if c else None for c in measured]
+            profile = dataclasses.replace(profile, **{
+                name: dataclasses.replace(axis, band=()) if axis.response else axis
+                for name, axis in zip(("x", "y", "z"), profile.axes)})
+        else:
+            notes.append(f"the profile's measured output response is of {found_at:g} Hz "
+                         f"samples: not applied at {rate:g} Hz; the sensing element's noise "
+                         "(its bands as resonators) is written without an output filter "
+                         "(--bandwidth CODE filters it with the chip's)")
+    generator = NoiseGenerator(profile, rate_hz=rate, seed=seed, mode=mode)
     lsb = stage.lsb_dps if stage is not None else None
-    return ProfileNoise(generator, bandwidth, order, lsb)
+    return ProfileNoise(generator, bandwidth, order, lsb, responses, notes)

@@ -11,6 +11,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from bmg160_emu.bus.spi import chip_select_of
 from bmg160_emu.device import registers
 from bmg160_emu.device.fields import (
     decode_register,
@@ -48,6 +49,8 @@ Table = Sequence[Register]  # a register table: the BMG160's, or a part's (devic
 
 
 def _field_text(register: int, value: int, table: Table = REGISTERS) -> str:
+    if not 0 <= register < len(table):  # outside the map: no fields, a write is lost (2.4)
+        return " (outside the map, ignored)"
     parts = [f.text for f in decode_register(register, value, table=table) if f.text]
     return f" ({'; '.join(parts)})" if parts else ""
 
@@ -133,18 +136,24 @@ def _standin_label(spec: Any, reg: int) -> str:
 
 def _describe_standin(spec: Any, register: int, read: bytes, written: bytes) -> str:
     """A stand-in's traffic with its own register names (a BMG160 name would mislead):
-    bursts advance one register a byte except on its FIFO registers (``no_increment``)."""
+    bursts advance one register a byte except on its FIFO registers (``no_increment``), within
+    the register bits the chip decodes (``register_address_bits``)."""
+    mask = spec.address_mask
+    if register & ~mask:  # a bit the chip does not decode (its declaration's width)
+        return f"[0x{register:02X}: bit 7 not decoded] " + _describe_standin(
+            spec, register & mask, read, written)
+
     def span(data: bytes, start: int) -> list[int]:
         regs, reg = [], start
         for _ in data:
             regs.append(reg)
             if reg not in spec.no_increment:
-                reg = (reg + 1) & 0xFF
+                reg = (reg + 1) & mask
         return regs
 
     if read and written:  # a process call: write from register on, then read on from there
         regs = span(written, register)
-        after = regs[-1] if regs[-1] in spec.no_increment else (regs[-1] + 1) & 0xFF
+        after = regs[-1] if regs[-1] in spec.no_increment else (regs[-1] + 1) & mask
         return (_describe_standin(spec, register, b"", written) + "; then "
                 + _describe_standin(spec, after, read, b""))
     data, verb, arrow = (read, "read", "->") if read else (written, "write", "<-")
@@ -164,10 +173,16 @@ def describe_transaction(record: dict, standins: dict[int, Any] | None = None,
     ``standins`` maps an address to its stand-in declaration (a trace header's), whose
     traffic is told with the stand-in's register names rather than the BMG160's; ``parts``
     maps an address to the register table of the part there (a BMI088 gyroscope's
-    INT3_INT4_IO_CONF, not the BMG160's INT_EN_1; no field the part lacks)."""
+    INT3_INT4_IO_CONF, not the BMG160's INT_EN_1; no field the part lacks). An SPI record
+    (no address; bus ``spi<bus>.<cs>``) is told as the device on that chip select, the
+    cs-th in address order."""
     time_s = record_value(record, "time", "time_s", default=float("nan"))
     bus = record_value(record, "bus", default="?")
     address = record_value(record, "address")
+    cs = chip_select_of(bus) if address is None else None
+    if cs is not None:
+        devices = sorted({*(standins or {}), *(parts or {})})
+        address = devices[cs] if cs < len(devices) else None
     where = f"{bus}" + (f" 0x{address:02x}" if isinstance(address, int) else "")
     head = f"{time_s:12.6f}s  {where:<10} "
     kind = str(record_value(record, "kind", default="?"))

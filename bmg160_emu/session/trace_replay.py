@@ -72,7 +72,7 @@ class _Replayer:
 
     def __init__(self, chips: dict[int, Any]):
         from bmg160_emu.bus.i2c import I2CBus, I2CMessage
-        from bmg160_emu.bus.spi import FakeSpiDev
+        from bmg160_emu.bus.spi import FakeSpiDev, chip_select_of, read_dummy_bytes
 
         self.chips = chips
         self.clock_chip = next(iter(chips.values()))
@@ -81,6 +81,8 @@ class _Replayer:
         self._I2CBus = I2CBus
         self._I2CMessage = I2CMessage
         self._FakeSpiDev = FakeSpiDev
+        self._read_dummy_bytes = read_dummy_bytes
+        self._chip_select_of = chip_select_of
         self._pending_error: str | None = None
 
     def bus(self, number: Any):
@@ -91,8 +93,13 @@ class _Replayer:
         return self._buses[number]
 
     def spi(self, name: Any):
+        """The replayed SPI device of a logged name: chip select i is the i-th chip in
+        address order (as serve's board); a name without one is the first chip."""
         if name not in self._spi:
-            self._spi[name] = self._FakeSpiDev(self.clock_chip)
+            cs = self._chip_select_of(name)
+            ordered = [self.chips[a] for a in sorted(self.chips)]
+            chip = ordered[cs] if cs is not None and cs < len(ordered) else self.clock_chip
+            self._spi[name] = self._FakeSpiDev(chip)
         return self._spi[name]
 
     def _inject_recorded_error(self, bus, index, address, kind) -> None:
@@ -119,8 +126,9 @@ class _Replayer:
         kind, reg, w, expected = t.kind, t.register, t.written, t.read
         if kind.startswith("spi_"):
             spi = self.spi(t.bus)
-            if kind == "spi_read" and reg is not None:  # command byte, then the data bytes
-                return bytes(spi.xfer2([0x80 | reg] + [0] * len(expected))[1:])
+            if kind == "spi_read" and reg is not None:  # command byte, dummy bytes, data
+                dummy = self._read_dummy_bytes(spi.chip)
+                return bytes(spi.xfer2([0x80 | reg] + [0] * (dummy + len(expected)))[1 + dummy:])
             if kind == "spi_write" and reg is not None:
                 spi.xfer2([reg & 0x7F, *w])
                 return b""

@@ -1,8 +1,11 @@
 /* The bus side of spec section 2: the first byte of a write sets the register
  * pointer, further bytes are written with auto-increment; reads start at the
  * pointer, which persists between transactions (split read form) and stays at
- * 0x3F (FIFO_DATA). SCL is stretched by the hardware while TWINT is set, so
- * every register byte is computed at the moment it is needed. */
+ * 0x3F (FIFO_DATA). Bit 7 of the register byte is not decoded: a transaction
+ * starts at (pointer & BMG_REGISTER_ADDRESS_MASK), as the Python model's does,
+ * and a burst runs on from there without wrapping (saturating at 0xFF). SCL is
+ * stretched by the hardware while TWINT is set, so every register byte is
+ * computed at the moment it is needed. */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <util/twi.h>
@@ -45,7 +48,7 @@ ISR(TWI_vect)
 		break;
 	case TW_SR_DATA_ACK:
 		if (expect_pointer) {
-			pointer = TWDR;
+			pointer = TWDR & BMG_REGISTER_ADDRESS_MASK;
 			expect_pointer = 0;
 		} else {
 			regmap_write(pointer, TWDR);
@@ -55,6 +58,9 @@ ISR(TWI_vect)
 	case TW_ST_SLA_ACK:
 	case TW_ST_ARB_LOST_SLA_ACK:
 		busy = 1;
+		/* a read starts at the decoded address: a pointer left past 0x7F by an
+		 * earlier burst wraps as the model's does */
+		pointer &= BMG_REGISTER_ADDRESS_MASK;
 		/* fall through: load the first byte */
 	case TW_ST_DATA_ACK:
 		TWDR = regmap_read(pointer);

@@ -1,12 +1,13 @@
 #!/bin/sh
-# Runs INSIDE the QEMU guest (bmg160_emu.linux.guest), chrooted in the host's root file system.
+# Runs INSIDE the guest (bmg160_emu.linux.guest), in the host's root file system.
 # One command (on the bmg160_kernel fixture's session guest) performs every kernel check of
 # tests/test_kernel_i2c_stub.py and writes the
 # results to $GUEST_OUT as small text files the host-side tests assert on.
 #
 # Environment: PY (the host's Python, with bmg160_emu importable), GUEST_OUT, GUEST_ROOT
 # (the unpacked kernel package), STUB_ARGS (chip options for `bmg160-emu stub`); KMOD and
-# TOOLS (optional: bmg160_emu.linux.guest.kmod's bundled modules, this folder) add the hrtimer capture.
+# TOOLS (optional: the folder of the QEMU kernel's software-trigger modules, or "builtin"
+# where the kernel has them (uml); this folder) add the hrtimer capture.
 set -u
 OUT=${GUEST_OUT:?}
 : "${PY:?}"  # GUEST_ROOT: the kernel package's modules for modprobe -d, where the engine has one
@@ -33,12 +34,27 @@ step "1b. start bmg160-emu stub (in the background)"
     --ready-file /run/stub.ready > "$OUT/stub.log" 2>&1 &
 STUB=$!
 step "1c. stub command errors, while the adapter starts"
-emu stub --bus 9 > "$OUT/err_missing.txt" 2>&1; echo $? >> "$OUT/err_missing.txt"
-emu stub --bus "$S" --address 0x69 > "$OUT/err_address.txt" 2>&1; echo $? >> "$OUT/err_address.txt"
 OTHER=$(i2cdetect -l | grep -v 'stub' | sed -n 's/^i2c-\([0-9]*\).*/\1/p' | head -n 1)
-if [ -n "$OTHER" ]; then
-    emu stub --bus "$OTHER" > "$OUT/err_not_stub.txt" 2>&1; echo $? >> "$OUT/err_not_stub.txt"
-fi
+# one Python for the three (each start imports numpy, seconds under UML's ptrace): the
+# command's own entry point, its stderr and exit status per case, as a shell would see them
+"$PY" - "$OUT" "$S" ${OTHER:+"$OTHER"} <<'EOF'
+import contextlib, io, sys
+from bmg160_emu.cli import main
+out, bus = sys.argv[1], sys.argv[2]
+cases = {"err_missing.txt": ["stub", "--bus", "9"],
+         "err_address.txt": ["stub", "--bus", bus, "--address", "0x69"]}
+if len(sys.argv) > 3:
+    cases["err_not_stub.txt"] = ["stub", "--bus", sys.argv[3]]
+for name, argv in cases.items():
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err):
+        try:
+            status = main(argv)
+        except SystemExit as exc:
+            status = exc.code
+    with open(f"{out}/{name}", "w") as handle:
+        handle.write(err.getvalue() + f"{status}\n")
+EOF
 # root without CAP_DAC_OVERRIDE on a node nobody may open: permission denied
 chmod 000 /dev/i2c-$S
 setpriv --bounding-set=-dac_override,-dac_read_search "$PY" -m bmg160_emu stub --bus "$S" \
@@ -50,6 +66,7 @@ while [ ! -e /run/stub.ready ] && [ $i -lt 1200 ] && kill -0 $STUB 2>/dev/null; 
     sleep 0.1; i=$((i + 1))
 done
 [ -e /run/stub.ready ] && echo ready > "$OUT/stub_ready.txt"
+sleep 0.05  # the chip's start-up after power-on (30 ms, DS): its registers hold 0 until then
 
 step "2. i2c-tools"
 i2cget -y "$S" 0x68 0x00 > "$OUT/i2cget_chip_id.txt" 2>&1
@@ -104,13 +121,15 @@ cat "$IIO/in_anglvel_scale" > "$OUT/scale_250.txt"
 for axis in x y z; do sample "in_anglvel_${axis}_raw" 0.05 12 > "$OUT/raw_250_$axis.txt"; done
 sleep 2  # a stretch of refreshes at 200 Hz for the period and jitter figures
 
-if [ -n "${KMOD:-}" ] && [ -e "$KMOD/iio-trig-hrtimer.ko" ]; then
-    step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz (bmg160_emu.linux.guest.kmod)"
-    modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} configfs
+if [ -n "${KMOD:-}" ] && { [ "$KMOD" = builtin ] || [ -e "$KMOD/iio-trig-hrtimer.ko" ]; }; then
+    step "3f. buffered capture with the hrtimer trigger at 100 Hz, ODR 200 Hz"
+    modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} configfs 2>/dev/null
     mount -t configfs none /sys/kernel/config 2>/dev/null
-    for m in industrialio-configfs industrialio-sw-trigger iio-trig-hrtimer; do  # dependency order
-        insmod "$KMOD/$m.ko" || echo "insmod $m failed"
-    done
+    if [ "$KMOD" != builtin ]; then  # the QEMU kernel's (bmg160_emu.linux.guest.debian_modules)
+        for m in industrialio-configfs industrialio-sw-trigger iio-trig-hrtimer; do  # dependency order
+            insmod "$KMOD/$m.ko" || echo "insmod $m failed"
+        done
+    fi
     mkdir /sys/kernel/config/iio/triggers/hrtimer/t0
     for t in /sys/bus/iio/devices/trigger*; do
         [ "$(cat "$t/name")" = t0 ] && echo 100 > "$t/sampling_frequency"

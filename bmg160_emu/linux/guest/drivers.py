@@ -1,19 +1,19 @@
 """A driver in the guest: its modules in load order with the kernel modules they need, and
-the shell that binds it to the emulated chips (and unbinds it).
+the agent's requests that bind it to the emulated chips (and unbind it).
 
 Why a board module for the IRQ: ``new_device`` in sysfs gives a client no interrupt, and the
 bmg160 driver (as many IIO drivers) registers its data-ready trigger and events only with
 one; bmg160-board declares the clients with their INT1 line's IRQ as a board file or
-device tree would (kmod/bmg160-board.c).
+device tree would (module_sources/bmg160-board.c).
 """
 
 from __future__ import annotations
 
-import shlex
 import subprocess
 from collections.abc import Sequence
 from pathlib import Path
 
+from bmg160_emu.linux.guest import agent
 from bmg160_emu.linux.guest.engine import EngineError
 
 
@@ -72,36 +72,42 @@ def driver_name(kos: Sequence[Path], prefer: Sequence[str] = ()) -> str | None:
     return None
 
 
-def bind_command(name: str, addresses: Sequence[int], lines: Sequence[int] | None = None,
-                 board: Path | None = None, kernel_driver: bool = False) -> str:
-    """Shell that binds driver ``name`` to the chips on ``$GUEST_I2C_BUS`` and waits (5 s at
-    most) until each has a driver: with each chip's INT1 line as its IRQ through bmg160-board
-    when ``lines`` and ``board`` are given, else through ``new_device`` (no IRQ).
-    ``kernel_driver``: first load the guest kernel's own module for ``name`` by its alias
-    (the guest runs no udev, so nothing loads it on its own; a built-in one needs nothing)."""
-    bus = "/sys/bus/i2c/devices"
-    load = (f'modprobe -q ${{GUEST_ROOT:+-d "$GUEST_ROOT"}} i2c:{shlex.quote(name)} '
-            "2>/dev/null\n" if kernel_driver else "")
-    if lines is not None and board is not None:
-        command = (f"insmod {shlex.quote(str(board))} bus=$GUEST_I2C_BUS "
-                   f"gpio_base=$GUEST_GPIO_BASE "
-                   f"addr={','.join(f'0x{a:02x}' for a in addresses)} "
-                   f"line={','.join(str(n) for n in lines)} name={shlex.quote(name)} || exit 1")
+def bind_ops(name: str, addresses: Sequence[int], bus: int, lines: Sequence[int] | None = None,
+             board: Path | None = None, gpio_base: int | None = None,
+             kernel_driver: bool = False, timeout_s: float = 5.0) -> list[agent.Op]:
+    """Agent requests that bind driver ``name`` to the chips on I2C bus ``bus`` and wait
+    (``timeout_s`` of the guest's clock at most) until each has a driver: with each chip's
+    INT1 line as its IRQ through bmg160-board when ``lines``, ``board`` and ``gpio_base``
+    are given, else through ``new_device`` (no IRQ). ``kernel_driver``: first load the guest
+    kernel's own module for ``name`` by its alias (the guest runs no udev, so nothing loads
+    it on its own; a built-in one needs nothing). The batch stops at the first failure."""
+    ops = [agent.modprobe(f"i2c:{name}", check=False)] if kernel_driver else []
+    if lines is not None and board is not None and gpio_base is not None:
+        ops.append(agent.insmod(board, f"bus={bus} gpio_base={gpio_base} "
+                                f"addr={','.join(f'0x{a:02x}' for a in addresses)} "
+                                f"line={','.join(str(n) for n in lines)} name={name}"))
     else:
-        command = "\n".join(f"echo {shlex.quote(name)} 0x{a:02x} > "
-                            f"{bus}/i2c-$GUEST_I2C_BUS/new_device || exit 1" for a in addresses)
-    waits = "\n".join(
-        f"i=0; while [ ! -e {bus}/$GUEST_I2C_BUS-{a:04x}/driver ] && [ $i -lt 100 ]; do "
-        f"sleep 0.05; i=$((i + 1)); done\n"
-        f"[ -e {bus}/$GUEST_I2C_BUS-{a:04x}/driver ] || "
-        f"{{ echo 'no driver bound to 0x{a:02x} (dmesg:)' >&2; dmesg | tail -n 5 >&2; exit 1; }}"
-        for a in addresses)
-    return f"{load}{command}\n{waits}\n"
+        ops += [agent.write(f"/sys/bus/i2c/devices/i2c-{bus}/new_device", f"{name} 0x{a:02x}\n",
+                            check=True) for a in addresses]
+    ops += [agent.wait(f"/sys/bus/i2c/devices/{bus}-{a:04x}/driver", timeout_s)
+            for a in addresses]
+    return ops
 
 
-def unbind_command(addresses: Sequence[int], board: bool) -> str:
-    """Shell that takes the chips' clients away again (the driver's remove runs)."""
+def unbind_ops(addresses: Sequence[int], bus: int, board: bool) -> list[agent.Op]:
+    """Agent requests that take the chips' clients away again (the driver's remove runs)."""
     if board:
-        return "rmmod bmg160_board\n"
-    return "\n".join(f"echo 0x{a:02x} > /sys/bus/i2c/devices/i2c-$GUEST_I2C_BUS/delete_device"
-                     for a in addresses) + "\n"
+        return [agent.rmmod("bmg160_board")]
+    return [agent.write(f"/sys/bus/i2c/devices/i2c-{bus}/delete_device", f"0x{a:02x}\n")
+            for a in addresses]
+
+
+def bind_failure(replies: Sequence[agent.Reply], ops: Sequence[agent.Op]) -> str | None:
+    """What went wrong in a bind batch, in one line, or None when it all worked."""
+    for op, reply in zip(ops, replies):
+        if reply.status and op.check:
+            what = op.subject
+            if op.name == "wait":
+                return f"no driver bound ({what} did not appear)"
+            return f"{op.name} {what}: {reply.error()}"
+    return None

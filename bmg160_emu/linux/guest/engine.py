@@ -2,9 +2,10 @@
 protocol, and the registry that picks the first engine that is ready on this host.
 
 An engine boots a Linux guest in which the host's root file system is mounted (read-only
-unless ``Boot.host_root_readonly`` is False) and ``Boot.script`` runs with ``/bin/sh``,
-chrooted in it, so the host's own Python, i2c-tools and the project run unchanged. The
-contract every engine keeps, so that the harness and the tests need not know which one runs:
+unless ``Boot.host_root_readonly`` is False) and either ``Boot.script`` runs with ``/bin/sh``
+or the agent (:mod:`.agent`) serves ``Boot.agent``'s folder, chrooted in it, so the host's
+own Python, i2c-tools and the project run unchanged. The contract every engine keeps, so
+that the harness and the tests need not know which one runs:
 
 - ``Boot.results`` is writable at the same path inside the guest (the only writable host
   folder); the script's environment has ``BMG160_RESULTS`` (that path), ``GUEST_ENGINE``
@@ -17,9 +18,13 @@ contract every engine keeps, so that the harness and the tests need not know whi
   interrupts) on ``Boot.i2c_socket`` (``Boot.gpio_socket``), and loaded ``Boot.modules``
   in order: a name is a module of the guest kernel (``modprobe``; a built-in one is
   already there), a path is a ``.ko`` file built for that kernel (``insmod``);
-- the script's exit status is written to ``$BMG160_RESULTS/exit-status``, the results
-  folder is synced, and the guest powers off, which ends the process ``start`` returned
-  (its stdout carries the console).
+- the script's exit status (or the agent's, once a request told it to stop) is written to
+  ``$BMG160_RESULTS/exit-status``, the results folder is synced, and the guest powers off,
+  which ends the process ``start`` returned (its stdout carries the console);
+- the process does not outlive the thread that started it (``agent orphan-guard``: SIGTERM
+  when its parent ends), so a harness that dies takes its guest with it;
+- with ``Boot.time_travel`` (an engine that can: uml), the guest's clock is the calendar
+  listening on that socket (UML's ``time-travel=ext``); an engine that cannot refuses it.
 
 Optional, where an engine can: ``build_module(path, progress) -> list[Path]`` (a user's
 ``.ko`` or Kbuild source folder made ready for this engine's kernel) and ``board_module() ->
@@ -46,11 +51,27 @@ Progress = Callable[[str], None]
 
 
 @dataclass(frozen=True)
+class AgentBoot:
+    """The agent's folder (inside the results folder) and its two virtio-gpio lines
+    (offsets; "fifo" and "fifo" for named pipes in the folder)."""
+
+    folder: Path
+    request_line: str
+    reply_line: str
+
+    @property
+    def words(self) -> tuple[str, str, str]:
+        return str(self.folder.resolve()), self.request_line, self.reply_line
+
+
+@dataclass(frozen=True)
 class Boot:
     """One guest's start: what it serves, what it runs, what it may write."""
 
-    script: Path  # run with /bin/sh inside the guest, chrooted in the host's root
     results: Path  # writable in the guest at the same path; exit-status lands here
+    script: Path | None = None  # run with /bin/sh inside the guest, chrooted in the host's root
+    agent: AgentBoot | None = None  # or: the agent serves this folder (the harness's guests)
+    time_travel: Path | None = None  # the calendar's socket: the guest's clock (uml only)
     i2c_socket: Path | None = None  # vhost-user virtio-i2c back end (listening already)
     gpio_socket: Path | None = None  # vhost-user virtio-gpio back end (the chips' INT lines)
     host_root_readonly: bool = True

@@ -9,15 +9,22 @@ every transfer hangs).
 
 from __future__ import annotations
 
+import shlex
 import shutil
 import subprocess
 from pathlib import Path
 
+from bmg160_emu.linux.guest import agent
 from bmg160_emu.linux.guest.cache import cache_dir
 from bmg160_emu.linux.guest.debian import find_kernel, prepare_kernel
+from bmg160_emu.linux.guest.debian_modules import (
+    build_bundled,
+    bundled_dir,
+    tools_missing,
+    user_module,
+)
 from bmg160_emu.linux.guest.engine import Boot, EngineError, Progress
 from bmg160_emu.linux.guest.initramfs import build_initramfs, busybox_missing
-from bmg160_emu.linux.guest.kmod import build_bundled, bundled_dir, tools_missing, user_module
 
 BINARY = "qemu-system-x86_64"
 
@@ -55,6 +62,7 @@ class QemuEngine:
         if reason:
             lines.append(reason)
         lines += tools_missing()
+        lines += [line for line in agent.missing() if line not in lines]
         if shutil.which("depmod") is None:
             lines.append("depmod is missing (Debian package kmod)")
         if not lines and (find_kernel(self.cache) is None or bundled_dir(self.cache) is None):
@@ -83,11 +91,17 @@ class QemuEngine:
             raise EngineError("no guest kernel in the cache (run: bmg160-emu kernel prepare)")
         initrd = build_initramfs(kernel, self.cache)
         results = boot.results.resolve()
+        if boot.time_travel is not None:
+            raise EngineError("the qemu engine cannot run in virtual time (UML's time "
+                              "travel only): run it in real time")
+        script = boot.script if boot.agent is None else agent_script(boot)
+        if script is None:
+            raise EngineError("a boot needs a script or the agent")
         words = [
             # no_timer_check: on a loaded host the slow TCG boot fails the kernel's check of
             # the timer interrupt ("IO-APIC + timer doesn't work!", a panic; seen here)
             "console=ttyS0", "quiet", "panic=-1", "no_timer_check",
-            f"guest_script={boot.script.resolve()}", f"guest_out={results}",
+            f"guest_script={script.resolve()}", f"guest_out={results}",
             f"guest_root={kernel.root}",
         ]
         if boot.i2c_socket is not None or boot.gpio_socket is not None:
@@ -124,8 +138,19 @@ class QemuEngine:
 
     def start(self, boot: Boot) -> subprocess.Popen[bytes]:
         boot.results.mkdir(parents=True, exist_ok=True)
-        return subprocess.Popen(self.command(boot), stdin=subprocess.DEVNULL,
+        return subprocess.Popen(agent.guarded(self.command(boot)), stdin=subprocess.DEVNULL,
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+
+
+def agent_script(boot: Boot) -> Path:
+    """The boot script that makes the agent serve ``boot.agent`` (QEMU's /init is busybox:
+    the agent runs chrooted in the host's root, from the cache, as any host program)."""
+    assert boot.agent is not None
+    words = " ".join(shlex.quote(w) for w in (str(agent.binary()), "serve", *boot.agent.words))
+    script = boot.agent.folder / "boot.sh"
+    script.parent.mkdir(parents=True, exist_ok=True)
+    script.write_text(f"cd /\nexec {words}\n")
+    return script
 
 
 def engine() -> QemuEngine:

@@ -17,11 +17,10 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from bmg160_emu.linux.guest import uml_build
+from bmg160_emu.linux.guest import agent, uml_build
 from bmg160_emu.linux.guest.cache import cache_dir, content_hash
 from bmg160_emu.linux.guest.engine import Boot, EngineError, Progress
 
-INIT = uml_build.DATA / "init.sh"
 XSAVE_PROBE = uml_build.DATA / "xsave_size.c"
 VIRTIO_ID_I2C = 34  # virtio 1.2 specification, 5 "Device Types"
 VIRTIO_ID_GPIO = 41
@@ -67,10 +66,12 @@ class UmlEngine:
     """Our UML kernel as a host process; hostfs for the host's root and the results."""
 
     name = "uml"
+    time_travel = True  # time-travel=ext: the guest's clock can be the back end's calendar
 
     def missing(self) -> list[str]:
         lines = [f"{package} is missing (Debian package {package})"
                  for package in uml_build.missing_packages()]
+        lines += [line for line in agent.missing() if line not in lines]
         for problem in (ptrace_problem(),
                         xsave_problem(host_xsave_bytes(), uml_build.FP_AREA_BYTES)):
             if problem:
@@ -90,6 +91,7 @@ class UmlEngine:
             raise EngineError(problem)
         kernel = uml_build.build(progress)
         progress(f"uml: {kernel.binary}")
+        progress(f"uml: the guest's agent: {agent.binary()}")
 
     def kernel(self) -> uml_build.UmlKernel:
         """The built kernel, or an :class:`EngineError` saying how to build it."""
@@ -108,19 +110,28 @@ class UmlEngine:
         return self.kernel().board
 
     def command(self, boot: Boot) -> list[str]:
-        """The UML command line for ``boot``."""
+        """The UML command line for ``boot``: the agent (agent.c) is its init."""
         kernel = self.kernel()
         results = boot.results.resolve()
         words = [
             f"mem={boot.memory_mb}M", "root=/dev/root", "rootfstype=hostfs", "rootflags=/",
-            "ro" if boot.host_root_readonly else "rw", f"init={INIT}",
+            "ro" if boot.host_root_readonly else "rw", f"init={agent.binary()}",
             # the console on stdout, nothing read; no other consoles or serial lines
             "con=null", "ssl=null", "con0=null,fd:1", "quiet", "panic=-1",
-            f"guest_script={boot.script.resolve()}", f"guest_out={results}",
-            f"guest_modroot={kernel.modules_root}",
-            # a reboot re-execs UML with this command line: init.sh ends it by this token
+            f"guest_out={results}", f"guest_modroot={kernel.modules_root}",
+            # a reboot re-execs UML with this command line: the agent ends it by this token
             f"guest_boot={secrets.token_hex(4)}",
         ]
+        if boot.agent is not None:
+            words.append("guest_agent=" + ",".join(boot.agent.words))
+        elif boot.script is not None:
+            words.append(f"guest_script={boot.script.resolve()}")
+        else:
+            raise EngineError("a boot needs a script or the agent")
+        if boot.time_travel is not None:
+            # UML's external time travel: the calendar on this socket is the guest's clock
+            # (arch/um/kernel/time.c); the back ends then notify in band (virtio_uml.c)
+            words.append(f"time-travel=ext:{boot.time_travel.resolve()}")
         if boot.cpus != 1:
             raise EngineError(f"the uml engine runs one CPU (asked for {boot.cpus})")
         if boot.i2c_socket is not None:
@@ -144,8 +155,8 @@ class UmlEngine:
         env = dict(os.environ)
         if os.access(MEMORY_DIR, os.W_OK):
             env["TMPDIR"] = str(MEMORY_DIR)
-        return subprocess.Popen(self.command(boot), stdin=subprocess.DEVNULL, env=env,
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        return subprocess.Popen(agent.guarded(self.command(boot)), stdin=subprocess.DEVNULL,
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 
 
 def engine() -> UmlEngine:

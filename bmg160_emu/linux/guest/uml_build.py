@@ -18,12 +18,13 @@ import os
 import re
 import shutil
 import subprocess
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from bmg160_emu.linux.guest.cache import cache_dir, content_hash
 from bmg160_emu.linux.guest.engine import EngineError, Progress
-from bmg160_emu.linux.guest.kmod import keep_modules, module_sources
+from bmg160_emu.linux.guest.user_modules import keep_modules, module_sources
 
 SOURCE_PACKAGE = "linux-source-6.1"
 SOURCE_TARBALL = Path("/usr/src/linux-source-6.1.tar.xz")
@@ -31,12 +32,17 @@ DATA = Path(__file__).with_name("uml")
 CONFIG_FRAGMENT = DATA / "uml.config"
 # The modules built out of tree, from the QEMU route's folder: the i2c-virtio patch (waits
 # uninterruptibly) and the board module (the chips' IRQs from virtio-gpio lines).
-KMOD = Path(__file__).with_name("kmod")
-I2C_VIRTIO_PATCH = KMOD / "i2c-virtio-wait.patch"
-BOARD_SOURCE = KMOD / "bmg160-board.c"
+MODULE_SOURCES = Path(__file__).with_name("module_sources")
+I2C_VIRTIO_PATCH = MODULE_SOURCES / "i2c-virtio-wait.patch"
+BOARD_SOURCE = MODULE_SOURCES / "bmg160-board.c"
 # The FP register area patch 0001 makes room for, in bytes; hosts with a larger XSAVE
 # area (CPUID leaf 0xD) cannot run user space under this kernel.
 FP_AREA_BYTES = 12288
+# What a build from nothing compiles (``*.o`` files of linux and the modules, counted in a
+# finished tree of this configuration) and its wall time on 2 quiet cores: the progress
+# lines' total and first estimate (docs/kernel-engines.md, "The kernel build").
+BUILD_OBJECTS = 950
+BUILD_QUIET_S = 240
 # Debian packages the build runs (make, gcc, patch, xz for the tarball, the kernel's own
 # build tools) and the source itself.
 BUILD_PACKAGES = {
@@ -143,9 +149,13 @@ def missing_packages() -> list[str]:
     return lacking
 
 
-def _run(command: list[str], cwd: Path, log: Path, progress: Progress | None = None) -> None:
-    """Run a build step, its output to ``log``; a progress line every 200 compiled files."""
+def _run(command: list[str], cwd: Path, log: Path, progress: Progress | None = None,
+         total: int = 0, estimate_s: float = 0.0) -> None:
+    """Run a build step, its output to ``log``; with ``progress``, a line every 200 compiled
+    files, with ``total`` (the files the step compiles, 0 if not known) and what is left of
+    ``estimate_s`` (its wall seconds on a quiet 2-core host) told from the rate so far."""
     env = dict(os.environ, LC_ALL="C")
+    started = time.monotonic()
     with log.open("a") as sink:
         sink.write(f"$ {' '.join(command)}\n")
         sink.flush()
@@ -159,15 +169,34 @@ def _run(command: list[str], cwd: Path, log: Path, progress: Progress | None = N
             if progress is not None and line.lstrip().startswith("CC"):
                 compiled += 1
                 if compiled % 200 == 0:
-                    progress(f"uml: {compiled} files compiled")
+                    progress(_progress_line(compiled, total, time.monotonic() - started,
+                                            estimate_s))
         if proc.wait() != 0:
             raise EngineError(f"uml build failed in {cwd}: {' '.join(command)} (log: {log})")
 
 
+def _progress_line(compiled: int, total: int, elapsed_s: float, estimate_s: float) -> str:
+    """``uml: 400 of 1,850 files compiled (22 %), about 3 min 10 s left``: the time left from
+    this build's own rate once it has one, else from the quiet-host estimate."""
+    if not total:
+        return f"uml: {compiled} files compiled"
+    done = min(compiled, total)
+    left_s = (elapsed_s / done * (total - done)) if elapsed_s > 0 else estimate_s
+    minutes, seconds = divmod(round(left_s), 60)
+    left = f"{minutes} min {seconds} s" if minutes else f"{seconds} s"
+    return (f"uml: {compiled:,} of {total:,} files compiled ({100 * done // total} %), "
+            f"about {left} left")
+
+
 def _check_config(config: Path) -> None:
-    """Every line of the fragment must survive olddefconfig (a dropped one is silent)."""
+    """Every line of the fragment must survive olddefconfig (a dropped one is silent): a
+    ``CONFIG_X=v`` line as it is, a ``# CONFIG_X is not set`` line as X not set."""
     built = set(config.read_text().splitlines())
     for number, line in enumerate(CONFIG_FRAGMENT.read_text().splitlines(), 1):
+        unset = re.fullmatch(r"# (CONFIG_\w+) is not set", line)
+        if unset and any(b.startswith(f"{unset.group(1)}=") for b in built):
+            raise EngineError(
+                f"{CONFIG_FRAGMENT}:{number}: {unset.group(1)} was set by the kernel's Kconfig")
         if line.startswith("CONFIG_") and line not in built:
             raise EngineError(
                 f"{CONFIG_FRAGMENT}:{number}: {line} was dropped by the kernel's Kconfig"
@@ -200,25 +229,41 @@ def build(progress: Progress) -> UmlKernel:
 
 
 def _build_locked(root: Path, version: str, progress: Progress) -> UmlKernel:
+    """Unpack, patch, configure, build, install; a step already done in ``root`` (an
+    interrupted build) is not done again, and make goes on from the objects it left."""
     kernel = UmlKernel(root)
-    if root.exists():
-        shutil.rmtree(root)  # an unfinished build: start over
-    root.mkdir(parents=True)
-    log = root / "build.log"
-    progress(f"uml: unpacking {SOURCE_TARBALL} ({version}) into {root}")
-    _run(["tar", "-xf", str(SOURCE_TARBALL)], root, log)
     tree = kernel.tree
-    for patch in patches():
-        progress(f"uml: applying {patch.name}")
-        _run(["patch", "-p1", "--forward", "-i", str(patch)], tree, log)
+    log = root / "build.log"
+    unpacked = root / "unpacked"  # the tree is whole and patched
+    if not unpacked.exists():
+        if root.exists():
+            shutil.rmtree(root)  # stopped while unpacking or patching: that is redone
+        root.mkdir(parents=True)
+        progress(f"uml: unpacking {SOURCE_TARBALL} ({version}) into {root}")
+        _run(["tar", "-xf", str(SOURCE_TARBALL)], root, log)
+        for patch in patches():
+            progress(f"uml: applying {patch.name}")
+            _run(["patch", "-p1", "--forward", "-i", str(patch)], tree, log)
+        unpacked.write_text("")
+    else:
+        progress(f"uml: resuming the unfinished build in {root}")
+    configured = root / "configured"
+    if not configured.exists():
+        progress("uml: configuring (defconfig + uml.config)")
+        _run(["make", "ARCH=um", "defconfig"], tree, log)
+        _run(["scripts/kconfig/merge_config.sh", "-m", ".config", str(CONFIG_FRAGMENT)],
+             tree, log)
+        _run(["make", "ARCH=um", "olddefconfig"], tree, log)
+        _check_config(tree / ".config")
+        configured.write_text("")
     jobs = f"-j{os.cpu_count() or 1}"
-    progress("uml: configuring (defconfig + uml.config)")
-    _run(["make", "ARCH=um", "defconfig"], tree, log)
-    _run(["scripts/kconfig/merge_config.sh", "-m", ".config", str(CONFIG_FRAGMENT)], tree, log)
-    _run(["make", "ARCH=um", "olddefconfig"], tree, log)
-    _check_config(tree / ".config")
-    progress("uml: building linux and modules (about 3.5 min on 2 cores)")
-    _run(["make", "ARCH=um", jobs, "linux", "modules"], tree, log, progress)
+    done = sum(1 for _ in tree.rglob("*.o"))
+    left = max(BUILD_OBJECTS - done, 0)
+    progress(f"uml: building linux and modules: about {left:,} files to compile "
+             f"({done:,} already built; about {BUILD_QUIET_S // 60} min on 2 quiet cores "
+             "from nothing)")
+    _run(["make", "ARCH=um", jobs, "linux", "modules"], tree, log, progress,
+         total=left, estimate_s=BUILD_QUIET_S * left / BUILD_OBJECTS)
     _run(["make", "ARCH=um", f"INSTALL_MOD_PATH={kernel.modules_root}", "modules_install"],
          tree, log)
     facts = {

@@ -8,7 +8,7 @@
  * Parameters: bus (the adapter number), gpio_base (the global number of line 0 of the
  * GPIO controller), addr[] and line[] (one GPIO line per address; -1 for none), name (the
  * I2C device name the driver matches, "bmg160" unless given: a user's own driver's name).
- * Part of bmg160-emu (bmg160_emu/linux/guest/kmod.py builds it; docs/virtio-i2c.md).
+ * Part of bmg160-emu (bmg160_emu/linux/guest/debian_modules.py and uml_build.py build it; docs/virtio-i2c.md).
  */
 #include <linux/gpio.h>
 #include <linux/i2c.h>

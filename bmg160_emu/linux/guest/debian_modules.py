@@ -2,9 +2,9 @@
 the content of their sources.
 
 Two kinds. The **bundled** set fills what Debian's 6.1 configuration leaves out
-(linux-kernel-notes.md): ``i2c-virtio`` (with ``kmod/i2c-virtio-wait.patch``: the 6.1 driver
+(linux-kernel-notes.md): ``i2c-virtio`` (with ``module_sources/i2c-virtio-wait.patch``: the 6.1 driver
 waits interruptibly, and a signal then frees requests the device still owns: slab
-corruption), ``gpio-virtio`` (with ``kmod/gpio-virtio-force-irq.patch``: QEMU 7.2's
+corruption), ``gpio-virtio`` (with ``module_sources/gpio-virtio-force-irq.patch``: QEMU 7.2's
 vhost-user-gpio-pci never offers VIRTIO_GPIO_F_IRQ), the IIO software triggers
 (``industrialio-sw-trigger``, ``industrialio-configfs``, ``iio-trig-hrtimer``) and our
 ``bmg160-board`` (a bmg160 client with its IRQ). Sources come from ``linux-source-6.1`` of
@@ -29,10 +29,11 @@ from bmg160_emu.linux.guest.debian import (
     source_tarball,
 )
 from bmg160_emu.linux.guest.engine import EngineError, Progress
+from bmg160_emu.linux.guest.user_modules import keep_modules, module_sources
 
-KMOD = Path(__file__).resolve().parent / "kmod"
-PATCHES = (KMOD / "gpio-virtio-force-irq.patch", KMOD / "i2c-virtio-wait.patch")
-BOARD = KMOD / "bmg160-board.c"
+MODULE_SOURCES = Path(__file__).resolve().parent / "module_sources"
+PATCHES = (MODULE_SOURCES / "gpio-virtio-force-irq.patch", MODULE_SOURCES / "i2c-virtio-wait.patch")
+BOARD = MODULE_SOURCES / "bmg160-board.c"
 
 # source file in linux-source-6.1 -> module name
 SOURCES = {
@@ -124,22 +125,6 @@ def build_bundled(cache: Path | None = None, progress: Progress = lambda _: None
     return out
 
 
-BUILD_PRODUCTS = {".ko", ".o", ".cmd", ".mod", ".order", ".symvers"}  # what kbuild leaves
-
-
-def module_sources(path: Path) -> list[Path]:
-    """A user's module as given (``--module``): [the file] for a ``.ko``, else the source files
-    of its folder (which must hold a Kbuild or Makefile), build products left out: what a
-    build is cached by. EngineError for anything else, in one line naming the path."""
-    if path.is_file():
-        if path.suffix != ".ko":
-            raise EngineError(f"{path}: a module is a .ko file or a folder with a Kbuild file")
-        return [path.resolve()]
-    if not (path / "Kbuild").is_file() and not (path / "Makefile").is_file():
-        raise EngineError(f"{path}: no Kbuild (or Makefile) file: not a module source folder")
-    return sorted(p for p in path.rglob("*") if p.is_file() and p.suffix not in BUILD_PRODUCTS)
-
-
 def user_module(path: Path, cache: Path | None = None,
                 progress: Progress = lambda _: None) -> list[Path]:
     """The ``.ko`` files of a user's module: ``path`` itself, or what its source folder
@@ -163,15 +148,3 @@ def user_module(path: Path, cache: Path | None = None,
         shutil.copytree(path, build, ignore=shutil.ignore_patterns("*.o", "*.ko", ".*.cmd"))
         _make(kernel, tree, build)
         return keep_modules(build, out, path)
-
-
-def keep_modules(build: Path, out: Path, path: Path) -> list[Path]:
-    """The ``.ko`` files a build of ``path`` made in ``build``, copied into the cache folder
-    ``out`` (what later calls find); EngineError when it made none."""
-    made = sorted(build.rglob("*.ko"))
-    if not made:
-        raise EngineError(f"building {path} made no .ko file (is obj-m set in Kbuild?)")
-    out.mkdir(parents=True, exist_ok=True)
-    for ko in made:
-        shutil.copy2(ko, out / ko.name)
-    return sorted(out.glob("*.ko"))

@@ -1,0 +1,177 @@
+"""How a record's output stage enters its identification (issue 37): the stage is read on the
+PSD, the Allan fit is made through it, and the profile carries it so that generate
+reproduces the record sample statistic for sample statistic.
+
+1. The PSD (Welch, segments of 4096 samples or n/16: 0.024 Hz at 100 Hz) shows the stage:
+   the broadband response, the bands and the lines (output_response.find_output_stage).
+2. A first Allan fit: white noise through the broadband response, the bands' Allan variance
+   known (their autocovariance through the response), the lines known; from the first tau
+   where the bands hold under BAND_SHARE of the white term's Allan variance (below it a
+   small misfit of a band's shape, which a million samples resolve to 0.1 %, would bend N).
+   It gives the slow terms.
+3. The whole fast shape (output_response.fit_fast_shape): the PSD from rate/300 up less the
+   slow terms' spectrum, bands included, as one measured response; the final Allan fit is
+   white noise through it, with the slow terms and lines, from the first tau. Twice: the
+   slow terms of the second fit refine the shape's low end.
+
+Why the bands go into the shape for the record's own rate: a band's shape is what the
+sensor's mechanics make it (the shared ADIS16405's z band is skewed, its wings reach 6 Hz
+each side); resonators follow it to a few per cent, the measured shape exactly. The
+resonators (centre, width, B) are carried beside it for the chip, which draws them before
+its own filter at any output data rate (docs/noise-engine.md).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from bmg160_emu.noise.allan import AllanCurve
+from bmg160_emu.noise.estimate import Estimate
+from bmg160_emu.noise.fit import CurveFit
+from bmg160_emu.noise.output_response import (
+    OutputResponse,
+    SpectralFindings,
+    bands_autocovariance,
+    find_output_stage,
+    fit_fast_shape,
+)
+from bmg160_emu.noise.spectrum import gauss_markov_psd, one_sided_psd, random_walk_psd
+
+FAMILY_ACF = 0.01  # a Butterworth within this of the measured autocorrelation (lags 1-5) is it
+BAND_SHARE = 0.25  # of the white term's Allan variance: where the first fit starts
+STAGE_SEGMENT = 4096  # samples per Welch segment of the stage's PSD (0.024 Hz at 100 Hz)
+SHAPE_PASSES = 2
+FLAT = "flat"  # fit_through_stage's answer for a record whose PSD shows no stage
+MIN_SEGMENTS = 16  # Welch segments below which the PSD cannot tell a shape (the firmware's
+# 6 s capture: 8 segments of 256 read a spurious shape that took N 22 % low)
+
+
+@dataclass
+class RecordStage:
+    """The output stage identified on one axis."""
+
+    findings: SpectralFindings  # broadband response, bands, lines (A, f, half-width)
+    response: OutputResponse  # the whole fast shape, bands included, at the record's rate
+    lsb_dps: float | None
+    # the family that fits where one does: a Butterworth (output_stage.FilterFit) whose
+    # autocorrelation is the measured one's within FAMILY_ACF, no band: the profile carries it
+    # (a corner in Hz holds at any rate); None: the measured response
+    family: Any = None
+
+    @property
+    def carries_response(self) -> bool:
+        return self.family is None and self.response.order > 0
+
+    @property
+    def sines(self) -> tuple[tuple[Estimate, float], ...]:
+        """The lines as the fit takes them: (amplitude with its 95 % interval, Hz)."""
+        return tuple((Estimate(a, max(a - h, 0.0), a + h, "deg/s"), f)
+                     for a, f, h in self.findings.lines)
+
+    def sine_terms(self) -> tuple[tuple[float, float], ...]:
+        """The lines as the generator draws them, before the response: A / |H(f)|."""
+        out = []
+        for amplitude, frequency, _ in self.findings.lines:
+            gain = float(self.response.power(np.array([frequency]))[0])
+            out.append((amplitude / math.sqrt(max(gain, 1e-6)), frequency))
+        return tuple(out)
+
+    def band_terms(self) -> tuple[tuple[float, float, float], ...]:
+        """Every resonator of every band: (centre Hz, width Hz, B deg/s)."""
+        return tuple((r.f0_hz, r.width_hz, r.B) for b in self.findings.bands
+                     for r in b.resonances)
+
+
+def stage_spectrum(x: np.ndarray, rate_hz: float):
+    """The Welch PSD the stage is read on, and its number of half-overlapping segments."""
+    n = x.shape[0]
+    segment = int(min(STAGE_SEGMENT, max(256, 2 ** int(math.log2(max(n // 16, 256))))))
+    spectrum = one_sided_psd(x, rate_hz, segment)
+    segments = max((n - segment) / (segment - segment // 2) + 1, 1.0)
+    return spectrum, segments
+
+
+def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps: float | None,
+                      fit: Callable[..., CurveFit], tau_max: float | None, fine: Any = None
+                      ) -> tuple[CurveFit, RecordStage, list[str]] | str | None:
+    """The final Allan fit through the record's output stage, the stage, and notes; FLAT
+    when the PSD shows no stage (flat, no band: the caller fits white noise, no filter
+    searched), None when the record is too short to tell (the caller's former route).
+    ``fit(tau_range, **stage options)`` is the identification's fit method; ``fine``, the
+    record's long-segment PSD (spectrum.one_sided_psd), locates lines to its finer bins
+    (output_stage.find_lines: A and f of a 1.3 Hz line to 10 % and 0.003 Hz on 20 min)."""
+    spectrum, segments = stage_spectrum(x, rate_hz)
+    if segments < MIN_SEGMENTS:
+        return None
+    f, psd = spectrum.frequency_hz, spectrum.psd
+    found = find_output_stage(f, psd, segments, rate_hz, lsb_dps)
+    if fine is not None:
+        from bmg160_emu.noise.output_stage import find_lines
+
+        step = fine.segment_samples - fine.segment_samples // 2
+        count = max((x.shape[0] - fine.segment_samples) / step + 1, 1.0)
+        spans = [(b.centre_hz - 4.0 * b.width_hz, b.centre_hz + 4.0 * b.width_hz)
+                 for b in found.bands]
+        found.lines = [
+            (line.amplitude.value, line.frequency_hz,
+             line.amplitude.ci_high - line.amplitude.value)
+            for line in find_lines(fine, rate_hz, count)
+            if line.frequency_hz >= rate_hz / 100.0
+            and not any(lo <= line.frequency_hz <= hi for lo, hi in spans)]
+    if found.response.order == 0 and not found.bands:
+        return FLAT
+    stage = RecordStage(found, found.response, lsb_dps)
+    sines = stage.sines
+    if not found.bands and found.response.order > 0:
+        from bmg160_emu.noise.output_stage import fit_filter_psd
+
+        butterworth = fit_filter_psd(spectrum, rate_hz, lsb_dps)
+        if butterworth is not None:
+            stats = butterworth.design.white_stats()
+            measured = found.response.autocovariance()
+            measured = np.r_[measured, np.zeros(6)] / measured[0]
+            gap = max(abs(stats.correlation(k) - measured[k]) for k in range(1, 6))
+            if gap < FAMILY_ACF:
+                stage.family = butterworth
+                final = fit((None, tau_max), output_filter=butterworth, sines=sines,
+                            lsb_dps=lsb_dps)
+                return final, stage, [(f"the measured output response is that filter "
+                                       f"(autocorrelation at lags 1-5 within {gap:.3f}): the "
+                                       "profile carries it")]
+    known = None
+    start = None
+    if found.bands:
+        acov = bands_autocovariance(found.bands, found.response, rate_hz)
+        from bmg160_emu.noise.butterworth import WhiteThroughFilter
+
+        bands_stats = WhiteThroughFilter(acov)
+
+        def known(tau: np.ndarray) -> np.ndarray:
+            m = np.maximum(np.rint(np.asarray(tau, dtype=float) * rate_hz), 1)
+            return bands_stats.avar_unit(m.astype(np.int64))
+
+        share = known(curve.taus) / (found.response.white_avar_unit(curve.taus)
+                                      * found.N_psd**2)
+        below = np.flatnonzero(share < BAND_SHARE)
+        start = float(curve.taus[below[0]]) if below.size else None
+    first = fit((start, tau_max), response=found.response, known_avar=known, sines=sines,
+                lsb_dps=lsb_dps)
+    current = first
+    for _ in range(SHAPE_PASSES):
+        slow = random_walk_psd(current.K.value, f) + sum(
+            (gauss_markov_psd(B, T, f) for B, T in current.gauss_markov_terms()),
+            np.zeros(f.size))
+        response, _level = fit_fast_shape(f, psd, segments, rate_hz, lsb_dps, slow,
+                                          found.lines)
+        current = fit((None, tau_max), response=response, sines=sines, lsb_dps=lsb_dps)
+    stage.response = response
+    notes = []
+    if found.bands:
+        notes.append("the bands are drawn inside the measured response at the record's rate "
+                     "(generate); the chip draws their resonators before its own filter")
+    return current, stage, notes

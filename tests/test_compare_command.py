@@ -1,0 +1,78 @@
+"""bmg160-emu compare (issue 37): a recording against the spread of a profile's emulated
+records. It passes the profile identify writes for the recording and fails a profile that is
+wrong (the recording's resonant band dropped), by the figures it names."""
+
+import json
+
+import numpy as np
+import pytest
+
+from bmg160_emu.cli import main
+from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile, write_profile
+
+# white noise with a band at 15 Hz holding 0.0036 / (0.0036 + 0.04) = 8 % of the variance,
+# and a two-sample average at the output, 20 min at 100 Hz (the stage is the subject here)
+TRUTH = AxisNoise(N=0.02, B=0.0, T=0.0, K=0.0, bias=0.1, band=((15.0, 1.0, 0.06),),
+                  response=(0.5, 0.25))
+SEEDS = "8"  # 8 records: the forward and reverse ADEV figures on 7 octave taus each
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    from bmg160_emu.noise.sensor_noise import profile_noise
+
+    folder = tmp_path_factory.mktemp("compare")
+    # the recording: the truth's sensing element with its band, through the average (the
+    # response applied by generate's path, the band then drawn by the engine explicitly)
+    no_response = Profile("t", *(AxisNoise(**{**TRUTH.__dict__, "response": ()}),) * 3)
+    data = profile_noise(no_response, 100.0, seed=77).generate(120_000)
+    data = np.vstack([data[:1], (data[1:] + data[:-1]) / 2.0])
+    path = folder / "rec.npy"
+    np.save(path, data)
+    return folder, path
+
+
+def _compare(capsys, *args):
+    code = main(["compare", *map(str, args), "--rate", "100", "--seeds", SEEDS, "--json"])
+    return code, json.loads(capsys.readouterr().out)
+
+
+def test_the_identified_profile_passes(recording, capsys):
+    folder, path = recording
+    profile = folder / "identified.toml"
+    assert main(["identify", str(path), "--rate", "100", "--profile-out", str(profile)]) == 0
+    capsys.readouterr()
+    code, report = _compare(capsys, path, profile)
+    for axis in report["axes"].values():
+        assert abs(axis["std_ratio"] - 1) < 0.03
+        lags = np.abs(np.array(axis["autocorrelation_emulated"][:5])
+                      - np.array(axis["autocorrelation_recorded"][:5]))
+        assert lags.max() < 0.05
+    assert code == 0, report
+
+
+def test_dropping_the_band_fails(recording, capsys, tmp_path):
+    _, path = recording
+    wrong = AxisNoise(**{**TRUTH.__dict__, "band": ()})
+    profile = tmp_path / "wrong.toml"
+    write_profile(Profile("wrong", wrong, wrong, wrong, output=OutputStage(rate_hz=100.0)),
+                  profile)
+    code, report = _compare(capsys, path, profile)
+    assert code == 1 and report["passed"] is False
+    for axis in report["axes"].values():  # the band's 8 % of the variance: std 4 % low
+        assert axis["checks"]["std"]["passed"] is False and axis["std_ratio"] < 0.97
+        assert axis["checks"]["psd"]["passed"] is False
+
+
+def test_figure_and_bad_input(recording, capsys, tmp_path):
+    _, path = recording
+    figure = tmp_path / "v.png"
+    assert main(["compare", str(path), "paper", "--rate", "100", "--seeds", "2",
+                 "--figure", str(figure)]) == 1
+    assert figure.stat().st_size > 10_000
+    assert main(["compare", str(path), "paper", "--rate", "100", "--figure",
+                 str(tmp_path / "v.txt")]) == 2
+    assert "--figure must end in .png or .svg" in capsys.readouterr().err
+    assert main(["compare", str(tmp_path / "missing.npy"), "paper", "--rate", "100"]) == 2
+    assert main(["compare", str(path), "paper", "--rate", "50"]) == 2
+    assert "not an output data rate" in capsys.readouterr().err
