@@ -320,16 +320,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 READING_NOTE_BYTES = 20_000_000  # files from this size get a line before and after reading
-VERDICT_BUDGET_S = 60.0  # the verdict after --profile-out takes at most about this long
+# The verdict after --profile-out emulates at most this many samples per axis in all (its
+# records times the record's length): about 30 s on two cores at load 1 (1.5 us a sample for
+# three axes at load 7, tools: compare_profile timed on a 1e6-sample record). A count of
+# samples, not a timing, so the same record gives the same verdict on every host.
+VERDICT_SAMPLES = 20_000_000
 VERDICT_MIN_SEEDS = 5  # fewer emulated records say too little: the verdict is left out
 
 
 def _verdict(args: argparse.Namespace, record, result):
     """The verdict of the identified profile against the record (noise.verdict), with as
-    many of --verdict-seeds as fit in VERDICT_BUDGET_S (one record timed first), or None
-    with a line saying why and how to get it."""
-    import time
-
+    many of --verdict-seeds as VERDICT_SAMPLES allows, or None with a line saying why and
+    how to get it."""
     from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
     from bmg160_emu.noise.verdict import compare_profile
 
@@ -339,21 +341,18 @@ def _verdict(args: argparse.Namespace, record, result):
               "an output data rate the generator draws (100, 200, 400, 1000, 2000 Hz)",
               file=sys.stderr)
         return None
-    profile = result.to_profile(args.profile_out.stem if args.profile_out else "identified")
-    names = tuple(a.axis for a in result.axes)
-    started = time.perf_counter()
-    compare_profile(record.rate_dps[: min(record.rate_dps.shape[0], 1 << 16)], record.rate_hz,
-                    profile, 1, names)
-    per_seed = (time.perf_counter() - started) * max(record.rate_dps.shape[0] / (1 << 16), 1.0)
-    seeds = min(args.verdict_seeds, int(VERDICT_BUDGET_S / max(per_seed, 1e-9)))
+    samples = int(record.rate_dps.shape[0])
+    seeds = min(args.verdict_seeds, VERDICT_SAMPLES // max(samples, 1))
     if seeds < VERDICT_MIN_SEEDS and not args.compare:
-        print(f"bmg160-emu identify: no verdict: {VERDICT_MIN_SEEDS} emulated records would "
-              f"take about {VERDICT_MIN_SEEDS * per_seed:.0f} s; run `{how} --seeds N`",
-              file=sys.stderr)
+        print(f"bmg160-emu identify: no verdict: {VERDICT_MIN_SEEDS} emulated records of "
+              f"{samples:,} samples are more than the {VERDICT_SAMPLES:,} samples identify "
+              f"spends on it; run `{how} --seeds N`", file=sys.stderr)
         return None
     seeds = max(seeds, VERDICT_MIN_SEEDS)
-    print(f"bmg160-emu identify: verdict over {seeds} emulated records (about "
-          f"{seeds * per_seed:.0f} s; `{how}` gives more) ...", file=sys.stderr, flush=True)
+    profile = result.to_profile(args.profile_out.stem if args.profile_out else "identified")
+    names = tuple(a.axis for a in result.axes)
+    print(f"bmg160-emu identify: verdict over {seeds} emulated records "
+          f"(`{how}` gives more) ...", file=sys.stderr, flush=True)
     return compare_profile(record.rate_dps, record.rate_hz, profile, seeds, names)
 
 
