@@ -134,3 +134,33 @@ def test_legal_values_under_a_1_gib_memory_cap_refuse_by_a_figure_or_stream(capp
     assert not outcome.broken, f"{capped.name}: {outcome.kind}: {outcome.detail}"
     if outcome.kind == "error":
         assert "of memory" in outcome.detail or "free" in outcome.detail, outcome.detail
+
+
+def test_a_recording_whose_npz_member_fails_its_crc_is_one_line(tmp_path):
+    # found by the campaign of 2026-12-06 (tools/fuzz.py --cli, seed 400027): a flipped bit
+    # in the metadata member of an NPZ recording made io.partial's check raise zipfile's
+    # BadZipFile ("Bad CRC-32") through identify and replay as a traceback
+    import zipfile
+
+    from _fuzz_cli import cli_seed_folder
+
+    source = cli_seed_folder() / "long" / "recording.npz"
+    damaged = tmp_path / "recording.npz"
+    with zipfile.ZipFile(source) as zin, zipfile.ZipFile(damaged, "w") as zout:
+        for item in zin.infolist():
+            data = zin.read(item.filename)
+            zout.writestr(item, data)
+    raw = bytearray(damaged.read_bytes())
+    with zipfile.ZipFile(damaged) as z:
+        info = z.getinfo("metadata.npy")
+    start = info.header_offset + 30 + len(info.filename) + len(info.extra)
+    raw[start + info.compress_size // 2] ^= 0x01  # inside the member: its CRC fails
+    damaged.write_bytes(bytes(raw))
+    from bmg160_emu.io.partial import partial_note
+
+    assert partial_note(damaged) is None  # the reader's to refuse, not a crash here
+    for argv in (["identify", str(damaged), "--poles", "1"],
+                 ["replay", str(damaged), "--script", str(cli_seed_folder() / "short.script"),
+                  "--seed", "1"]):
+        outcome = run_in_process(argv)
+        assert not outcome.broken, outcome

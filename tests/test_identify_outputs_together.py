@@ -43,7 +43,8 @@ def test_a_full_disk_part_way_through_the_figures_leaves_no_folder_and_no_output
 
     monkeypatch.setattr(plots, "save", save_until_full)
     outputs = _outputs(tmp_path)
-    argv = ["identify", str(static_csv), "--poles", "1", "--figures", str(tmp_path / "figs")]
+    argv = ["identify", str(static_csv), "--poles", "1", "--no-verdict", "--figures",
+            str(tmp_path / "figs")]
     for option, path in outputs.items():
         argv += [option, str(path)]
     assert main(argv) == 2
@@ -56,7 +57,8 @@ def test_a_full_disk_part_way_through_the_figures_leaves_no_folder_and_no_output
 def test_an_output_that_fails_as_it_is_put_in_place_takes_the_others_with_it(
         static_csv, tmp_path, capsys):
     outputs = _outputs(tmp_path)
-    argv = ["identify", str(static_csv), "--poles", "1", "--kalibr-out", "/dev/full"]
+    argv = ["identify", str(static_csv), "--poles", "1", "--no-verdict", "--kalibr-out",
+            "/dev/full"]
     for option, path in outputs.items():
         if option != "--kalibr-out":
             argv += [option, str(path)]
@@ -80,7 +82,7 @@ def test_a_signal_while_the_outputs_are_written_leaves_none_and_says_so(
 
     monkeypatch.setattr(interop, "matlab_gyroparams", matlab_then_signal)
     outputs = _outputs(tmp_path)
-    argv = ["identify", str(static_csv), "--poles", "1"]
+    argv = ["identify", str(static_csv), "--poles", "1", "--no-verdict"]
     for option, path in outputs.items():
         argv += [option, str(path)]
     assert main(argv) == 130

@@ -22,6 +22,8 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import zipfile
+import zlib
 from pathlib import Path
 
 __all__ = ["NPY_TRAILER", "clear_sidecar", "npy_trailer", "partial_note", "sidecar_path",
@@ -84,8 +86,8 @@ def partial_note(path: str | os.PathLike[str]) -> str | None:
             return side.read_text(encoding="utf-8").strip() if side.is_file() else None
         if suffix == ".csv":
             return _csv_note(path)
-    except (OSError, ValueError, UnicodeDecodeError):
-        return None
+    except (OSError, ValueError, UnicodeDecodeError, EOFError, zipfile.BadZipFile, zlib.error):
+        return None  # a damaged file (a bad CRC in an NPZ member): its reader's to refuse
     except Exception as exc:  # a format reader's own error (FormatError): not ours to judge
         from bmg160_emu.io.errors import FormatError
 
@@ -136,9 +138,9 @@ def _npy_note(path: Path) -> str | None:
 
 
 def _npz_note(path: Path) -> str | None:
-    import numpy as np
+    from bmg160_emu.io.array_files import open_npz  # closes the file of a bad archive
 
-    with np.load(path, allow_pickle=False) as archive:
+    with open_npz(path) as archive:
         if "metadata" not in archive.files:
             return None
         meta = json.loads(str(archive["metadata"]))
