@@ -28,6 +28,7 @@ import numpy as np
 from bmg160_emu.durations import duration_text
 from bmg160_emu.noise import diagnostics
 from bmg160_emu.noise.allan import AllanCurve, allan_confidence, noise_alpha_from_slope
+from bmg160_emu.noise.blas_threads import with_one_blas_thread
 from bmg160_emu.noise.fit import CurveFit, FitError, fit_curve
 from bmg160_emu.noise.identification_result import AxisIdentification, Identification
 from bmg160_emu.noise.output_stage import (
@@ -198,6 +199,7 @@ def _fit_curve_axis(
     return fit, reason, notes + _fit_notes(fit, n / rate_hz)
 
 
+@with_one_blas_thread
 def identify_axis(
     rate_dps: np.ndarray,
     rate_hz: float,
@@ -300,6 +302,7 @@ def _curve_from_record(x: np.ndarray, rate_hz: float) -> AllanCurve:
     return overlapping_adev(x, rate_hz, taus="octave")
 
 
+@with_one_blas_thread
 def identify_curve(
     taus_s: np.ndarray,
     adev_dps: np.ndarray,
@@ -494,6 +497,7 @@ def _selection_notes(fit: CurveFit) -> list[str]:
     return [text]
 
 
+@with_one_blas_thread
 def identify(
     rate_dps: np.ndarray,
     rate_hz: float,
