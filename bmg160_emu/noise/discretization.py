@@ -144,5 +144,5 @@ def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoeffic
         bias=axis.bias,
         poles=tuple(poles),
         walk=walk_coefficients(rw_step) if axis.K > 0 else None,
-        bands=tuple(resonance_coefficients(f, w, B, dt) for f, w, B in axis.band),
+        bands=tuple(resonance_coefficients(f, w, B, dt) for f, w, B in axis.resonators),
     )

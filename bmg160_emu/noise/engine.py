@@ -66,9 +66,9 @@ class _AxisStream:
         if axis.sine:  # spawned last: the other streams are those of a profile without it
             children += seed_seq.spawn(1)
             names.append("sine")
-        if axis.band:  # after the sines: a profile without bands draws what it drew before
-            children += seed_seq.spawn(len(axis.band))
-            names += [f"band{i}" for i in range(len(axis.band))]
+        if axis.resonators:  # after the sines: a profile without bands draws what it drew before
+            children += seed_seq.spawn(len(axis.resonators))
+            names += [f"band{i}" for i in range(len(axis.resonators))]
         self.rng = {
             name: np.random.Generator(np.random.PCG64(s)) for name, s in zip(names, children)
         }
@@ -91,7 +91,7 @@ class _AxisStream:
         self.walk = Pole(self.rng["rw"], None) if self.uses["rw"] else None
         # each resonator of a band: a complex Gauss-Markov term (gauss_markov.ResonancePole)
         self.resonators = [ResonancePole(self.rng[f"band{i}"])
-                           for i in range(len(axis.band))]
+                           for i in range(len(axis.resonators))]
         self._all = (self.poles + ([self.walk] if self.walk is not None else [])
                      + list(self.resonators))
         self.quant_prev = float(self.rng["quant"].standard_normal()) if self.uses["quant"] else 0.0

@@ -261,6 +261,8 @@ def identify_axis(
             fit, record_stage, notes = through
             reason = ("every tau fitted: the output filter is part of the white term (the "
                       "measured response is that filter)" if record_stage.family is not None
+                      else "every tau fitted: white noise (the PSD shows no output filter), "
+                      "the slow bands known" if record_stage.response.order == 0
                       else "every tau fitted: white noise through the measured output response "
                       "(the record's whole fast spectrum)")
             notes += _fit_notes(fit, n / rate_hz)
