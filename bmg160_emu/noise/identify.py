@@ -360,7 +360,7 @@ def identify_curve(
         def search(base: CurveFit, fit_range, notes_so_far):
             def fit_with(frequencies: tuple[float, ...]) -> CurveFit:
                 return _fit(method, curve, rate_hz, n_samples, fit_range,
-                            {**options, "poles": len(base.terms) if poles is None else poles,
+                            {**options,
                              "output_filter": base.output_filter, "free_sines": frequencies})
 
             lined, found_notes = find_periodic_terms(fit_with, base, rate_hz, float(taus[-1]))
