@@ -69,7 +69,7 @@ def find_periodic_terms(fit_with: Callable[[tuple[float, ...]], CurveFit], base:
     """The fit with the lines the curve supports (``fit_with(frequencies)`` refits with those
     free lines), and a note per line found."""
     found: tuple[float, ...] = ()
-    best_fit, notes = base, []
+    best_fit = base
     nyquist = rate_hz / 2.0
     lowest = 1.0 / (2.0 * tau_max_s)
     count = int(math.log2(nyquist / lowest) * PER_OCTAVE)
@@ -97,7 +97,7 @@ def find_periodic_terms(fit_with: Callable[[tuple[float, ...]], CurveFit], base:
         gains.append(gain)
         if len(found) > 1:
             best_fit, found = _polish(fit_with, best_fit, found, rate_hz, grid, nyquist)
-    notes = []
+    notes: list[str] = []
     for (amplitude, frequency), gain in zip(best_fit.sines[-len(found):] if found else [], gains):
         notes.append(f"a periodic term on the curve: A = {amplitude.value:.3g} deg/s "
                      f"[{amplitude.ci_low:.3g}, {amplitude.ci_high:.3g}] at {frequency:.4g} Hz "

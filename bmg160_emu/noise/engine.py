@@ -180,7 +180,7 @@ class NoiseGenerator:
     ) -> None:
         self.profile = load_profile(profile)
         self.mode = check_mode(mode)
-        rate = check_rate(rate_hz)
+        rate = check_rate(rate_hz, self._own_rate())
         for other in SUPPORTED_RATES_HZ:  # a profile must run at every rate a driver may set
             for axis in self.profile.axes:
                 axis_coefficients(axis, other, self.mode)
@@ -262,13 +262,19 @@ class NoiseGenerator:
             self._k += rest
         return out, post
 
+    def _own_rate(self) -> float | None:
+        """The rate the profile was identified at (physical mode: its terms scale with dt at
+        any rate; the paper's constants are of 200 Hz), beside the BMG160's ODRs."""
+        output = self.profile.output
+        return output.rate_hz if output is not None and self.mode == "physical" else None
+
     def set_rate(self, rate_hz: float) -> None:
         """Continue the same realisation at another output data rate.
 
         The Gauss-Markov and random-walk states of the last sample handed out carry over; the
         coefficients (white std, alpha, gains) change from the next sample on.
         """
-        rate = check_rate(rate_hz)
+        rate = check_rate(rate_hz, self._own_rate())
         if rate == self._rate_hz:
             return
         # coefficients first: if the profile cannot run at this rate, nothing has changed

@@ -248,7 +248,11 @@ class Identification:
         steps = [a.lsb_dps for a in self.axes if a.lsb_dps]
         measured = any(a.stage is not None and a.stage.carries_response for a in self.axes)
         if not filters and not steps and not measured:
-            return None
+            from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
+
+            # a rate the BMG160 does not offer: the profile still runs at the record's own
+            return (None if self.rate_hz in SUPPORTED_RATES_HZ
+                    else OutputStage(rate_hz=self.rate_hz))
         order = corner = None
         if filters:
             order = Counter(f.order for f in filters).most_common(1)[0][0]
