@@ -67,14 +67,17 @@ def spoken_duration(seconds: float) -> str:
 class Progress:
     """The progress of one command's long work on ``stream`` (default stderr).
 
-    ``label`` starts every line (``bmg160-emu montecarlo``). ``terminal`` None asks the
+    ``label`` starts every line (``bmg160-emu montecarlo``); ``on_stop`` says what a ^C
+    keeps, after a long estimate. ``terminal`` None asks the
     stream (``isatty()``); ``enabled`` False draws nothing on a terminal (``--no-progress``)
     but still says a long estimate, True draws even where the stream is not a terminal
     (``--progress``)."""
 
     def __init__(self, label: str, *, stream: Stream | None = None, terminal: bool | None = None,
-                 enabled: bool | None = None, clock: Callable[[], float] = time.monotonic) -> None:
+                 enabled: bool | None = None, clock: Callable[[], float] = time.monotonic,
+                 on_stop: str = "^C stops it and keeps what is finished") -> None:
         self.label = label
+        self.on_stop = on_stop  # what a stop keeps, said with a long estimate
         self.stream: Stream = stream if stream is not None else sys.stderr
         if terminal is None:
             isatty = getattr(self.stream, "isatty", None)
@@ -93,6 +96,28 @@ class Progress:
         stage = self.start(total, unit, what)
         try:
             yield stage.update
+        finally:
+            stage.close()
+
+    @contextmanager
+    def beside(self, total: int, unit: str, print_line: Callable[[str], None]
+               ) -> Iterator[tuple[Update, Callable[[str], None]]]:
+        """A stage whose command prints lines of its own to the same terminal (demo's
+        table on stdout): yields ``update(done)`` and ``say(line)``, which takes the
+        progress line off the terminal, prints the command's line and puts the progress
+        line back under it, so that neither garbles the other."""
+        stage = self.start(total, unit)
+
+        def say(line: str) -> None:
+            drawn = stage.drawn_at >= 0 and not stage.closed
+            if drawn:
+                self._write("\r\x1b[K")
+            print_line(line)
+            if drawn:
+                self._write(stage._line(self.clock() - stage.started))
+
+        try:
+            yield stage.update, say
         finally:
             stage.close()
 
@@ -142,7 +167,7 @@ class _Stage:
                 self.owner._write(
                     f"{self.owner.label}: about {spoken_duration(whole)} for {self.what}, "
                     f"from the first {spoken_duration(elapsed)} on this machine; "
-                    "^C stops it and keeps what is finished\n")
+                    f"{self.owner.on_stop}\n")
         if self.owner.draw and self.owner.terminal:
             if elapsed >= SHOW_AFTER_S and (self.drawn_at < 0 or now - self.drawn_at >= REDRAW_S):
                 self.drawn_at = now

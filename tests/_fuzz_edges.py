@@ -322,6 +322,7 @@ class Capped:
     name: str
     argv: tuple[str, ...]
     may_stream: bool = False  # still running at the deadline, without error, is fine
+    needs: tuple[str, ...] = ()  # programs it needs on PATH (skipped without them)
 
 
 CAPPED = (
@@ -340,6 +341,9 @@ CAPPED = (
            may_stream=True),
     Capped("script, advance 720h", ("script", "{tmp}/month.script", "-q", "--seed", "1"),
            may_stream=True),
+    Capped("firmware capture, 30 days", ("firmware", "capture", "--duration", "30d", "-o",
+                                         "{tmp}/month.txt"), may_stream=True,
+           needs=("avr-gcc", "simavr")),
 )
 LONG_GRID = 'duration_s = 86400.0\n[[motion]]\nkind = "rest"\n[readout]\ngrid_s = 0.01\n'
 MONTH_SCRIPT = "write BW 0x01\nadvance 720h\nread CHIP_ID == 0x0F\n"

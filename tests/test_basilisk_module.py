@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 import pytest
@@ -204,3 +205,51 @@ def test_the_rate_inputs_give_the_same_counts_and_truth():
         assert np.array_equal(seen["queue"][2], seen[other][2])
     with pytest.raises(ValueError, match="rate_input"):
         EmulatedGyro(rate_input="push")
+
+
+class ThreadStateProbe(sysModel.SysModel):
+    """Per step: did a ``threading.local`` value set at the previous step survive (the
+    Python thread state lasted between Basilisk's calls), and which OS thread called."""
+
+    def __init__(self):
+        super().__init__()
+        self.local = threading.local()
+        self.survived: list[bool] = []
+        self.threads: set[int] = set()
+
+    def UpdateState(self, CurrentSimNanos):
+        self.survived.append(getattr(self.local, "mark", False))
+        self.local.mark = True
+        self.threads.add(threading.get_native_id())
+
+
+def test_the_simulation_thread_keeps_its_python_thread_state():
+    # Basilisk calls Python modules from a C++ thread of its own, and CPython makes a thread
+    # state for each such call (8 us a module and step): EmulatedGyro keeps the one it runs
+    # in, so from its second step on every module of the task finds the same state
+    def run(with_gyro: bool) -> ThreadStateProbe:
+        sim = SimulationBaseClass.SimBaseClass()
+        sim.CreateNewProcess("p").addTask(sim.CreateNewTask("t", macros.sec2nano(0.005)))
+        probe = ThreadStateProbe()
+        sim.AddModelToTask("t", probe, 10)
+        if with_gyro:
+            gyro = EmulatedGyro([GyroSpec(noise=False)], record_truth=False, publish=False)
+            sc = spacecraft.Spacecraft()
+            sim.AddModelToTask("t", sc, 100)
+            gyro.scStateInMsg.subscribeTo(sc.scStateOutMsg)
+            sim.AddModelToTask("t", gyro, 50)
+        sim.InitializeSimulation()
+        sim.ConfigureStopTime(macros.sec2nano(0.1))
+        sim.ExecuteSimulation()
+        return probe
+
+    alone = run(with_gyro=False)
+    if any(alone.survived):
+        pytest.skip("this Basilisk keeps Python thread states itself: nothing to keep")
+    assert threading.get_native_id() not in alone.threads  # Basilisk's own thread
+    kept = run(with_gyro=True)
+    assert len(kept.threads) == 1 and threading.get_native_id() not in kept.threads
+    # step 1 starts with nothing set; the gyro keeps the state from its second step on,
+    # so the probe's mark survives from its third step
+    assert kept.survived[:2] == [False, False] and all(kept.survived[2:])
+    assert len(kept.survived) == 21

@@ -3,6 +3,8 @@
 import subprocess
 import sys
 
+import pytest
+
 from bmg160_emu import cli
 
 
@@ -33,3 +35,27 @@ def test_a_reader_closing_the_pipe_ends_the_command_quietly():
     assert proc.stdout.startswith("BMG160 at 0x68")
     assert "error" not in proc.stderr.lower()
     assert "Traceback" not in proc.stderr
+
+
+def test_help_names_a_command_s_options_and_refuses_an_unknown_one(capsys):
+    # issue 35: there was no help subcommand
+    from bmg160_emu.cli import main
+
+    assert main(["help", "record"]) == 0
+    assert "usage: bmg160-emu record" in capsys.readouterr().out
+    assert main(["help"]) == 0
+    assert "bmg160-emu help COMMAND" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:
+        main(["help", "recrod"])
+    assert exc.value.code == 2 and "no command 'recrod'" in capsys.readouterr().err
+
+
+def test_a_mistyped_option_is_told_with_the_command_s_usage(capsys):
+    # issue 35: `demo --sed 3` printed the top-level usage
+    from bmg160_emu.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["demo", "--sed", "3"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2
+    assert err.startswith("usage: bmg160-emu demo") and "unrecognized arguments: --sed 3" in err

@@ -103,3 +103,25 @@ def test_a_sensor_at_its_own_rate_is_generated_and_compared_there(tmp_path, caps
         NoiseGenerator(str(profile), rate_hz=300.0)
     with pytest.raises(ValueError, match="BMG160 offers"):
         NoiseGenerator(str(profile), rate_hz=250.0, mode="paper")
+
+
+def test_identify_sizes_its_verdict_by_samples_not_by_the_clock(recording, capsys, tmp_path,
+                                                                 monkeypatch):
+    # the number of emulated records follows from the record's length alone, so the same
+    # record gives the same verdict (and the same JSON) on a fast host and a loaded one
+    from bmg160_emu.commands import identify
+
+    _, path = recording
+    samples = 120_000
+    profile = tmp_path / "p.toml"
+    args = ["identify", str(path), "--rate", "100", "--profile-out", str(profile), "--json"]
+    monkeypatch.setattr(identify, "VERDICT_SAMPLES", 6 * samples + samples // 2)
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["verdict"]["seeds"] == 6
+    assert "verdict over 6 emulated records" in captured.err
+    monkeypatch.setattr(identify, "VERDICT_SAMPLES", 4 * samples)  # under the 5 it needs
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert "verdict" not in json.loads(captured.out)
+    assert "no verdict: 5 emulated records of 120,000 samples" in captured.err

@@ -149,6 +149,8 @@ def test_the_wire_format_round_trips_and_a_stale_response_is_refused():
     assert replies[0] == agent.Reply(0, [b"a\nb"]) and replies[1].status == 22
     with pytest.raises(agent.ProtocolError, match="does not answer request 8"):
         agent.decode(response, 8)
+    with pytest.raises(agent.ProtocolError, match="holds 1 of 2 replies"):
+        agent.decode(b"BGR1 7 2\n0 0\n", 7)  # the agent stopped at a record it could not read
 
 
 @needs_gcc

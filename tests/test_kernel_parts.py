@@ -97,7 +97,7 @@ for spec in bmi055_gyro:0x68 bmi088_gyro:0x69; do
     cat "$IIO/in_anglvel_scale" > "$OUT/scale_$name.txt" 2>&1
     for axis in x y z; do
         j=0
-        while [ $j -lt 12 ]; do cat "$IIO/in_anglvel_${axis}_raw"; sleep 0.05; j=$((j + 1)); done \
+        while [ $j -lt 12 ]; do read -r v < "$IIO/in_anglvel_${axis}_raw"; echo "$v"; sleep 0.05; j=$((j + 1)); done \
             > "$OUT/raw_${name}_$axis.txt" 2>&1
     done
     cat "$IIO/in_temp_raw" > "$OUT/temp_$name.txt" 2>&1

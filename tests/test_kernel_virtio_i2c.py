@@ -22,6 +22,7 @@ import os
 import statistics
 import struct
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -224,27 +225,44 @@ def test_triggered_buffer_with_the_drivers_data_ready_trigger(rates, odr_hz, add
 
 
 def test_any_motion_event_reaches_user_space(rates):
-    """A step of the true rate 0.5 s into the event reader's 3 s (a host event at that
-    instant of the guest's clock in virtual time; after that much wall time in real time)
-    raises the driver's any-motion (rate of change) event."""
+    """A step of the true rate 0.5 s into the event reader's 3 s raises the driver's
+    any-motion (rate of change) event. In virtual time the step is a host event at that
+    instant of the guest's clock; against wall time the host steps it once the reader is
+    ready (its start under TCG takes seconds)."""
     kernel = rates
     device = kernel.iio()
     kernel.set_attr("events/in_anglvel_roc_either_value", 2)
     kernel.set_attr("events/in_anglvel_roc_either_en", 1)
-    kernel.at(0.5, lambda: kernel.chip.set_true_rate((200.0, 0.0, 0.0)))  # a step: any-motion
-    kernel.at(1.5, lambda: kernel.chip.set_true_rate(TRUE_RATE_DPS))
-    # the reader's start on the guest's wall clock (CLOCK_REALTIME, the events' clock)
-    out = kernel.run(f'date +start=%s%N; "$BMG160_PY" {GUEST_FILES / "guest_iio_events.py"} '
-                     f'/dev/{device.rsplit("/")[-1]} 3').stdout
+    reader = f'"$BMG160_PY" {GUEST_FILES / "guest_iio_events.py"} /dev/{device.rsplit("/")[-1]} 3'
+    if kernel.virtual:
+        kernel.at(0.5, lambda: kernel.chip.set_true_rate((200.0, 0.0, 0.0)))
+        kernel.at(1.5, lambda: kernel.chip.set_true_rate(TRUE_RATE_DPS))
+        # the reader's start on the guest's wall clock (CLOCK_REALTIME, the events' clock)
+        out = kernel.run(f"date +start=%s%N; {reader}").stdout
+    else:
+        ready, log = kernel.guest.results / "events.ready", kernel.guest.results / "events.txt"
+        kernel.run(f"{reader} {ready} > {log} 2>&1 &")
+        deadline = time.monotonic() + 60
+        while not ready.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert ready.exists(), "the event reader did not start"
+        time.sleep(0.5)
+        kernel.chip.set_true_rate((200.0, 0.0, 0.0))
+        time.sleep(1.0)
+        kernel.chip.set_true_rate(TRUE_RATE_DPS)
+        kernel.run("sleep 3")
+        out = log.read_text()
     kernel.set_attr("events/in_anglvel_roc_either_en", 0)
-    start_ns = int(out.split("start=")[1].split()[0])
     events = [line for line in out.splitlines() if line.startswith("id=")]
     assert events, out
     # IIO_EV_TYPE_ROC = 2 on IIO_ANGL_VEL = 4 (uapi/linux/iio/types.h)
     assert all("type=2" in e and "chan_type=4" in e for e in events), events
     if kernel.virtual:
-        # In the guest's time the step comes 0.5 s after the reader's start (whose Python
-        # start-up costs no guest time beyond its clock reads), and the any-motion engine
-        # decides within its duration of 4 samples at the driver's 100 Hz (spec 4.17)
+        # In the guest's time the step comes 0.5 s (and at most the 1 ms of one horizon)
+        # after the reader's start, whose Python start-up costs no guest time beyond its
+        # clock reads: no event before it, and one within 10 samples at the driver's 100 Hz
+        # after it (the step through the 32 Hz low-pass, then the any-motion engine's 4
+        # samples, spec 4.17: 50-70 ms seen)
+        start_ns = int(out.split("start=")[1].split()[0])
         first_s = (int(events[0].split("timestamp_ns=")[1].split()[0]) - start_ns) / 1e9
-        assert 0.5 <= first_s <= 0.5 + 0.05, first_s
+        assert 0.5 - 0.001 <= first_s <= 0.5 + 0.1, first_s

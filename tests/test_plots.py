@@ -244,9 +244,10 @@ def test_identify_figures_of_a_firmware_capture_are_written_whole(tmp_path, caps
                      "--seed", "1"]) == 0
     out = capsys.readouterr().out
     names = sorted(p.name for p in folder.iterdir())
-    assert names == sorted(["adev.png", "histogram.png", "psd.png", "timeseries.png"]
-                           + [f"overlay_{k}_{a}.png" for k in ("adev", "psd", "time")
-                              for a in "xyz"])
+    # --compare: the recording over the band of emulated records (compare.png) and one
+    # emulated time series per axis beside the recording's
+    assert names == sorted(["adev.png", "compare.png", "histogram.png", "psd.png",
+                            "timeseries.png"] + [f"overlay_time_{a}.png" for a in "xyz"])
     for name in names:  # each a whole PNG, announced, no temporary file left beside it
         assert (folder / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert f"wrote {folder / name}" in out

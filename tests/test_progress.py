@@ -99,3 +99,47 @@ def test_a_broken_stderr_does_not_stop_the_work():
     (3 * 86400, "3.0 days"), (15 * 86400, "15 days"), (float("inf"), "an unknown time")])
 def test_durations_are_said_as_a_person_says_them(seconds, said):
     assert spoken_duration(seconds) == said
+
+
+def test_an_advance_reported_in_steps_gives_the_same_session():
+    # a script's long advance goes a simulated minute at a time when its progress is shown
+    # (issue 35: `advance 720h` ran for half an hour without a sign): the same samples,
+    # registers and time as one advance, the chip being chunk invariant
+    from bmg160_emu import BMG160
+    from bmg160_emu.session.script import run_script
+
+    text = ("write BW 0x01\nadvance 125.3s\nburst RATE_X_LSB 6\nread FIFO_STATUS\n"
+            "advance 61s\nburst RATE_X_LSB 6\n")
+    sessions = []
+    for progress in (None, Progress("t", stream=io.StringIO(), terminal=False)):
+        lines: list[str] = []
+        chip = BMG160(seed=4)
+        run_script(text, chip, lines.append, progress=progress)
+        sessions.append((lines, chip.time))
+    assert sessions[0] == sessions[1]
+
+
+def test_a_long_advance_tells_its_simulated_minutes():
+    from bmg160_emu import BMG160
+    from bmg160_emu.session.script import run_script
+
+    out = io.StringIO()
+    run_script("advance 150s\n", BMG160(seed=1), lambda line: None,
+               progress=Progress("bmg160-emu script", stream=out, terminal=False, enabled=True))
+    assert "bmg160-emu script: 1/3 simulated minutes (33 %)" in out.getvalue()
+
+
+def test_a_command_s_own_lines_print_above_the_progress_line():
+    # demo's table on stdout and the progress line on stderr share the terminal: each row
+    # takes the progress line off, prints, and puts it back under it
+    clock, err, rows = Clock(), io.StringIO(), []
+    progress = Progress("x", stream=err, terminal=True, clock=clock)
+    with progress.beside(4, "samples", rows.append) as (update, say):
+        for k in range(1, 5):
+            clock.now += 1.0
+            say(f"row {k}")
+            update(k)
+    assert rows == ["row 1", "row 2", "row 3", "row 4"]
+    text = err.getvalue()
+    assert text.count("\r\x1b[K") == 3  # cleared before rows 2, 3, 4 (drawn after row 1)
+    assert text.endswith("x: 4/4 samples (100 %), 4 s so far\x1b[K\n")

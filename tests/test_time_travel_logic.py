@@ -255,3 +255,33 @@ def test_each_data_ready_pulse_is_one_edge_however_often_its_instant_is_looked_a
             fe.add(1, [struct.pack("<H", 0)], [1])
             device.kick(1)
     assert fired == 20
+
+
+def test_a_trigger_on_both_edges_is_also_called_at_the_end_of_each_pulse(gpio_with_agent):
+    """A rising-edge line needs only the sample instants; one on both edges needs the
+    instant each 300 us data-ready pulse ends too (the chip's next_pin_change_ns)."""
+    from bmg160_emu.device.spec_choices import DATA_READY_PULSE_NS
+
+    fe, device, chips, clock, _ = gpio_with_agent
+    chip = chips[0x68]
+    chip.write(0x10, b"\x07")  # ODR 100 Hz
+    chip.write(0x18, b"\x01")  # int1_data
+    chip.write(0x15, b"\x80")  # data_en
+    clock.advance(0.05)
+    _request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_BOTH)
+    edges = []
+    for _ in range(6):
+        head = fe.add(1, [struct.pack("<H", 0)], [1])
+        device.kick(1)
+        due = device.next_event_ns()
+        clock.advance_ns(due - clock.ns)
+        device.fire(clock.ns)
+        if fe.used(1) == [(head, 1)]:
+            edges.append((clock.ns, chip.int1))
+        else:  # (the buffer stays queued for the next one)
+            fe.used(1)
+    rises = [t for t, level in edges if level]
+    falls = [t for t, level in edges if not level]
+    assert len(rises) == 3 and len(falls) == 3  # (armed in a pulse: its end came first)
+    ends = [min(f for f in falls if f > r) - r for r in rises if any(f > r for f in falls)]
+    assert ends == [DATA_READY_PULSE_NS] * 2

@@ -27,7 +27,10 @@ bare simulation with 0, 1 and 3 empty Python modules (what a module costs by its
     python tools/bench_basilisk.py [--duration 30] [--repeat 5] [--breakdown]
 
 With another checkout of the package first on PYTHONPATH (``PYTHONPATH=../old python
-tools/bench_basilisk.py``) it measures that model the same way, for a before/after figure.
+tools/bench_basilisk.py``) it measures that model, with that checkout's example, the same
+way, for a before/after figure (``tools/bench_pair.py`` runs both alternately).
+``--breakdown`` also times the empty modules with the simulation thread's Python state kept
+(``bmg160_emu.adcs.thread_state``, what EmulatedGyro does).
 """
 
 from __future__ import annotations
@@ -42,7 +45,20 @@ from pathlib import Path
 
 import numpy as np
 
-EXAMPLE = Path(__file__).resolve().parent.parent / "examples" / "basilisk_detumble"
+
+def _example() -> Path:
+    """The example of the package being measured: the checkout first on PYTHONPATH (an older
+    model is measured with its own example), else this one's."""
+    import bmg160_emu
+
+    for root in (Path(bmg160_emu.__file__).resolve().parent.parent,
+                 Path(__file__).resolve().parent.parent):
+        if (root / "examples" / "basilisk_detumble").is_dir():
+            return root / "examples" / "basilisk_detumble"
+    raise SystemExit("examples/basilisk_detumble not found")
+
+
+EXAMPLE = _example()
 sys.path.insert(0, str(EXAMPLE))
 
 STEP_S = 0.005
@@ -55,17 +71,24 @@ def _timed(func: Callable[[], None]) -> tuple[float, float]:
     return time.perf_counter() - wall, time.process_time() - cpu
 
 
-def bare_basilisk(duration_s: float, empty_modules: int = 0) -> None:
+def bare_basilisk(duration_s: float, empty_modules: int = 0, keep_state: bool = False) -> None:
     """The spacecraft and wheels alone; with ``empty_modules`` Python modules in the task
-    whose ``UpdateState`` returns at once (what a Python module costs Basilisk by itself)."""
+    whose ``UpdateState`` returns at once (what a Python module costs Basilisk by itself),
+    the first keeping the simulation thread's Python state with ``keep_state``
+    (bmg160_emu.adcs.thread_state, as EmulatedGyro does)."""
     from Basilisk.architecture import sysModel
     from Basilisk.simulation import reactionWheelStateEffector, spacecraft
     from Basilisk.utilities import SimulationBaseClass, macros, simIncludeRW
     from scenario import INERTIA
 
+    keep = None
+    if keep_state:
+        from bmg160_emu.adcs.thread_state import keep_thread_state as keep
+
     class Empty(sysModel.SysModel):
         def UpdateState(self, CurrentSimNanos: int) -> None:
-            pass
+            if keep is not None:
+                keep()
 
         def Reset(self, CurrentSimNanos: int) -> None:
             pass
@@ -188,6 +211,15 @@ def chip_step_costs(n: int, repeat: int) -> dict[str, float]:
     return best
 
 
+def _thread_state_names() -> set[str]:
+    """What bmg160_emu.adcs.thread_state offers (nothing in a model older than issue 36)."""
+    try:
+        from bmg160_emu.adcs import thread_state
+    except ImportError:
+        return set()
+    return set(dir(thread_state))
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
@@ -234,13 +266,20 @@ def main() -> int:
     if args.breakdown:
         parts = breakdown(d, queue)
         print("  loop, every step, CPU per 5 ms step: " + ", ".join(f"{k} {v:.1f} us" for k, v in parts.items()))
-        per_step = {}
-        for n in (0, 1, 3):  # median of repeat runs, CPU time
-            runs = [_timed(lambda n=n: bare_basilisk(d, n))[1] for _ in range(args.repeat)]
-            per_step[n] = statistics.median(runs) / (d / STEP_S) * 1e6
-        print("  Basilisk with empty Python modules, CPU per step: "
-              + ", ".join(f"{n} modules {v:.1f} us" for n, v in per_step.items())
-              + f" ({(per_step[3] - per_step[0]) / 3:.1f} us per module)")
+        kept = "keep_thread_state" in _thread_state_names()
+        shapes = [(0, False), (1, False), (3, False)] + ([(3, True)] if kept else [])
+        runs: dict[tuple[int, bool], list[float]] = {shape: [] for shape in shapes}
+        for _ in range(args.repeat):  # interleaved; median of repeat runs, CPU time
+            for n, keep in shapes:
+                runs[(n, keep)].append(_timed(lambda n=n, keep=keep: bare_basilisk(d, n, keep))[1])
+        us = {shape: statistics.median(v) / (d / STEP_S) * 1e6 for shape, v in runs.items()}
+        line = ("  Basilisk with empty Python modules, CPU per step: "
+                + ", ".join(f"{n} modules {us[(n, False)]:.1f} us" for n in (0, 1, 3))
+                + f" ({(us[(3, False)] - us[(0, False)]) / 3:.1f} us per module)")
+        if kept:
+            line += (f"; 3 modules, the thread state kept: {us[(3, True)]:.1f} us "
+                     f"({(us[(3, True)] - us[(0, False)]) / 3:.1f} us per module)")
+        print(line)
     steps = chip_step_costs(args.steps, args.repeat)
     streamed = f"stream_true_rate {steps['stream_true_rate']:.1f} us, " if "stream_true_rate" in steps else ""
     print(f"  chip step (rate + advance + smbus2 read, thread CPU, best of {args.repeat}): "

@@ -9,7 +9,7 @@ CPU seconds are the pytest process's and all it waited for (the guests, their or
 guards), from ``getrusage(RUSAGE_CHILDREN)``; the host's load average is printed beside.
 Time modes: ``--time virtual`` (the default on uml: time travel) or ``real``.
 
-    python tools/bench_kernel.py [--engine uml] [--time virtual] [--suite] [--repeat 3]
+    python tools/bench_kernel.py [--engine uml] [--time virtual] [--suite] [--repeat 3] [--bare]
 """
 
 from __future__ import annotations
@@ -49,11 +49,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--time", choices=("virtual", "real"), default="virtual")
     parser.add_argument("--suite", action="store_true", help="also time pytest -m kernel")
     parser.add_argument("--repeat", type=int, default=3, help="runs of the single test")
+    parser.add_argument("--bare", action="store_true",
+                        help="the single test without the pytest plugins of other packages "
+                             "(hypothesis's imports cost about 1 s here)")
     args = parser.parse_args(argv)
-    singles = [pytest_run(args.engine, args.time, SINGLE_TEST) for _ in range(args.repeat)]
+    plugins = ["-p", "no:hypothesispytest"] if args.bare else []
+    singles = [pytest_run(args.engine, args.time, *plugins, "--all", SINGLE_TEST)
+               for _ in range(args.repeat)]
     print(f"{args.engine}, {args.time} time; load average {os.getloadavg()[0]:.1f} / "
           f"{os.getloadavg()[1]:.1f} (1 / 5 min) at the end")
-    print(f"  one kernel test with its boot: {statistics.median(w for w, _, _ in singles):.2f} s "
+    label = "one kernel test with its boot" + (" (no hypothesis plugin)" if args.bare else "")
+    print(f"  {label}: {statistics.median(w for w, _, _ in singles):.2f} s "
           f"wall, {statistics.median(c for _, c, _ in singles):.2f} s CPU (median of "
           f"{args.repeat}; {singles[-1][2]})")
     if args.suite:

@@ -5,6 +5,7 @@
     python tools/fuzz.py --cli --examples 200      # the command line (tests/_fuzz_cli.py)
     python tools/fuzz.py --signals --trials 50      # signals at random moments (issue 24)
     python tools/fuzz.py --edges --examples 20      # paths, schedulers, blocks, memory (35)
+    python tools/fuzz.py --full-disk /mnt/small --trials 5   # every writer on a full disk
 
 Each example is a valid file (made by the project's own CLI) with 1-3 random mutations (bit
 flips, truncation, deleted/duplicated spans and lines, numbers replaced by huge, non-finite or
@@ -17,13 +18,15 @@ format and exits 1 if any example broke it; --save writes each breaking file for
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
 from collections import Counter
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "tests"))
 
 from _fuzz_cli import CLI_FORMATS, campaign
 from _fuzz_formats import FORMATS, mutate, try_load
@@ -34,6 +37,8 @@ def main() -> int:
         return signals_main(sys.argv[1:])
     if "--edges" in sys.argv[1:]:
         return edges_main(sys.argv[1:])
+    if "--full-disk" in sys.argv[1:]:
+        return full_disk_main(sys.argv[1:])
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--examples", type=int, default=1000, help="mutated files per format")
     parser.add_argument("--cli", action="store_true",
@@ -105,6 +110,7 @@ def edges_main(argv: list[str]) -> int:
     seeds each: hostile paths on every path option, scheduler strings (1,000 a seed),
     thermal blocks, and the memory-cap commands (``--cap-gib``, 20 s each) once."""
     import random
+    import shutil
 
     from _fuzz_edges import (
         CAPPED,
@@ -159,6 +165,9 @@ def edges_main(argv: list[str]) -> int:
                           if outcome.broken else None)
         if "memory" in kinds:
             for capped in CAPPED:
+                if any(shutil.which(program) is None for program in capped.needs):
+                    print(f"memory: {capped.name}: skipped (needs {', '.join(capped.needs)})")
+                    continue
                 work = tmp / "memory"
                 work.mkdir(exist_ok=True)
                 outcome = run_capped(capped, work, int(args.cap_gib * 2**30), 20.0)
@@ -169,6 +178,125 @@ def edges_main(argv: list[str]) -> int:
     print(f"{sum(counts.values())} runs in {time.monotonic() - started:.0f} s; "
           f"{len(broken)} broke the invariant")
     return 1 if broken else 0
+
+
+def full_disk_main(argv: list[str]) -> int:
+    """``--full-disk DIR``: every command line of the signal suite that writes a file
+    (tests/_fuzz_signals.py), its outputs on DIR, a small file system (a tmpfs of a few MB:
+    ``mount -t tmpfs -o size=4m tmpfs DIR``) filled to leave a seeded number of bytes free
+    (0 to 2 MB). Each run must end with exit 0 and every output complete (equal to a run on
+    a roomy disk), or with one error line and every output as it was before (an earlier
+    version is left in place, to catch one truncated or replaced by a cut file); never a
+    traceback, and no temporary file left."""
+    import random
+    import shutil
+    import subprocess
+
+    from _fuzz_cli import classify
+    from _fuzz_signals import BY_NAME, COMMANDS, prepare, read_output, reference
+
+    parser = argparse.ArgumentParser(prog="fuzz.py --full-disk")
+    parser.add_argument("--full-disk", type=Path, required=True, metavar="DIR",
+                        help="a small file system's mount point (it is filled; its files "
+                        "are removed)")
+    parser.add_argument("--trials", type=int, default=5, help="fill levels per command")
+    parser.add_argument("--first-seed", type=int, default=0)
+    parser.add_argument("--command", action="append", choices=[c.name for c in COMMANDS])
+    args = parser.parse_args(argv)
+    disk: Path = args.full_disk
+    names = args.command or [c.name for c in COMMANDS if not c.server and not c.optional]
+    failures: list[str] = []
+    runs = 0
+    started = time.monotonic()
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            command = BY_NAME[name]
+            roomy = Path(tmp) / name
+            ref = reference(command, roomy)
+            for seed in range(args.first_seed, args.first_seed + args.trials):
+                rng = random.Random(f"{name}{seed}")
+                for child in disk.iterdir():
+                    if child.is_dir():
+                        shutil.rmtree(child)
+                    else:
+                        child.unlink()
+                work = disk / "work"
+                prepare(work)  # the inputs (small) on the disk too
+                previous = {}
+                for output in command.outputs:  # an earlier version, to be left as it was
+                    (work / output).write_bytes(b"earlier version\n")
+                    previous[output] = b"earlier version\n"
+                free = shutil.disk_usage(disk).free
+                leave = rng.choice([0, 0, 512, 4096, rng.randint(0, 2 << 20)])
+                filler = max(free - leave, 0)
+                with (disk / "filler").open("wb") as handle:
+                    while filler > 0:
+                        chunk = min(filler, 1 << 20)
+                        try:
+                            handle.write(b"\0" * chunk)
+                            handle.flush()
+                        except OSError:
+                            break
+                        filler -= chunk
+                runs += 1
+                argv_ = command.line(work)
+                proc = subprocess.run([sys.executable, "-m", "bmg160_emu", *argv_],
+                                      check=False, capture_output=True, text=True, cwd=work,
+                                      timeout=600, env={**os.environ, "PYTHONPATH": str(REPO)})
+                outcome = classify(proc.returncode, proc.stderr)
+                problems = []
+                if outcome.broken:
+                    problems.append(f"{outcome.kind}: {outcome.detail}")
+                for output in command.outputs:
+                    path = work / output
+                    if proc.returncode == 0:
+                        try:
+                            same = _same(_unplaced(read_output(path), work),
+                                         _unplaced(ref.contents[output], roomy))
+                        except Exception as exc:  # noqa: BLE001 - what is looked for
+                            same, problems = False, [*problems, f"{output}: {exc}"]
+                        if not same:
+                            problems.append(f"{output}: exit 0 but not the whole output")
+                    elif (not path.exists() or path.read_bytes() != previous[output]) \
+                            and not (path.exists() and _marked(path)):
+                        problems.append(f"{output}: changed by a run that failed")
+                left = [p.name for p in work.iterdir() if ".part" in p.name]
+                if left:
+                    problems.append(f"temporary files left: {left}")
+                state = "ok" if proc.returncode == 0 else "refused"
+                if problems:
+                    failures.append(f"  {name} seed {seed} (left {leave} bytes): "
+                                    + "; ".join(problems))
+                    print(failures[-1], flush=True)
+                else:
+                    print(f"{name} seed {seed} (left {leave} bytes): {state}", flush=True)
+    print(f"{runs} full-disk runs in {time.monotonic() - started:.0f} s; "
+          f"{len(failures)} failed")
+    return 1 if failures else 0
+
+
+def _unplaced(content: object, folder: Path) -> object:
+    """Text output with its work folder's path (identify names its input) made neutral."""
+    return content.replace(str(folder), "{work}") if isinstance(content, str) else content
+
+
+def _same(kept: object, whole: object) -> bool:
+    import numpy as np
+
+    if isinstance(kept, np.ndarray):
+        return isinstance(whole, np.ndarray) and kept.shape == whole.shape and bool(
+            np.array_equal(kept, whole))
+    return kept == whole
+
+
+def _marked(path: Path) -> bool:
+    """An honest shorter output (io.partial's mark), which a run that stops may leave."""
+    from bmg160_emu.io.partial import partial_note
+
+    try:
+        return partial_note(path) is not None
+    except Exception:  # noqa: BLE001 - an unreadable file is not marked
+        return False
 
 
 if __name__ == "__main__":

@@ -216,7 +216,7 @@ def _run_dask(run: RunFunction, seeds: Sequence[int], progress: Progress,
         if address is None:
             with held_signals():  # a ^C while the workers start is acted on once they have
                 # (Dask's start-up printed a traceback, issue 24)
-                with _sigint_blocked_for_new_threads():
+                with _workers_immune_to_sigint():
                     cluster = LocalCluster(
                         n_workers=workers or os.cpu_count() or 1,
                         threads_per_worker=1,  # CPU-bound Python runs: a process per core
@@ -266,23 +266,38 @@ def _connect(client_type: Any, address: str) -> Any:
 
 
 @contextlib.contextmanager
-def _sigint_blocked_for_new_threads() -> Iterator[None]:
-    """SIGINT blocked in this thread while the local cluster starts, so that the threads Dask
-    starts then (its event loop, and the threads that spawn and respawn the worker
-    processes) and the workers themselves (fork and exec keep the signal mask) never take
-    it: a ^C from the terminal reaches the whole process group, and workers that died of it
-    printed their own tracebacks and WARNINGs while this process was keeping the finished
-    runs. This process owns the shut-down: a SIGINT sent meanwhile waits, pending, and
-    reaches its handler when the block ends (the caller holds it, io.atomic.held_signals)."""
+def _workers_immune_to_sigint() -> Iterator[None]:
+    """The local cluster's workers forked from a fork server that was started with SIGINT
+    ignored: an ignored signal stays ignored across exec, CPython keeps it so at start-up,
+    and the fork server hands its children the disposition it started with, so a worker
+    never takes a SIGINT, from its first instruction on. A ^C at the terminal reaches the
+    whole process group, and workers that died of it printed their own tracebacks (while
+    importing Dask, before any code of ours could run in them) as this process was keeping
+    the finished runs (issue 35); now this process alone owns the shut-down. (A signal mask
+    does not survive multiprocessing's fork and exec: tried, the fork server's was clear.)
+    SIGINT is ignored here only while the fork server's process is made, a fork and an exec
+    (the fork server then imports Dask on its own, in its own time). Where there is no fork
+    server (not POSIX), or one runs already (started by a program before us), the workers
+    start as Dask starts them."""
+    import multiprocessing
+
     if threading.current_thread() is not threading.main_thread() \
-            or not hasattr(signal, "pthread_sigmask"):
+            or "forkserver" not in multiprocessing.get_all_start_methods():
         yield
         return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
+    import dask
+    from distributed.utils import get_mp_context
+
+    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
+        get_mp_context()  # Dask's preload for the fork server: its packages, once
+        from multiprocessing import forkserver
+
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            forkserver.ensure_running()
+        finally:
+            signal.signal(signal.SIGINT, previous if previous is not None else signal.SIG_DFL)
         yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def _shut_down(client: Any, cluster: Any) -> BaseException | None:

@@ -17,7 +17,6 @@ import errno
 import itertools
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from contextlib import ExitStack
 from typing import Any
 
 from bmg160_emu.bus.kernel_abi import (
@@ -450,34 +449,39 @@ class I2CBus:
                     or not 0 <= message.address <= 0x7F):
                 raise os_error(errno.EINVAL)
         chips = {id(c): c for m in messages if (c := self.devices.get(m.address)) is not None}
-        with ExitStack() as stack:  # one transfer: no other thread between its messages
-            for key in sorted(chips):
-                stack.enter_context(chips[key].lock)
-            i = 0
-            try:
-                while i < len(messages):
-                    message = messages[i]
-                    following = messages[i + 1] if i + 1 < len(messages) else None
-                    if (not message.read and message.data and following is not None
-                            and following.read and following.address == message.address):
-                        self._register_read(message, following)  # write, restart, read
-                        i += 2
-                        continue
-                    if message.read:
-                        chip = self._begin(message.address, "i2c_read")
-                        message.data = chip.i2c_read(message.length) if message.length else b""
-                        self._record(chip, message.address, "i2c_read", None, b"", message.data)
-                    else:
-                        data = message.data
-                        register = data[0] if data else None
-                        chip = self._begin(message.address, "i2c_write", register, data[1:])
-                        if data:
-                            chip.i2c_write(data)
-                        self._record(chip, message.address, "i2c_write", register, data[1:])
-                    i += 1
-            except OSError as exc:
-                exc.messages_done = i  # type: ignore[attr-defined]  # those took effect
-                raise
+        # one transfer: no other thread between its messages (the chips' locks held, taken in
+        # one order; acquire and release, not an ExitStack: 2-3 us of a FIFO read)
+        locks = [chips[key].lock for key in sorted(chips)]
+        for lock in locks:
+            lock.acquire()
+        i = 0
+        try:
+            while i < len(messages):
+                message = messages[i]
+                following = messages[i + 1] if i + 1 < len(messages) else None
+                if (not message.read and message.data and following is not None
+                        and following.read and following.address == message.address):
+                    self._register_read(message, following)  # write, restart, read
+                    i += 2
+                    continue
+                if message.read:
+                    chip = self._begin(message.address, "i2c_read")
+                    message.data = chip.i2c_read(message.length) if message.length else b""
+                    self._record(chip, message.address, "i2c_read", None, b"", message.data)
+                else:
+                    data = message.data
+                    register = data[0] if data else None
+                    chip = self._begin(message.address, "i2c_write", register, data[1:])
+                    if data:
+                        chip.i2c_write(data)
+                    self._record(chip, message.address, "i2c_write", register, data[1:])
+                i += 1
+        except OSError as exc:
+            exc.messages_done = i  # type: ignore[attr-defined]  # those took effect
+            raise
+        finally:
+            for lock in reversed(locks):
+                lock.release()
         return list(messages)
 
     def _register_read(self, write: I2CMessage, read: I2CMessage) -> None:

@@ -226,12 +226,16 @@ def add_progress_options(parser: argparse.ArgumentParser) -> None:
                      help="no progress line (a job estimated at over a minute still says so)")
 
 
-def progress_for(args: argparse.Namespace, command: str) -> Any:
+def progress_for(args: argparse.Namespace, command: str, on_stop: str | None = None) -> Any:
     """The :class:`bmg160_emu.progress.Progress` of ``bmg160-emu COMMAND`` as its options
-    ask (``args.progress``: None, True or False)."""
+    ask (``args.progress``: None, True or False); ``on_stop``: what a ^C keeps, when it is
+    not what is finished."""
     from bmg160_emu.progress import Progress
 
-    return Progress(f"bmg160-emu {command}", enabled=getattr(args, "progress", None))
+    progress = Progress(f"bmg160-emu {command}", enabled=getattr(args, "progress", None))
+    if on_stop is not None:
+        progress.on_stop = on_stop
+    return progress
 
 
 def add_renamed_option(parser: Any, old: str, new: str, **kwargs: Any) -> None:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import sys
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -195,12 +194,9 @@ def run(args: argparse.Namespace) -> int:
 
     from bmg160_emu.bus.patching import patch_smbus
     from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.progress import Progress
 
     chips = chips_from_args(args)
     progress = progress_for(args, "demo")
-    if args.progress is None and sys.stdout.isatty():  # the rows on the same terminal are
-        progress = Progress("bmg160-emu demo", enabled=False)  # the sign of life: no line
     range_code = RANGE_CODE_BY_DPS[args.range_dps] if args.range_dps is not None else 0
     bw_code = args.bandwidth if args.bandwidth is not None else DEFAULT_BW_CODE
     first = next(iter(chips.values()))
@@ -215,8 +211,11 @@ def run(args: argparse.Namespace) -> int:
                 driver = DemoDriver(bus, address, print)
                 try:
                     driver.bring_up(range_code, bw_code)
-                    with progress.stage(args.samples, "samples") as update:
+                    # the progress line kept under the table's rows (both on a terminal)
+                    with progress.beside(args.samples, "samples", print) as (update, say):
+                        driver.out = say
                         driver.stream(args.samples, chip.sensitivity, chip.odr_hz, update)
+                    driver.out = print
                     driver.fifo(args.fifo_frames, chip.sensitivity, chip.odr_hz)
                 except BrokenPipeError:
                     raise  # the reader went away (e.g. `| head`): not a bus failure

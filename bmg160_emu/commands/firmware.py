@@ -9,10 +9,14 @@ from bmg160_emu import limits
 from bmg160_emu.commands._common import (
     Subparsers,
     add_command_parser,
+    add_progress_options,
     add_renamed_option,
     bounded_option,
     duration_seconds,
+    progress_for,
 )
+
+STREAM_LINE_BYTES = 12  # the shortest line of the UART stream ("1 0 0 0\n" is 8; most ~20)
 
 EPILOG = """\
 examples:
@@ -67,6 +71,7 @@ def register(subparsers: Subparsers) -> None:
                        type=bounded_option(limits.ODR_HZ), choices=(100, 200, 400, 1000, 2000))
     capture.add_argument("-o", "--output", required=True, metavar="FILE",
                          help="file for the UART stream")
+    add_progress_options(capture)
     capture.set_defaults(func=run_capture)
     parser.set_defaults(func=lambda args: _missing_action(parser))
 
@@ -146,14 +151,23 @@ def run_build(args: argparse.Namespace) -> int:
 def run_capture(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.firmware.build import FirmwareToolError, capture_uart
-    from bmg160_emu.io.atomic import atomic_path
+    from bmg160_emu.io.atomic import OutputError, atomic_path, check_free_space
 
     output = Path(args.output)
     check_writable(output)
+    lines = round(args.duration * args.rate)
+    try:  # a low estimate, so a disk that would hold it is never refused
+        check_free_space(output, lines * STREAM_LINE_BYTES)
+    except OutputError as exc:
+        raise CommandError(str(exc)) from None
     build = _build(args)
     try:  # the stream appears under its name only when complete (docs/commands/firmware.md)
-        with atomic_path(output) as partial:
-            capture_uart(build, args.duration, partial, odr_hz=args.rate)
+        with atomic_path(output) as partial, \
+                progress_for(args, "firmware capture", on_stop="^C stops it and keeps "
+                             "nothing (the stream is one piece)").stage(lines, "samples") \
+                as update:
+            capture_uart(build, args.duration, partial, odr_hz=args.rate,
+                         progress=lambda done, total: update(done))
     except (ValueError, FirmwareToolError) as exc:
         raise CommandError(str(exc).replace("\n", " | ")) from None
     except OSError as exc:

@@ -4,9 +4,12 @@ an Allan deviation curve), with plots, a profile and exports for Kalibr and MATL
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 from bmg160_emu import limits
 from bmg160_emu.commands._common import (
@@ -278,23 +281,16 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(text if text.startswith(str(args.file)) else f"{args.file}: {text}") \
             from None
 
-    written: list[Path] = []
-    try:
-        written += _write_outputs(args, result)
-        if args.figures is not None:
-            written += _write_figures(args, record, result)
-    except OSError as exc:
-        target = next((p for p in (args.profile_out, args.adev_out, args.kalibr_out,
-                                   args.matlab_out, args.plot, args.figures) if p is not None), "")
-        raise CommandError(f"cannot write {target if len(written) == 0 else 'an output'}: "
-                           f"{exc.strerror or exc}") from None
-
     verdict = None
     if record is not None and (args.compare or (args.profile_out is not None
                                                 and not args.no_verdict)):
         verdict = _verdict(args, record, result)
-        if verdict is not None and args.compare and args.figures is not None:
-            written += _write_verdict_figure(args, verdict)
+    jobs = _output_jobs(args, result)
+    if args.figures is not None:
+        jobs += _figure_jobs(args, record, result)
+        if verdict is not None and args.compare:
+            jobs += _verdict_figure_jobs(args, verdict)
+    written = _write_all(args, jobs)  # all together, or none (issue 35)
     if args.json:
         out = result.as_dict(args.units)
         if verdict is not None:
@@ -324,53 +320,48 @@ def run(args: argparse.Namespace) -> int:
 
 
 READING_NOTE_BYTES = 20_000_000  # files from this size get a line before and after reading
-VERDICT_BUDGET_S = 60.0  # the verdict after --profile-out takes at most about this long
+# The verdict after --profile-out emulates at most this many samples per axis in all (its
+# records times the record's length): about 30 s on two cores at load 1 (1.5 us a sample for
+# three axes at load 7, tools: compare_profile timed on a 1e6-sample record). A count of
+# samples, not a timing, so the same record gives the same verdict on every host.
+VERDICT_SAMPLES = 20_000_000
 VERDICT_MIN_SEEDS = 5  # fewer emulated records say too little: the verdict is left out
 
 
 def _verdict(args: argparse.Namespace, record, result):
     """The verdict of the identified profile against the record (noise.verdict), with as
-    many of --verdict-seeds as fit in VERDICT_BUDGET_S (one record timed first), or None
-    with a line saying why and how to get it."""
-    import time
-
+    many of --verdict-seeds as VERDICT_SAMPLES allows, or None with a line saying why and
+    how to get it."""
     from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
     from bmg160_emu.noise.verdict import compare_profile
 
     how = f"bmg160-emu compare {args.file} {args.profile_out or 'PROFILE'}"
     profile = result.to_profile(args.profile_out.stem if args.profile_out else "identified")
-    own = profile.output.rate_hz if profile.output is not None else None
+    own = getattr(profile.output, "rate_hz", None)  # a profile runs at its record's own rate
     if float(record.rate_hz) not in SUPPORTED_RATES_HZ and own != float(record.rate_hz):
         print(f"bmg160-emu identify: no verdict: the record's rate {record.rate_hz:g} Hz is not "
               "an output data rate the generator draws (100, 200, 400, 1000, 2000 Hz)",
               file=sys.stderr)
         return None
-    names = tuple(a.axis for a in result.axes)
-    started = time.perf_counter()
-    compare_profile(record.rate_dps[: min(record.rate_dps.shape[0], 1 << 16)], record.rate_hz,
-                    profile, 1, names)
-    per_seed = (time.perf_counter() - started) * max(record.rate_dps.shape[0] / (1 << 16), 1.0)
-    seeds = min(args.verdict_seeds, int(VERDICT_BUDGET_S / max(per_seed, 1e-9)))
+    samples = int(record.rate_dps.shape[0])
+    seeds = min(args.verdict_seeds, VERDICT_SAMPLES // max(samples, 1))
     if seeds < VERDICT_MIN_SEEDS and not args.compare:
-        print(f"bmg160-emu identify: no verdict: {VERDICT_MIN_SEEDS} emulated records would "
-              f"take about {VERDICT_MIN_SEEDS * per_seed:.0f} s; run `{how} --seeds N`",
-              file=sys.stderr)
+        print(f"bmg160-emu identify: no verdict: {VERDICT_MIN_SEEDS} emulated records of "
+              f"{samples:,} samples are more than the {VERDICT_SAMPLES:,} samples identify "
+              f"spends on it; run `{how} --seeds N`", file=sys.stderr)
         return None
     seeds = max(seeds, VERDICT_MIN_SEEDS)
-    print(f"bmg160-emu identify: verdict over {seeds} emulated records (about "
-          f"{seeds * per_seed:.0f} s; `{how}` gives more) ...", file=sys.stderr, flush=True)
+    names = tuple(a.axis for a in result.axes)
+    print(f"bmg160-emu identify: verdict over {seeds} emulated records "
+          f"(`{how}` gives more) ...", file=sys.stderr, flush=True)
     return compare_profile(record.rate_dps, record.rate_hz, profile, seeds, names)
 
 
-def _write_verdict_figure(args: argparse.Namespace, verdict) -> list[Path]:
-    from bmg160_emu.io.atomic import atomic_path
-    from bmg160_emu.noise import plots
+def _verdict_figure_jobs(args: argparse.Namespace, verdict) -> list[tuple[Path, Any]]:
     from bmg160_emu.noise.verdict import verdict_figure
 
-    path = args.figures / f"compare.{args.format}"
-    with atomic_path(path) as partial:
-        plots.save(verdict_figure(verdict), partial)
-    return [path]
+    return [(args.figures / f"compare.{args.format}",
+             partial(_save_figure, verdict_figure(verdict)))]
 
 
 def _output_stage_line(result) -> str:
@@ -469,42 +460,73 @@ def _identify_curve(args: argparse.Namespace, options: dict):
     return Identification(float(args.rate), n, results, str(args.file))
 
 
-def _write_outputs(args: argparse.Namespace, result) -> list[Path]:
-    """Every output under a temporary name, renamed into place when whole (io.atomic)."""
-    from bmg160_emu.io.atomic import atomic_open, atomic_path
+def _output_jobs(args: argparse.Namespace, result) -> list[tuple[Path, Any]]:
+    """(target, write(temporary path)) of every output file option given."""
     from bmg160_emu.noise import interop
 
-    written = []
+    jobs: list[tuple[Path, Any]] = []
     if args.profile_out is not None:
         from bmg160_emu.noise.profile import write_profile
 
-        with atomic_path(args.profile_out) as partial:
-            write_profile(
-                result.to_profile(args.profile_out.stem),
-                partial,
-                header=f"identified by bmg160-emu identify from {args.file}\n"
-                "units: N deg/s/sqrt(Hz), B deg/s, T s, K deg/s/sqrt(s), bias deg/s",
-            )
-        written.append(args.profile_out)
+        jobs.append((args.profile_out, lambda temp: write_profile(
+            result.to_profile(args.profile_out.stem), temp,
+            header=f"identified by bmg160-emu identify from {args.file}\n"
+            "units: N deg/s/sqrt(Hz), B deg/s, T s, K deg/s/sqrt(s), bias deg/s")))
     if args.adev_out is not None:
-        with atomic_path(args.adev_out) as partial:
-            interop.write_adev_csv(partial, result, args.units)
-        written.append(args.adev_out)
+        jobs.append((args.adev_out, lambda temp: interop.write_adev_csv(temp, result,
+                                                                        args.units)))
     if args.kalibr_out is not None:
-        with atomic_open(args.kalibr_out, encoding="utf-8") as f:
-            f.write(interop.kalibr_yaml(result, result.rate_hz))
-        written.append(args.kalibr_out)
+        jobs.append((args.kalibr_out, lambda temp: temp.write_text(
+            interop.kalibr_yaml(result, result.rate_hz), encoding="utf-8")))
     if args.matlab_out is not None:
-        with atomic_open(args.matlab_out, encoding="utf-8") as f:
-            f.write(interop.matlab_gyroparams(result))
-        written.append(args.matlab_out)
+        jobs.append((args.matlab_out, lambda temp: temp.write_text(
+            interop.matlab_gyroparams(result), encoding="utf-8")))
     if args.plot is not None:
         from bmg160_emu.noise import plots
 
-        with atomic_path(args.plot) as partial:
-            plots.save(plots.adev_figure(result.axes), partial)
-        written.append(args.plot)
-    return written
+        jobs.append((args.plot, lambda temp: plots.save(plots.adev_figure(result.axes), temp)))
+    return jobs
+
+
+def _write_all(args: argparse.Namespace, jobs: list[tuple[Path, Any]]) -> list[Path]:
+    """Every output written under a temporary name, then all renamed into place together
+    (io.atomic.atomic_paths): all of them, or none and the old files as they were. A full
+    disk or a signal part way used to leave some written, and a --figures folder half
+    full (issue 35). A --figures folder this run made is removed again when nothing could
+    be written into it."""
+    from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.io.atomic import atomic_paths
+
+    if not jobs:
+        return []
+    folder: Path | None = args.figures
+    made = folder is not None and not folder.exists()
+    try:
+        if made:
+            assert folder is not None
+            folder.mkdir(parents=True)
+        with atomic_paths([target for target, _ in jobs]) as temps:
+            for (target, write), temp in zip(jobs, temps):
+                try:
+                    write(temp)
+                except OSError as exc:  # named by the output, not by its temporary file
+                    raise CommandError(f"cannot write {target}: {exc.strerror or exc}; "
+                                       "no output written") from None
+    except (CommandError, OSError, KeyboardInterrupt) as exc:
+        if made and folder is not None:
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only when empty: the run wrote nothing into it
+        if isinstance(exc, OSError):
+            raise CommandError(f"cannot write {exc.filename or folder}: "
+                               f"{exc.strerror or exc}; no output written") from None
+        raise
+    return [target for target, _ in jobs]
+
+
+def _save_figure(fig: Any, temp: Path) -> None:
+    from bmg160_emu.noise import plots
+
+    plots.save(fig, temp)
 
 
 def _gmwm_summary(text: str, fits: dict) -> str:
@@ -541,12 +563,12 @@ def _step(bar, stage: str) -> None:
     bar.update(1)
 
 
-def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
+def _figure_jobs(args: argparse.Namespace, record, result) -> list[tuple[Path, Any]]:
+    """(target, write(temporary path)) of every figure of --figures."""
     from bmg160_emu.commands._common import CommandError
     from bmg160_emu.noise import plots
 
     folder: Path = args.figures
-    folder.mkdir(parents=True, exist_ok=True)
     ext = "." + args.format
     names = [a.axis for a in result.axes]
     figs = {
@@ -560,14 +582,11 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
         from bmg160_emu.noise.sensor_noise import profile_noise
 
         chip_rate = min(SUPPORTED_RATES_HZ, key=lambda r: abs(r / record.rate_hz - 1))
-        own = result.to_profile().output
-        if own is not None and own.rate_hz == float(record.rate_hz):
+        if getattr(result.output_stage(), "rate_hz", None) == float(record.rate_hz):
             chip_rate = float(record.rate_hz)  # the profile runs at its record's own rate
         if abs(chip_rate / record.rate_hz - 1) > 0.01:
-            raise CommandError(
-                f"--compare: the record's rate {record.rate_hz:g} Hz is not a BMG160 output "
-                "data rate (100, 200, 400, 1000, 2000 Hz)"
-            )
+            raise CommandError(f"--compare: the record's rate {record.rate_hz:g} Hz is not a "
+                               "BMG160 output data rate (100, 200, 400, 1000, 2000 Hz)")
         # what generate writes from the profile: its output stage included; one record for
         # the look of the time series (its ADEV and PSD are drawn as the band of many
         # records: compare.png, _write_verdict_figure; one record's ADEV at L/10 scatters by
@@ -577,11 +596,4 @@ def _write_figures(args: argparse.Namespace, record, result) -> list[Path]:
         for i, axis in enumerate(result.axes):
             figs[f"overlay_time_{axis.axis}"] = plots.overlay_time_figure(
                 record.rate_dps[:, i], emulated[:, i], record.rate_hz, axis.axis)
-    from bmg160_emu.io.atomic import atomic_path
-
-    written = []
-    for key, fig in figs.items():  # each complete or absent, as every output (docs/outputs.md)
-        with atomic_path(folder / f"{key}{ext}") as partial:
-            plots.save(fig, partial)
-        written.append(folder / f"{key}{ext}")
-    return written
+    return [(folder / f"{key}{ext}", partial(_save_figure, fig)) for key, fig in figs.items()]

@@ -8,7 +8,12 @@ import sys
 from pathlib import Path
 
 from bmg160_emu.commands._chip_options import add_chip_options, chips_from_args
-from bmg160_emu.commands._common import Subparsers, add_command_parser
+from bmg160_emu.commands._common import (
+    Subparsers,
+    add_command_parser,
+    add_progress_options,
+    progress_for,
+)
 
 EPILOG = """\
 examples:
@@ -54,6 +59,7 @@ def register(subparsers: Subparsers) -> None:
         help="make the register accesses SPI frames on a FakeSpiDev instead of I2C transactions",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="print only failures")
+    add_progress_options(parser)
     parser.add_argument(
         "--watch", action="store_true",
         help="make the session watchable live (bmg160-emu watch; best with --realtime)",
@@ -114,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
         if not args.quiet:
             print(line)
 
-    runner = ScriptRunner(chip, log, str(args.file), port=port, bus=bus)
+    runner = ScriptRunner(chip, log, str(args.file), port=port, bus=bus,
+                          progress=progress_for(args, "script"))
     try:
         with contextlib.ExitStack() as watching:
             if args.watch:  # a live view (commands/watch.py); the script runs unchanged

@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
 
     from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.io.atomic import atomic_open
+    from bmg160_emu.io.atomic import atomic_paths
     from bmg160_emu.io.csv_table import read_csv_table
     from bmg160_emu.io.rate_table import RateFileError
     from bmg160_emu.io.time_column import check_time_column
@@ -139,16 +139,20 @@ def run(args: argparse.Namespace) -> int:
                                    block_s=block_s, noise=noise)
     except (ThermalFitError, IdentificationError) as exc:  # the residuals' noise fit too
         raise CommandError(f"{args.file}: {exc}") from None
-    outputs = [(args.px4_params, lambda: fit.px4_params_file(instance=args.px4_instance)),
-               (args.errors_out, lambda: _errors_toml(fit.to_errors(), args.file))]
-    for path, text in outputs:
-        if path is None:
-            continue
-        try:
-            with atomic_open(path, encoding="utf-8") as f:
-                f.write(text())
-        except OSError as exc:  # named by the output, not by its temporary file
-            raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None
+    outputs = [(path, text) for path, text in (
+        (args.px4_params, lambda: fit.px4_params_file(instance=args.px4_instance)),
+        (args.errors_out, lambda: _errors_toml(fit.to_errors(), args.file)))
+        if path is not None]
+    try:  # both or neither (io.atomic.atomic_paths), each named by its own error
+        with atomic_paths([path for path, _ in outputs]) as temps:
+            for (path, text), temp in zip(outputs, temps):
+                try:
+                    temp.write_text(text(), encoding="utf-8")
+                except OSError as exc:  # named by the output, not by its temporary file
+                    raise CommandError(f"cannot write {path}: {exc.strerror or exc}") \
+                        from None
+    except OSError as exc:  # making a temporary file, or /dev/full at the end: the output
+        raise CommandError(f"cannot write {exc.filename}: {exc.strerror or exc}") from None
     print(json.dumps(_as_dict(fit), indent=1) if args.json else _summary(fit, args.file))
     return 0
 

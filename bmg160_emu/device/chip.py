@@ -38,7 +38,12 @@ from bmg160_emu.device.part_spec import BMG160_PART, Part
 from bmg160_emu.device.registers import FIRST_OUTSIDE_MAP, address_of
 from bmg160_emu.device.state import ChipState
 from bmg160_emu.device.thermometer import Thermometer
-from bmg160_emu.device.true_rate import QueuedRates, streamed_rate, true_rate_source
+from bmg160_emu.device.true_rate import (
+    QueuedRates,
+    streamed_rate,
+    streamed_row,
+    true_rate_source,
+)
 from bmg160_emu.noise.sensor_errors import SensorErrors
 
 _RATE_X_LSB, _RATE_END = address_of("RATE_X_LSB"), address_of("RATE_Z_MSB") + 1
@@ -168,7 +173,7 @@ class BMG160:
         output sample on, and the samples are computed when something reads them, all that
         are due at once (a simulator's 5 ms steps against a driver reading the FIFO at 20 Hz).
         The same samples as ``stream_true_rate``'s to rounding (~1e-15 of the rate)."""
-        row = streamed_rate(rate_dps).rate_dps
+        row = streamed_row(rate_dps)
         with self.lock:
             s = self.state
             if isinstance(s.rate, QueuedRates):
@@ -372,8 +377,10 @@ class BMG160:
             b = s.block
             if b is None or k >= b.end:
                 b = s.block_for(k)
-            i = 6 * (k - b.k0)
-            s.cur = b.rate_bytes[i:i + 6]
+            samples = b.samples
+            if samples is None:
+                samples = b.cut_samples()
+            s.cur = samples[k - b.k0]
             s.k = k
             s.last_sample_ns = t
             s.next_ns = t + period

@@ -82,19 +82,25 @@ class Fifo:
 
     def read(self, n: int, axis_bytes: int, tagged: bool) -> bytes:
         """Pop ``n`` bytes; past the last frame, the empty pattern of the current format."""
-        out = bytearray()
-        while n > 0 and self.frames:
-            head = self.frames[0]
+        out = []
+        frames = self.frames
+        while n > 0 and frames:
+            head = frames[0]
+            if not self.head_offset and len(head) <= n:  # a whole frame (the usual burst)
+                out.append(head)
+                n -= len(head)
+                frames.popleft()
+                continue
             chunk = head[self.head_offset:self.head_offset + n]
-            out += chunk
+            out.append(chunk)
             n -= len(chunk)
             self.head_offset += len(chunk)
             if self.head_offset >= len(head):
-                self.frames.popleft()
+                frames.popleft()
                 self.head_offset = 0
         if n > 0:
-            out += empty_pattern(n, axis_bytes, tagged)
-        return bytes(out)
+            out.append(empty_pattern(n, axis_bytes, tagged))
+        return b"".join(out)
 
     def peek(self, axis_bytes: int, tagged: bool) -> int:
         """The next byte a read would return, without consuming it."""

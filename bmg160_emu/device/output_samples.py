@@ -8,8 +8,6 @@ hooks get the chip itself (``s.chip``), their documented first argument."""
 
 from __future__ import annotations
 
-import numpy as np
-
 from bmg160_emu.clock import NS_PER_S
 from bmg160_emu.device import datapath, regmap
 from bmg160_emu.device.registers import address_of, field_of
@@ -60,34 +58,39 @@ def catch_up(s: ChipState, now: int) -> None:
     """Produce every sample due by ``now`` (between transactions, never inside one)."""
     chip = s.chip
     while now >= s.next_ns:
-        t = s.next_ns
-        period = s.period_ns
         if s.per_sample or chip.sample_hooks or chip.truth_hooks:
             if s.emitting:  # a hook called a primitive: finish this sample first
                 return
             s.emitting = True
             try:
-                # (a queued rate computes all that are due at once; others as they were)
-                emit_one(s, 1 if s.rate.ahead else (now - t) // period + 1)
+                while True:  # each due sample, while one needs to go through emit_one
+                    # (a queued rate computes all that are due at once; others as they were)
+                    emit_one(s, 1 if s.rate.ahead else (now - s.next_ns) // s.period_ns + 1)
+                    if now < s.next_ns or not (s.per_sample or chip.sample_hooks
+                                               or chip.truth_hooks):
+                        break
             finally:
                 s.emitting = False
             continue
-        emit_batch(s, (now - t) // period + 1)
+        emit_batch(s, (now - s.next_ns) // s.period_ns + 1)
 
 
 def emit_one(s: ChipState, due: int = 1) -> None:
     """One sample through the hooks and the per-sample engines; ``due``: the samples due,
     this one included (a missing block is built for all of them)."""
     k = s.k + 1
-    b = s.block_for(k, due)
+    b = s.block
+    if b is None or not b.k0 <= k < b.end:  # (block_for's own test, without the call)
+        b = s.block_for(k, due)
     i = k - b.k0
     t_ns = s.next_ns
     t_s = t_ns / NS_PER_S
     s.k = k
     s.next_ns = t_ns + s.period_ns
     chip = s.chip
-    for hook in list(chip.truth_hooks):
-        hook(chip, t_s, np.array(b.body[i], dtype=float))
+    if chip.truth_hooks:
+        for hook in list(chip.truth_hooks):
+            hook(chip, t_s, b.body[i].copy())  # (a float array's row: np.array's result)
     dps_pre = None
     irq = s.irq
     if chip.sample_hooks:  # the hooks' rate replaces the block's counts (not computed then)
@@ -99,14 +102,16 @@ def emit_one(s: ChipState, due: int = 1) -> None:
         counts_f, rate_bytes = datapath.counts_of(rate.tolist(), s.sensitivity)
         counts_u = counts_f
         dps_pre = rate
+        engines = irq.any_axes or irq.high_axes  # (after the hooks, which may write)
     else:
         rate_bytes = b.rate_bytes[6 * i:6 * i + 6]
-        if irq.any_axes or irq.high_axes:
+        engines = irq.any_axes or irq.high_axes
+        if engines:
             counts_f, counts_u = b.counts_f[i], b.counts_u[i]
     s.cur = rate_bytes
     s.last_sample_ns = t_ns
     s.data_ready_pending = True
-    if irq.any_axes or irq.high_axes:  # (step does nothing with both engines off)
+    if engines:  # (step does nothing with both engines off)
         irq.step(s.regs, counts_f, counts_u, s.odr, t_ns)
     foc = s.foc
     if foc is not None:
@@ -114,8 +119,9 @@ def emit_one(s: ChipState, due: int = 1) -> None:
             dps_pre = b.dps_u[i] if foc.unfiltered else b.dps_f[i]
         if foc.add(dps_pre, s.offset_dps()):
             regmap.finish_foc(s)
-    if s.fifo_store_mode:
+    mode = s.fifo_store_mode
+    if mode:
         select, tag = regmap.frame_format(s)
-        s.fifo.push(rate_bytes[select] + tag, s.fifo_store_mode)
+        s.fifo.push(rate_bytes[select] + tag, mode)
     if s.fifo_int_on:
         regmap.update_fifo_int(s, t_ns)

@@ -33,8 +33,10 @@ class Field:
     meaning: str
     values: Mapping[int, str] = field(default_factory=dict)
 
-    @property
+    @functools.cached_property
     def mask(self) -> int:
+        """The field's bits in the register (computed once: engines extract fields per
+        sample)."""
         return ((1 << (self.msb - self.lsb + 1)) - 1) << self.lsb
 
     def extract(self, value: int) -> int:

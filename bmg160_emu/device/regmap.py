@@ -283,11 +283,14 @@ def change_bandwidth(s: ChipState) -> None:
 
 def frame_format(s: ChipState) -> tuple[slice, bytes]:
     """The FIFO frame: the selected axes and the tag bytes if on (4.26)."""
-    select = _FIFO_SELECT.extract(s.regs[_FIFO_CONFIG_1])
     tag = b""
     if s.regs[_FIFO_CONFIG_0] & _FIFO_TAG:
         tag = choice.fifo_tag_bytes(*pins(s, s.chip.clock.now_ns()))
-    return fifo_mod.AXIS_SLICES[select], tag
+    return _FRAME_AXES[s.regs[_FIFO_CONFIG_1]], tag
+
+
+# the selected axes by FIFO_CONFIG_1 byte (frame_format runs for every sample stored)
+_FRAME_AXES = tuple(fifo_mod.AXIS_SLICES[_FIFO_SELECT.extract(byte)] for byte in range(256))
 
 
 def sync_bypass(s: ChipState) -> None:

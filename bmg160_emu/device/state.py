@@ -95,7 +95,8 @@ class ChipState:
     """One chip's mutable state and sample schedule.
 
     Fixed for the chip's life: ``chip`` (its public face, ``PublicChip``), ``part`` (the
-    register tables), ``sensitivity_table`` (LSB per deg/s by RANGE code), ``startup_ns``
+    register tables), ``sensitivity_table`` (LSB per deg/s by RANGE code;
+    ``sensitivity_of_range`` the same by RANGE byte), ``startup_ns``
     (reset and wake to the first sample, 6.6), ``thermometer``, ``nvm`` and ``bist`` (the
     engines of 5.2, 6.10 and 6.8), ``budget`` (the unit's errors) and ``path`` (the data path;
     both set by the chip right after construction: the budget reads this state's
@@ -125,12 +126,13 @@ class ChipState:
         "data_ready_pending", "data_start_ns", "emitting", "fifo", "fifo_int_on", "fifo_mode",
         "fifo_store_mode", "foc", "irq", "k", "last_sample_ns", "latched", "msb_latch",
         "next_ns", "nvm", "odr", "part", "path", "per_sample", "period_ns", "plain", "rate",
-        "regs", "sensitivity_table", "seq_base", "span", "span_used", "startup_ns",
-        "thermometer",
+        "regs", "sensitivity_of_range", "sensitivity_table", "seq_base", "span", "span_used",
+        "startup_ns", "thermometer",
     )
     chip: PublicChip
     part: PartTable
     sensitivity_table: tuple[float, ...]
+    sensitivity_of_range: tuple[float, ...]
     startup_ns: int
     thermometer: Thermometer
     nvm: Nvm
@@ -172,6 +174,9 @@ class ChipState:
         self.chip = chip
         self.part = part
         self.sensitivity_table = sensitivity_table
+        # LSB per deg/s by RANGE byte: one index per sample instead of decoding the field
+        self.sensitivity_of_range = tuple(sensitivity_table[choice.range_code(byte)]
+                                          for byte in range(256))
         self.startup_ns = startup_ns
         self.thermometer = thermometer
         self.nvm = nvm
@@ -202,7 +207,7 @@ class ChipState:
     @property
     def sensitivity(self) -> float:
         """LSB per deg/s of the current range."""
-        return self.sensitivity_table[choice.range_code(self.regs[_RANGE])]
+        return self.sensitivity_of_range[self.regs[_RANGE]]
 
     @property
     def offset_lsb_dps(self) -> float:

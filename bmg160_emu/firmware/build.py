@@ -12,6 +12,8 @@ import math
 import os
 import shutil
 import subprocess
+import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -192,25 +194,48 @@ BW_CODE_FOR_ODR = {100: 5, 200: 4, 400: 3, 1000: 2, 2000: 1}
 
 
 def capture_uart(
-    build: FirmwareBuild, seconds: float, output: str | Path, odr_hz: int = 200
+    build: FirmwareBuild, seconds: float, output: str | Path, odr_hz: int = 200,
+    progress: Callable[[int, int], None] | None = None,
 ) -> Path:
     """Run the firmware in simavr for ``seconds`` of simulated time at ``odr_hz`` and write
     its UART stream to ``output`` (the BW register is set over I2C after boot), after a first
     ``#`` line that names the ODR: the firmware's own banner cannot (the ODR is chosen over
-    I2C after it is sent), and with it ``identify`` needs no --rate (io/uart_stream.py)."""
+    I2C after it is sent), and with it ``identify`` needs no --rate (io/uart_stream.py).
+
+    The stream comes through a pipe and goes to the file as it comes (a 30-day capture is
+    about 10 GB: it used to be read back whole to put the first line before it), and
+    ``progress(lines, lines_expected)`` is told as the lines arrive (issue 35: a 30-day
+    capture ran for days without a sign)."""
     if odr_hz not in BW_CODE_FOR_ODR:
         raise ValueError(f"ODR must be one of {sorted(BW_CODE_FOR_ODR)} Hz, not {odr_hz!r}")
     if not (math.isfinite(seconds) and seconds > 0):  # inf would "capture" a 2-line header
         raise ValueError(f"capture length must be a positive finite time, not {seconds!r} s")
     simulator = build_simulator()
     address = 0x69 if "BMG_I2C_ADDRESS 0x69" in build.header.read_text() else 0x68
-    _run(
-        [str(simulator), str(build.elf), "--capture", repr(float(seconds)), "--uart",
-         str(output), "--bw", str(BW_CODE_FOR_ODR[odr_hz]), "--address", hex(address)],
-        "firmware capture",
-    )  # fmt: skip
+    command = [str(simulator), str(build.elf), "--capture", repr(float(seconds)), "--uart",
+               "/dev/stdout", "--bw", str(BW_CODE_FOR_ODR[odr_hz]), "--address", hex(address)]
     path = Path(output)
-    stream = path.read_bytes()
-    line = CAPTURE_LINE.format(odr_hz=odr_hz, seconds=float(seconds))
-    path.write_bytes(line.encode("ascii") + b"\n" + stream)
+    expected = round(seconds * odr_hz)
+    with path.open("wb") as sink, tempfile.TemporaryFile() as errors:
+        sink.write(CAPTURE_LINE.format(odr_hz=odr_hz, seconds=float(seconds)).encode("ascii")
+                   + b"\n")
+        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=errors)
+        assert process.stdout is not None
+        lines = 0
+        try:
+            while chunk := os.read(process.stdout.fileno(), 1 << 16):
+                sink.write(chunk)
+                lines += chunk.count(b"\n")
+                if progress is not None:
+                    progress(min(lines, expected), expected)
+        finally:
+            if process.poll() is None:  # stopped early (a signal): the simulator too
+                process.kill()
+            process.wait()
+            process.stdout.close()
+        if process.returncode != 0:
+            errors.seek(0)
+            tail = "\n".join(errors.read().decode(errors="replace").strip().splitlines()[-15:])
+            raise FirmwareToolError(f"firmware capture failed (exit {process.returncode}):\n"
+                                    f"{tail}")
     return path

@@ -28,7 +28,8 @@ from pathlib import Path
 from typing import IO, Any
 
 __all__ = [
-    "AtomicFile", "OutputError", "atomic_open", "atomic_path", "check_free_space", "check_writable",
+    "AtomicFile", "OutputError", "atomic_open", "atomic_path", "atomic_paths", "check_free_space",
+    "check_writable",
     "held_signals", "name_problem", "outputs_so_far", "shown_path", "size_text",
 ]
 
@@ -173,16 +174,22 @@ def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iter
     special = _is_special(target)
     suffix = target.suffix if suffix is None else suffix
     folder = None if special else target.parent
-    fd, temp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}",
-                                     dir=folder)
+    try:
+        fd, temp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{suffix}",
+                                         dir=folder)
+    except OSError as exc:  # named by the output asked for, not by its temporary name
+        raise OSError(exc.errno, exc.strerror, os.fspath(path)) from None
     os.close(fd)
     temp = Path(temp_name)
     placed = False
     try:
         yield temp
         if special:
-            with temp.open("rb") as source, target.open("wb") as sink:
-                shutil.copyfileobj(source, sink)
+            try:
+                with temp.open("rb") as source, target.open("wb") as sink:
+                    shutil.copyfileobj(source, sink)
+            except OSError as exc:  # /dev/full: ENOSPC, named by the target
+                raise OSError(exc.errno, exc.strerror, os.fspath(path)) from None
         else:
             with temp.open("rb+") as done:
                 os.fsync(done.fileno())
@@ -198,6 +205,31 @@ def atomic_path(path: str | os.PathLike[str], suffix: str | None = None) -> Iter
             temp.unlink()
         if not placed:
             _DISCARDED.append(Path(os.fspath(path)))
+
+
+@contextlib.contextmanager
+def atomic_paths(paths: list[Path]) -> Iterator[list[Path]]:
+    """Temporary paths for several outputs that appear together or not at all: each is
+    written in the block (the slow part, a full disk or a signal may stop it: then every
+    temporary file is removed and no target changes), and the targets are renamed into place
+    together at its end with the signals held, so that a signal cannot leave some of them
+    new and the rest old (issue 35: identify wrote 4 of its 5 outputs and said "unfinished
+    outputs removed")."""
+    held = None
+    # a special target (/dev/full, a FIFO) is written at its commit and may fail there: the
+    # stack closes it first (entered last), so that its failure discards the regular ones
+    order = sorted(range(len(paths)), key=lambda i: _is_special(_resolved(paths[i])))
+    try:
+        with contextlib.ExitStack() as stack:
+            temps: list[Path] = [Path()] * len(paths)
+            for i in order:
+                temps[i] = stack.enter_context(atomic_path(paths[i]))
+            yield temps
+            held = held_signals()
+            held.__enter__()  # from here to the last rename a signal waits
+    finally:
+        if held is not None:
+            held.__exit__(None, None, None)  # then acts: every target is in place
 
 
 @contextlib.contextmanager

@@ -99,6 +99,7 @@ class Calendar:
         self._events: list[tuple[int, int, Callable[[], None]]] = []  # host events (heap)
         self._seq = 0
         self._nested = 0  # inside wait_readable: answer, do not dispatch
+
         self._tod_ns = time.time_ns() - clock.ns  # the guest's wall clock at time 0
         self.messages = 0
         self.runs = 0
@@ -108,6 +109,15 @@ class Calendar:
     def hold(self) -> None:
         """The host has its reply and prepares its next request (on the loop's thread)."""
         self.holding = True
+
+    def run_free(self) -> None:
+        """The host will send nothing more (the agent was told to stop): the guest's time
+        goes on as it asks, so that its power-off finishes (from any thread)."""
+        def free() -> None:
+            self.holding = False
+            self.dispatch()
+
+        self.server.call_soon(free)
 
     def release(self, ring: Callable[[], None]) -> None:
         """Deliver the host's next request with ``ring`` (from any thread)."""
@@ -266,13 +276,16 @@ class Calendar:
         while self._events and self._events[0][0] <= at:
             heapq.heappop(self._events)[2]()
 
-    def tighten(self) -> None:
+    def tighten(self, settle: Callable[[], None] = lambda: None) -> None:
         """Before a kick's reply: if an event now comes before UML's horizon (a driver just
-        enabled an interrupt), tell UML to ask again by then."""
+        enabled an interrupt), tell UML to ask again by then. ``settle`` first reads the
+        devices' calls UML still owes an answer to (UML reads our word as it waits for the
+        kick's reply, and must not find it while its interrupt handler talks to us)."""
         if self.sock is None or self._nested:
             return
         due = self.next_event_ns()
         if self.clock.ns < due < self.horizon:
+            settle()
             self.horizon = due
             self._seq += 1
             self._send(FREE_UNTIL, self._seq, due)

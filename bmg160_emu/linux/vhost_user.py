@@ -90,6 +90,7 @@ VRING_FD_INVALID = 0x100  # bit 8 of the u64 of SET_VRING_KICK/CALL/ERR: no fd p
 
 U64 = struct.Struct("<Q")  # a u64 payload (features, status)
 _HEADER = struct.Struct("<III")  # request, flags, size (as HEADER; here for the back end's own)
+_CALL_HEAD = _HEADER.pack(SLAVE_VRING_CALL, VERSION | FLAG_NEED_REPLY, 8)  # + vring state
 _STATE = struct.Struct("<II")  # vring index, number
 _ADDR = struct.Struct("<IIQQQQ")  # index, flags, descriptor, used, available, log addresses
 _CONFIG_HEAD = struct.Struct("<III")  # offset, size, flags
@@ -118,6 +119,8 @@ class VhostUserDevice:
         self.inband = False
         self.wait_readable: Callable[[int], None] | None = None
         self.inband_calls = 0
+        self.kicking = False  # inside a VRING_KICK message: UML waits for its reply
+        self._calls_owed = 0  # in-band calls whose answer is not read yet
 
     # ---------------------------------------------------------------- feature words
 
@@ -188,6 +191,7 @@ class VhostUserDevice:
         self.owner = False
 
     def _close_slave_req(self) -> None:
+        self._calls_owed = 0
         if self.slave_req_fd is not None:
             os.close(self.slave_req_fd)
             self.slave_req_fd = None
@@ -294,7 +298,11 @@ class VhostUserDevice:
             return None
         if request == VRING_KICK:
             index, _ = _STATE.unpack_from(payload)
-            self.kick(self._ring(index).index)
+            self.kicking = True
+            try:
+                self.kick(self._ring(index).index)
+            finally:
+                self.kicking = False
             return None
         if request == GET_QUEUE_NUM:
             return U64.pack(self.num_queues)
@@ -343,22 +351,37 @@ class VhostUserDevice:
                 self.kick(ring.index)
 
     def _call_inband(self, index: int) -> None:
-        """Call the driver with a SLAVE_VRING_CALL message and wait for its answer: by
-        then UML has made the completion an event of its calendar (vu_req_read_message)."""
+        """Call the driver with a SLAVE_VRING_CALL message. UML's interrupt handler makes
+        the completion an event of its calendar (it asks the calendar for the time, then
+        answers: vu_req_read_message). Inside a kick the answer is not waited for: UML waits
+        for the kick's reply, and takes the call (a signal) before it, so the kick's reply
+        may follow at once (two hand-overs between the processes per transfer fewer);
+        anywhere else it is waited for, the calendar served meanwhile."""
         fd = self.slave_req_fd
         if fd is None:
             raise VhostUserError("in-band call without the SLAVE_REQ channel")
-        os.write(fd, _HEADER.pack(SLAVE_VRING_CALL, VERSION | FLAG_NEED_REPLY, _STATE.size)
-                 + _STATE.pack(index, 0))
-        if self.wait_readable is not None:
-            self.wait_readable(fd)
-        reply = b""
-        while len(reply) < _HEADER.size + 8:
-            chunk = os.read(fd, _HEADER.size + 8 - len(reply))
-            if not chunk:
-                raise VhostUserError("the front end closed the SLAVE_REQ channel")
-            reply += chunk
+        self.settle_calls()  # an answer still owed on this channel is read first
+        os.write(fd, _CALL_HEAD + _STATE.pack(index, 0))
+        self._calls_owed += 1
         self.inband_calls += 1
+        if not self.kicking:
+            self.settle_calls()
+
+    def settle_calls(self) -> None:
+        """Read the answers UML owes to our in-band calls (waiting for them, the calendar
+        served meanwhile: UML asks it for the time before it answers)."""
+        fd = self.slave_req_fd
+        while self._calls_owed and fd is not None:
+            if self.wait_readable is not None:
+                self.wait_readable(fd)
+            reply = b""
+            while len(reply) < _HEADER.size + 8:
+                chunk = os.read(fd, _HEADER.size + 8 - len(reply))
+                if not chunk:
+                    self._calls_owed = 0
+                    raise VhostUserError("the front end closed the SLAVE_REQ channel")
+                reply += chunk
+            self._calls_owed -= 1
 
     def _fds_changed(self) -> None:
         if self.on_fds_changed is not None:

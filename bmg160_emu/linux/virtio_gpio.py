@@ -170,6 +170,8 @@ class VirtioGPIODevice(VhostUserDevice):
         self.clock = clock if isinstance(clock, GuestPacedClock) else None
         # read_taken(address): the guest has the answer to its last rate read (virtio-i2c)
         self.read_taken = read_taken
+        # could the last transfers have changed a pin (virtio-i2c); None: always look
+        self.pins_may_have_changed: Callable[[], bool] | None = None
         self._pace: dict[int, _Pace] = {}
         self._armed = False  # a line has a trigger type set
         self.given_up = 0  # samples whose edge the guest never answered (paced)
@@ -417,30 +419,43 @@ class VirtioGPIODevice(VhostUserDevice):
     # ---------------------------------------------------------------- virtual time
 
     def next_event_ns(self) -> int | None:
-        """Virtual time (the calendar's source): the chips' next sample instant (ns, their
-        clock) at which a line with a trigger can change: a status is routed to its pin, or
-        it is active (a latch ends at a sample). None when no line can."""
+        """Virtual time (the calendar's source): the earliest instant (ns, the chips' clock)
+        at which a line with a trigger may fire. A rising edge of an active-high pin (what
+        data-ready, FIFO and motion interrupts raise) comes only with a sample: the sample
+        instants while a status is routed to the pin or the line is active. Any other
+        trigger also follows the ends of pulses and latches: the chip's own
+        ``next_pin_change_ns``. None when no line can fire."""
         best: int | None = None
         for line in self.lines:
             if line.irq_type == IRQ_TYPE_NONE:
                 continue
             chip = line.chip
-            odr = chip.odr_hz
-            if not odr or chip.power_mode != "normal":
-                continue
-            if not (line.last_active or any(chip.peek(register) & bits
-                                            for register, bits in PIN_ROUTES[line.pin])):
-                continue
-            period = NS_PER_S // odr
-            now = chip.clock.now_ns()
-            last = line.counter.last_ns
-            # the sample after the last one the line saw (until it has seen one, a period
-            # from now: no later than the chip's next sample)
-            due = last + period if last is not None else now + period
-            if due <= now:
-                due = now + period - (now - due) % period  # (samples the line has not seen)
-            best = due if best is None else min(best, due)
+            active_high = chip.peek(INT_EN_1) >> (0 if line.pin == 1 else 2) & 1
+            if line.irq_type != IRQ_TYPE_EDGE_RISING or not active_high:
+                due = chip.next_pin_change_ns()
+            else:
+                due = self._next_sample_ns(line)
+            if due is not None:
+                best = due if best is None else min(best, due)
         return best
+
+    def _next_sample_ns(self, line: GpioLine) -> int | None:
+        chip = line.chip
+        odr = chip.odr_hz
+        if not odr or chip.power_mode != "normal":
+            return None
+        if not (line.last_active or any(chip.peek(register) & bits
+                                        for register, bits in PIN_ROUTES[line.pin])):
+            return None
+        period = NS_PER_S // odr
+        now = chip.clock.now_ns()
+        last = line.counter.last_ns
+        # the sample after the last one the line saw (until it has seen one, a period from
+        # now: no later than the chip's next sample)
+        due = last + period if last is not None else now + period
+        if due <= now:
+            due = now + period - (now - due) % period  # (samples the line has not seen)
+        return due
 
     def fire(self, now_ns: int) -> None:
         """Virtual time: the calendar's time is a sample instant: follow the lines."""
@@ -529,8 +544,12 @@ class VirtioGPIODevice(VhostUserDevice):
     def after_transfer(self) -> None:
         """Hook for the I2C device: a transfer may have changed a line (clear-on-read...).
         With no trigger on any line there is nothing to follow and nothing to pace (the
-        look after the request that cleared the last one left it so): no look."""
-        if self._armed:
+        look after the request that cleared the last one left it so): no look. Unpaced
+        (virtual time), none either after transfers that cannot have changed a pin
+        (``pins_may_have_changed``, the I2C device's answer); paced, each rate read is
+        what the pacing waits for."""
+        if self._armed and (self.clock is not None or self.pins_may_have_changed is None
+                            or self.pins_may_have_changed()):
             self.look()
 
     def line_summary(self) -> list[dict[str, Any]]:

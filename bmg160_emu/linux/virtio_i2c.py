@@ -99,6 +99,18 @@ class VirtioI2CDevice(VhostUserDevice):
         self.rate_reads: dict[int, float] = {}
         self._rate_read_used: dict[int, int] = {}  # {address: used index after that read}
         self._group: list[_Request] = []
+        # the transfers answered since the hooks last ran were all reads of the rate
+        # registers and nothing else (see pins_may_have_changed)
+        self._rate_reads_only = True
+        self._hold_data_int = any(getattr(c, "hold_data_int", False)
+                                  for c in bus.devices.values())
+
+    def pins_may_have_changed(self) -> bool:
+        """Could the transfers just answered have changed an INT pin? Not when they only
+        read RATE_X..RATE_Z (no status is cleared by that read, unless a chip holds
+        data_int until it): what lets virtual time skip the GPIO lines' look after a
+        driver's plain read (issue 32: that look cost more than the read)."""
+        return not self._rate_reads_only or self._hold_data_int
 
     def reset(self) -> None:
         super().reset()
@@ -120,6 +132,7 @@ class VirtioI2CDevice(VhostUserDevice):
                 continue
             request = self._parse(queue.chain(heads[i]))
             i += 1
+            self._rate_reads_only = False
             self._group.append(request)
             if not request.flags & FLAG_FAIL_NEXT:
                 self._transfer(queue, self._group)
@@ -134,6 +147,7 @@ class VirtioI2CDevice(VhostUserDevice):
             self._served = False
             for hook in self.after_transfer:
                 hook()
+            self._rate_reads_only = True
 
     def _register_read(self, queue: VirtQueue, first: int, second: int) -> bool:
         """The drivers' most common transfer, served straight from the two chains' indirect
@@ -180,6 +194,10 @@ class VirtioI2CDevice(VhostUserDevice):
         if register <= RATE_LAST and register + length > RATE_FIRST:
             self.rate_reads[address] = chip.time
             self._rate_read_used[address] = queue.ring.used_idx
+            if register < RATE_FIRST or register + length - 1 > RATE_LAST:
+                self._rate_reads_only = False
+        else:
+            self._rate_reads_only = False
         return True
 
     def _parse(self, chain: Chain) -> _Request:

@@ -108,19 +108,22 @@ class SensorNoise:
 
     def take(self, k0: int, n: int) -> tuple[np.ndarray, np.ndarray]:
         """(unfiltered, filtered) noise of samples k0 .. k0 + n - 1, deg/s; samples before
-        k0 are forgotten."""
+        k0 are forgotten (before a draw, else once NOISE_CHUNK of them are held)."""
         if self.generator is None:
             zeros = np.zeros((n, 3))
             return zeros, zeros
         if k0 < self.k0:
             raise RuntimeError(f"noise of sample {k0} was forgotten (held from {self.k0})")
-        if k0 > self.k0:
-            self._forget(min(k0, self.end))
         if k0 + n > self.end:
+            if k0 > self.k0:
+                self._forget(min(k0, self.end))
             self._draw(k0 + n)
             if k0 > self.k0:  # a gap: samples drawn and never used
                 self._forget(k0)
-        return self.raw[:n], self.out[:n]
+        elif k0 - self.k0 >= NOISE_CHUNK:  # (forgotten a chunk at a time: a closed loop takes
+            self._forget(k0)  # one sample a step, and a cut of two views is most of that)
+        i = k0 - self.k0
+        return self.raw[i:i + n], self.out[i:i + n]
 
     def _draw(self, end: int) -> None:
         """Whole chunks from self.end until ``end`` is covered (one generator checkpoint),

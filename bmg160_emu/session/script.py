@@ -9,6 +9,7 @@ the line number and the decoded difference.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from bmg160_emu import durations
 from bmg160_emu.device.fields import describe_value_difference, register_label
@@ -20,6 +21,8 @@ from bmg160_emu.session.script_language import (
     Statement,
     parse_script,
 )
+
+ADVANCE_STEP_NS = 60 * 10**9  # a reported advance goes a simulated minute at a time
 
 
 class I2CRegisterPort:
@@ -94,9 +97,11 @@ class ScriptRunner:
         source: str = "<script>",
         port=None,
         bus=None,
+        progress: Any = None,
     ):
         self.chip = chip
         self.log = log
+        self.progress = progress  # a bmg160_emu.progress.Progress: the time left of an advance
         self.source = source
         self.bus = bus
         if port is None:
@@ -107,6 +112,25 @@ class ScriptRunner:
             port = I2CRegisterPort(bus, chip.address)
         self.port = port
         self.faults: list = []
+
+    def _advance(self, seconds: float) -> None:
+        """``advance``: at once, or (with a progress report, and longer than ADVANCE_STEP_S)
+        in steps of whole nanoseconds, so that ``advance 720h`` at 2000 Hz (about 12 min of
+        work) shows the time it has left (issue 35). The steps add up to the same
+        nanoseconds and the chip makes the same samples: it is chunk invariant."""
+        total_ns = round(seconds * 1e9)
+        if self.progress is None or total_ns <= ADVANCE_STEP_NS:
+            self.chip.advance(seconds)
+            return
+        text = durations.exact_duration_text(seconds)
+        with self.progress.stage(-(-total_ns // ADVANCE_STEP_NS), "simulated minutes",
+                                 f"advance {text}") as update:
+            done = 0
+            while done < total_ns:
+                step = min(ADVANCE_STEP_NS, total_ns - done)
+                self.chip.advance(step / 1e9)
+                done += step
+                update(-(-done // ADVANCE_STEP_NS))
 
     def run(self, statements: list[Statement]) -> None:
         for statement in statements:
@@ -143,7 +167,7 @@ class ScriptRunner:
         elif s.command == "poll":
             self._poll(s)
         elif s.command == "advance":
-            chip.advance(s.seconds)
+            self._advance(s.seconds)
             self._say(s, f"advance {durations.exact_duration_text(s.seconds)}")
         elif s.command == "rate":
             chip.set_true_rate(s.rate_dps)
@@ -242,10 +266,12 @@ def _reads(count: int) -> str:
 
 
 def run_script(
-    text: str, chip, log: Callable[[str], None] = print, source: str = "<script>", bus=None
+    text: str, chip, log: Callable[[str], None] = print, source: str = "<script>", bus=None,
+    progress: Any = None,
 ) -> ScriptRunner:
-    """Parse then run; raises ScriptSyntaxError before anything runs, ScriptFailure on a miss."""
+    """Parse then run; raises ScriptSyntaxError before anything runs, ScriptFailure on a miss.
+    ``progress`` (a bmg160_emu.progress.Progress) reports a long ``advance``."""
     statements = parse_script(text, source)
-    runner = ScriptRunner(chip, log, source, bus=bus)
+    runner = ScriptRunner(chip, log, source, bus=bus, progress=progress)
     runner.run(statements)
     return runner

@@ -140,6 +140,9 @@ class FlightSoftware(sysModel.SysModel):
     # ------------------------------------------------------------------ setup
 
     def Reset(self, CurrentSimNanos: int) -> None:
+        # the wheel speeds through one live view of their message, taken once its link is
+        # made (each call of a reader makes a new reader and view: 5-10 us)
+        self.wheel_speeds = self.rwSpeedInMsg()
         self.smbus = SMBus(self.bus_number)
         self.smbus.write_byte_data(self.address, RANGE, RANGE_250_DPS)
         self.smbus.write_byte_data(self.address, BW, BW_200_HZ)
@@ -177,7 +180,7 @@ class FlightSoftware(sysModel.SysModel):
 
     def UpdateState(self, CurrentSimNanos: int) -> None:
         t = CurrentSimNanos * 1e-9
-        speeds = self.rwSpeedInMsg().wheelSpeeds
+        speeds = self.wheel_speeds.wheelSpeeds
         (m0, m1, m2) = self.momentum
         h = [_dot(m0, speeds), _dot(m1, speeds), _dot(m2, speeds)]  # N m s, body
         if t < STARTUP_S:

@@ -16,8 +16,9 @@ cd /run || exit 1
 
 step() { echo "== [$(cut -d' ' -f1 /proc/uptime)s] $*"; echo "$(cut -d' ' -f1 /proc/uptime) $*" >> "$OUT/steps.txt"; }
 emu() { "$PY" -m bmg160_emu "$@"; }
-# n reads of one sysfs attribute, $2 seconds apart, one value a line
-sample() { i=0; while [ $i -lt "$3" ]; do cat "$IIO/$1"; sleep "$2"; i=$((i + 1)); done; }
+# n reads of one sysfs attribute, $2 seconds apart, one value a line (the shell's own read:
+# a program started per value costs a fork and an exec under UML's ptrace)
+sample() { i=0; while [ $i -lt "$3" ]; do read -r v < "$IIO/$1"; echo "$v"; sleep "$2"; i=$((i + 1)); done; }
 
 step "1. modules: i2c-stub chip_addr=0x68, i2c-dev"
 modprobe ${GUEST_ROOT:+-d "$GUEST_ROOT"} i2c-stub chip_addr=0x68 || echo "modprobe i2c-stub failed"

@@ -182,15 +182,19 @@ def decode(data: bytes, seq: int) -> list[Reply]:
         raise ProtocolError(f"response {head[:40]!r} does not answer request {seq}")
     replies = []
     at = 0
-    for _ in range(int(words[2])):
-        end = rest.index(b"\n", at)
-        status, count = (int(w) for w in rest[at:end].split())
-        at = end + 1
-        fields = []
-        for _ in range(count):
+    try:
+        for _ in range(int(words[2])):
             end = rest.index(b"\n", at)
-            length = int(rest[at:end])
-            fields.append(rest[end + 1:end + 1 + length])
-            at = end + 2 + length
-        replies.append(Reply(status, fields))
+            status, count = (int(w) for w in rest[at:end].split())
+            at = end + 1
+            fields = []
+            for _ in range(count):
+                end = rest.index(b"\n", at)
+                length = int(rest[at:end])
+                fields.append(rest[end + 1:end + 1 + length])
+                at = end + 2 + length
+            replies.append(Reply(status, fields))
+    except ValueError:  # (the agent stops at a record it could not read: it said so)
+        raise ProtocolError(f"response {seq} holds {len(replies)} of {int(words[2])} "
+                            "replies: the agent could not read the request") from None
     return replies

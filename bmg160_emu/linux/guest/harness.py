@@ -139,7 +139,8 @@ class Backend:
 
             self.calendar_socket = sockets / "time.sock"
             self.calendar = Calendar(self.server, os.fspath(self.calendar_socket), clock)
-            self.server.before_reply = self.calendar.tighten
+            calendar = self.calendar
+            self.server.before_reply = lambda: calendar.tighten(self._settle_calls)
             for device in (self.i2c, self.gpio):
                 if device is not None:
                     device.inband = True  # completions as events of the calendar
@@ -153,6 +154,7 @@ class Backend:
             else:
                 self.server.pollers.append(self.gpio.poll)
                 self.gpio.wake = lambda at_s: self.server.schedule(gpio_device.poll, at_s)
+            self.gpio.pins_may_have_changed = self.i2c.pins_may_have_changed
             self.i2c.after_transfer.insert(0, self.gpio.after_transfer)
         if self.agent_lines is not None:
             self.agent_lines.on_reply = self._replied
@@ -166,6 +168,11 @@ class Backend:
         except Exception as exc:  # noqa: BLE001 (kept for the caller; the guest sees a dead device)
             self.error = exc
             self.replies.add()  # wake a waiting caller: it finds the guest gone or the error
+
+    def _settle_calls(self) -> None:
+        for device in (self.i2c, self.gpio):
+            if device is not None:
+                device.settle_calls()
 
     def _replied(self) -> None:
         if self.calendar is not None:
@@ -399,6 +406,8 @@ class Guest:
         if self.alive:
             try:
                 self.call([agent.stop()], timeout_s=timeout_s)
+                if self.backend is not None and self.backend.calendar is not None:
+                    self.backend.calendar.run_free()  # its power-off may wait for a timer
                 assert self.process is not None
                 self.process.wait(timeout=timeout_s)
             except (GuestDied, subprocess.TimeoutExpired, agent.ProtocolError, OSError):
