@@ -94,3 +94,17 @@ def test_a_malformed_slow_band_is_named(tmp_path):
                     f"\n[y]\n{axis}[z]\n{axis}", encoding="utf-8")
     with pytest.raises(ProfileError, match=r"slow_band\[0\]: f and width must be positive"):
         load_profile(str(path))
+
+
+def test_a_flat_record_gets_its_slow_band_too():
+    """No output stage (white at the output, as the MPU-6050 record): the band is searched
+    against the white-noise fit the record gets anyway, found, and fitted with it."""
+    axis = AxisNoise(N=0.04, B=0.0, T=0.0, K=0.0, bias=0.0, gm=((0.01, 60.0),),
+                     slow_band=(SLOW,))
+    x = profile_noise(Profile("t", axis, axis, axis), RATE, seed=0).generate(300_000)[:, 0]
+    found = identify_axis(x, RATE)
+    assert found.stage is not None and found.stage.response.order == 0
+    (band,) = found.stage.slow_bands
+    assert abs(band.centre_hz - SLOW[0]) < 0.03
+    assert 0.4 < band.power / SLOW[2] ** 2 < 2.0
+    assert found.to_axis_noise().slow_band and not found.to_axis_noise().response

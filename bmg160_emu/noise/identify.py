@@ -243,10 +243,11 @@ def identify_axis(
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
     record_stage = None
     flat = False
+    flat_stage = None
     if output_stage and tau_range[0] is None and not with_q:
         # (--with-q: angle quantization's PSD rises as f^2; a measured response would take it)
         # the stage of any shape, read on the PSD, and the fit through it (issue 37)
-        from bmg160_emu.noise.stage_identification import fit_through_stage
+        from bmg160_emu.noise.stage_identification import Flat, fit_through_stage
 
         grid = output_grid(x)
 
@@ -256,13 +257,12 @@ def identify_axis(
         through = fit_through_stage(
             x, rate_hz, curve, grid.step if grid is not None else None, fit_with, tau_range[1],
             spectrum)
-        flat = isinstance(through, str)
-        if through is not None and not isinstance(through, str):
+        flat = isinstance(through, (str, Flat))
+        flat_stage = through if isinstance(through, Flat) else None
+        if isinstance(through, tuple):
             fit, record_stage, notes = through
             reason = ("every tau fitted: the output filter is part of the white term (the "
                       "measured response is that filter)" if record_stage.family is not None
-                      else "every tau fitted: white noise (the PSD shows no output filter), "
-                      "the slow bands known" if record_stage.response.order == 0
                       else "every tau fitted: white noise through the measured output response "
                       "(the record's whole fast spectrum)")
             notes += _fit_notes(fit, n / rate_hz)
@@ -273,6 +273,15 @@ def identify_axis(
             stage = _sensor_output(x, rate_hz, spectrum) if output_stage else SensorOutput()
         fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options,
                                              method, record=x, stage=stage)
+        if flat_stage is not None and fit.output_filter is None:
+            from bmg160_emu.noise.stage_identification import slow_bands_of_flat
+
+            slow = slow_bands_of_flat(flat_stage, fit, rate_hz, fit_with, tau_range[1])
+            if slow is not None:  # the flat record's slow spectrum has a band: fitted with it
+                fit, record_stage, found_notes = slow
+                reason = ("every tau fitted: white noise (the PSD shows no output filter), "
+                          "the slow bands known")
+                notes = found_notes + _fit_notes(fit, n / rate_hz)
     if progress is not None:
         progress(f"{axis}: fit")
     for check in (diagnostics.warmup_check, diagnostics.step_check):

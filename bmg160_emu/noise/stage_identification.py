@@ -47,6 +47,19 @@ BAND_SHARE = 0.25  # of the white term's Allan variance: where the first fit sta
 STAGE_SEGMENT = 4096  # samples per Welch segment of the stage's PSD (0.024 Hz at 100 Hz)
 SHAPE_PASSES = 2
 FLAT = "flat"  # fit_through_stage's answer for a record whose PSD shows no stage
+
+
+@dataclass
+class Flat:
+    """fit_through_stage's answer for a record whose PSD shows no stage: what the PSD shows
+    (lines, no response) and what the slow-band search needs after the caller's own fit
+    (slow_bands_of_flat)."""
+
+    found: SpectralFindings
+    fine: Any
+    segments: float
+    line_spans: tuple[tuple[float, float], ...]
+    lsb_dps: float | None
 MIN_SEGMENTS = 16  # Welch segments below which the PSD cannot tell a shape (the firmware's
 # 6 s capture: 8 segments of 256 read a spurious shape that took N 22 % low)
 
@@ -105,10 +118,11 @@ def stage_spectrum(x: np.ndarray, rate_hz: float):
 
 def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps: float | None,
                       fit: Callable[..., CurveFit], tau_max: float | None, fine: Any = None
-                      ) -> tuple[CurveFit, RecordStage, list[str]] | str | None:
-    """The final Allan fit through the record's output stage, the stage, and notes; FLAT
-    when the PSD shows no stage (flat, no band: the caller fits white noise, no filter
-    searched), None when the record is too short to tell (the caller's former route).
+                      ) -> tuple[CurveFit, RecordStage, list[str]] | Flat | str | None:
+    """The final Allan fit through the record's output stage, the stage, and notes; a Flat
+    (FLAT without the long-segment PSD) when the PSD shows no stage (flat, no band: the
+    caller fits white noise, no filter searched, then slow_bands_of_flat), None when the
+    record is too short to tell (the caller's former route).
     ``fit(tau_range, **stage options)`` is the identification's fit method; ``fine``, the
     record's long-segment PSD (spectrum.one_sided_psd), locates lines to its finer bins
     (output_stage.find_lines: A and f of a 1.3 Hz line to 10 % and 0.003 Hz on 20 min)."""
@@ -137,17 +151,8 @@ def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps:
     stage = RecordStage(found, found.response, lsb_dps)
     sines = stage.sines
     if found.response.order == 0 and not found.bands:
-        # flat: white noise, unless the slow spectrum has a band (then fitted with it)
-        if fine is None:
-            return FLAT
-        flat = fit((None, tau_max), response=found.response, sines=sines, lsb_dps=lsb_dps)
-        stage.slow_bands = _slow_bands(fine, count, rate_hz, flat, found, lsb_dps, line_spans)
-        if not stage.slow_bands:
-            return FLAT
-        slow = _known(stage.slow_bands, found.response, rate_hz)
-        final = fit((None, tau_max), response=found.response, known_avar=slow, sines=sines,
-                    lsb_dps=lsb_dps)
-        return final, stage, [_slow_note(stage.slow_bands)]
+        # flat: white noise; the slow spectrum is searched for bands after the caller's fit
+        return FLAT if fine is None else Flat(found, fine, count, line_spans, lsb_dps)
     if not found.bands and found.response.order > 0:
         from bmg160_emu.noise.output_stage import fit_filter_psd
 
@@ -219,6 +224,23 @@ def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps:
     if slow_bands:
         notes.append(_slow_note(slow_bands))
     return current, stage, notes
+
+
+def slow_bands_of_flat(flat: Flat, fit_done: CurveFit, rate_hz: float,
+                       fit: Callable[..., CurveFit], tau_max: float | None
+                       ) -> tuple[CurveFit, RecordStage, list[str]] | None:
+    """A flat record's slow bands against the caller's own fit (white noise, Gauss-Markov
+    terms, random walk): None when there is none (the caller's fit stands, and this cost one
+    scan, about 50 ms), else the fit with them known, the stage that carries them, a note."""
+    bands = _slow_bands(flat.fine, flat.segments, rate_hz, fit_done, flat.found, flat.lsb_dps,
+                        flat.line_spans)
+    if not bands:
+        return None
+    stage = RecordStage(flat.found, flat.found.response, flat.lsb_dps, slow_bands=bands)
+    final = fit((None, tau_max), response=flat.found.response,
+                known_avar=_known(bands, flat.found.response, rate_hz),
+                sines=stage.sines, lsb_dps=flat.lsb_dps)
+    return final, stage, [_slow_note(bands)]
 
 
 def _slow_note(bands: list) -> str:
