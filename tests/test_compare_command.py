@@ -78,6 +78,33 @@ def test_figure_and_bad_input(recording, capsys, tmp_path):
     assert "not an output data rate" in capsys.readouterr().err
 
 
+def test_a_sensor_at_its_own_rate_is_generated_and_compared_there(tmp_path, capsys):
+    """A user's sensor at a rate the BMG160 does not offer (a PX4 autopilot's 250 Hz): the
+    profile identified from it runs at that rate (its [output] rate_hz), so identify prints a
+    verdict and compare draws there; another rate is refused, naming both."""
+    from bmg160_emu.noise import NoiseGenerator
+    from bmg160_emu.noise.profile import load_profile
+
+    white = AxisNoise(N=0.01, B=0.0, T=0.0, K=0.0, bias=0.0)
+    own = Profile("own", white, white, white, output=OutputStage(rate_hz=250.0))
+    data = NoiseGenerator(own, rate_hz=250.0, seed=5).generate(60_000)
+    path = tmp_path / "px4.npy"
+    np.save(path, data)
+    profile = tmp_path / "px4.toml"
+    assert main(["identify", str(path), "--rate", "250", "--profile-out", str(profile)]) == 0
+    capsys.readouterr()
+    assert load_profile(str(profile)).output.rate_hz == 250.0
+    main(["compare", str(path), str(profile), "--rate", "250", "--seeds", SEEDS, "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert report["rate_hz"] == 250.0 and report["samples"] == 60_000
+    for axis in report["axes"].values():  # drawn at 250 Hz: the same white noise (the std of
+        assert abs(axis["std_ratio"] - 1) < 0.03  # 60,000 samples scatters by 0.3 %)
+    with pytest.raises(ValueError, match="it was identified at, 250"):
+        NoiseGenerator(str(profile), rate_hz=300.0)
+    with pytest.raises(ValueError, match="BMG160 offers"):
+        NoiseGenerator(str(profile), rate_hz=250.0, mode="paper")
+
+
 def test_identify_sizes_its_verdict_by_samples_not_by_the_clock(recording, capsys, tmp_path,
                                                                  monkeypatch):
     # the number of emulated records follows from the record's length alone, so the same

@@ -1,9 +1,12 @@
 """Benchmark: identification of one axis against allantools.oadev alone on the same data.
 
-Target (issue 11): octave-spaced overlapping ADEV + confidence intervals + filter, warm-up
-and step checks + PSD + multi-term fit of one 24 h axis at 200 Hz (17.28 M samples) in no
-more than 1.0x the time of `allantools.oadev(..., taus='octave')` alone on the same data,
-measured in the same run (issue 2's target was 1.5x).
+Target (issue 37): octave-spaced overlapping ADEV + confidence intervals + the output stage
+(PSD shape, bands, lines) + warm-up and step checks + PSD + multi-term fit of one 24 h axis
+at 200 Hz (17.28 M samples) in no more than 0.4x the time of
+`allantools.oadev(..., taus='octave')` alone on the same data, measured in the same run
+(issue 11's target was 1.0x, issue 2's 1.5x). The ratio falls with the record's length (the
+fit costs the same on any record; allantools' whole-record temporaries grow faster than
+the record), so the 24 h figure is the one the target names.
 
     python tools/bench_identification.py            # 24 h
     python tools/bench_identification.py --hours 6  # quicker
@@ -48,7 +51,7 @@ def main() -> None:
     print(f"record: one axis, {args.hours:g} h at {rate:g} Hz = {n / 1e6:.2f} M samples")
     print(f"reference  allantools.oadev(taus='octave')   : {ref:7.2f} s")
     print(f"identify   ADEV + CI + checks + PSD + fit    : {full:7.2f} s  ratio {full / ref:.2f}")
-    print("target: ratio <= 1.0")
+    print("target (24 h): ratio <= 0.4")
 
 
 if __name__ == "__main__":

@@ -78,7 +78,9 @@ def main(argv: list[str] | None = None) -> int:
             kind = ("none" if stage is None else
                     "Butterworth" if stage.family is not None else
                     f"measured {len(stage.response.cosine)}-tap")
-            bands = len(stage.findings.bands) if stage is not None else 0
+            bands = (f"{len(stage.findings.bands)}" if stage is not None else "0") + (
+                f" + {len(stage.slow_bands)} slow" if stage is not None and stage.slow_bands
+                else "")
             row = (path.name, a.axis, a.std_ratio, lag, a.psd_inside, fwd, rev, n_taus, kind, bands,
                    "pass" if a.passed else "FAIL")
             rows.append(row)

@@ -77,9 +77,14 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(text if text.startswith(str(args.recording))
                            else f"{args.recording}: {text}") from None
     rate = float(record.rate_hz)
-    if rate not in SUPPORTED_RATES_HZ:
+    own = profile.output.rate_hz if profile.output is not None else None
+    if rate not in SUPPORTED_RATES_HZ and not (own and abs(rate - own) <= 1e-6 * own):
         raise CommandError(f"{args.recording}: its rate {rate:g} Hz is not an output data rate "
-                           "the generator draws (100, 200, 400, 1000, 2000 Hz)")
+                           "the generator draws (100, 200, 400, 1000, 2000 Hz), nor the rate "
+                           f"{args.profile} was identified at"
+                           + (f" ({own:g} Hz)" if own else ""))
+    if own and abs(rate - own) <= 1e-6 * own:
+        rate = float(own)  # the profile's own rate, as written (the record's to 1e-6)
     bar = _progress(args.seeds)
     try:
         verdict = compare_profile(record.rate_dps, rate, profile, args.seeds,

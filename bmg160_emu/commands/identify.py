@@ -336,7 +336,9 @@ def _verdict(args: argparse.Namespace, record, result):
     from bmg160_emu.noise.verdict import compare_profile
 
     how = f"bmg160-emu compare {args.file} {args.profile_out or 'PROFILE'}"
-    if float(record.rate_hz) not in SUPPORTED_RATES_HZ:
+    profile = result.to_profile(args.profile_out.stem if args.profile_out else "identified")
+    own = getattr(profile.output, "rate_hz", None)  # a profile runs at its record's own rate
+    if float(record.rate_hz) not in SUPPORTED_RATES_HZ and own != float(record.rate_hz):
         print(f"bmg160-emu identify: no verdict: the record's rate {record.rate_hz:g} Hz is not "
               "an output data rate the generator draws (100, 200, 400, 1000, 2000 Hz)",
               file=sys.stderr)
@@ -349,7 +351,6 @@ def _verdict(args: argparse.Namespace, record, result):
               f"spends on it; run `{how} --seeds N`", file=sys.stderr)
         return None
     seeds = max(seeds, VERDICT_MIN_SEEDS)
-    profile = result.to_profile(args.profile_out.stem if args.profile_out else "identified")
     names = tuple(a.axis for a in result.axes)
     print(f"bmg160-emu identify: verdict over {seeds} emulated records "
           f"(`{how}` gives more) ...", file=sys.stderr, flush=True)
@@ -581,11 +582,11 @@ def _figure_jobs(args: argparse.Namespace, record, result) -> list[tuple[Path, A
         from bmg160_emu.noise.sensor_noise import profile_noise
 
         chip_rate = min(SUPPORTED_RATES_HZ, key=lambda r: abs(r / record.rate_hz - 1))
+        if getattr(result.output_stage(), "rate_hz", None) == float(record.rate_hz):
+            chip_rate = float(record.rate_hz)  # the profile runs at its record's own rate
         if abs(chip_rate / record.rate_hz - 1) > 0.01:
-            raise CommandError(
-                f"--compare: the record's rate {record.rate_hz:g} Hz is not a BMG160 output "
-                "data rate (100, 200, 400, 1000, 2000 Hz)"
-            )
+            raise CommandError(f"--compare: the record's rate {record.rate_hz:g} Hz is not a "
+                               "BMG160 output data rate (100, 200, 400, 1000, 2000 Hz)")
         # what generate writes from the profile: its output stage included; one record for
         # the look of the time series (its ADEV and PSD are drawn as the band of many
         # records: compare.png, _write_verdict_figure; one record's ADEV at L/10 scatters by

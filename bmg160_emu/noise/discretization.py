@@ -62,16 +62,23 @@ class AxisCoefficients:
     bands: tuple[ResonanceCoefficients | None, ...] = ()
 
 
-def check_rate(rate_hz: float) -> float:
-    """The rate as float if the BMG160 offers it, else a clear ValueError."""
+def check_rate(rate_hz: float, own_rate_hz: float | None = None) -> float:
+    """The rate as float if the BMG160 offers it, or it is ``own_rate_hz`` (the rate a
+    profile was identified at, its [output] rate_hz: a user's sensor runs at its own rate,
+    250 Hz for a PX4 autopilot's, 104 or 833 Hz for ST's), else a clear ValueError."""
     try:
         rate = float(rate_hz)
     except (TypeError, ValueError):
         raise ValueError(f"output data rate must be a number in Hz, got {rate_hz!r}") from None
+    if own_rate_hz is not None and math.isfinite(rate) and rate > 0 and abs(
+            rate - own_rate_hz) <= 1e-9 * own_rate_hz:
+        return float(own_rate_hz)
     if rate not in SUPPORTED_RATES_HZ:
         offered = ", ".join(f"{r:g}" for r in SUPPORTED_RATES_HZ)
+        own = (f", and this profile runs at the rate it was identified at, {own_rate_hz:g}"
+               if own_rate_hz is not None and own_rate_hz not in SUPPORTED_RATES_HZ else "")
         raise ValueError(
-            f"unsupported output data rate {rate_hz!r} Hz: the BMG160 offers {offered}"
+            f"unsupported output data rate {rate_hz!r} Hz: the BMG160 offers {offered}{own}"
         )
     return rate
 
@@ -144,5 +151,5 @@ def axis_coefficients(axis: AxisNoise, rate_hz: float, mode: str) -> AxisCoeffic
         bias=axis.bias,
         poles=tuple(poles),
         walk=walk_coefficients(rw_step) if axis.K > 0 else None,
-        bands=tuple(resonance_coefficients(f, w, B, dt) for f, w, B in axis.band),
+        bands=tuple(resonance_coefficients(f, w, B, dt) for f, w, B in axis.resonators),
     )

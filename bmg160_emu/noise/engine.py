@@ -66,9 +66,9 @@ class _AxisStream:
         if axis.sine:  # spawned last: the other streams are those of a profile without it
             children += seed_seq.spawn(1)
             names.append("sine")
-        if axis.band:  # after the sines: a profile without bands draws what it drew before
-            children += seed_seq.spawn(len(axis.band))
-            names += [f"band{i}" for i in range(len(axis.band))]
+        if axis.resonators:  # after the sines: a profile without bands draws what it drew before
+            children += seed_seq.spawn(len(axis.resonators))
+            names += [f"band{i}" for i in range(len(axis.resonators))]
         self.rng = {
             name: np.random.Generator(np.random.PCG64(s)) for name, s in zip(names, children)
         }
@@ -91,7 +91,7 @@ class _AxisStream:
         self.walk = Pole(self.rng["rw"], None) if self.uses["rw"] else None
         # each resonator of a band: a complex Gauss-Markov term (gauss_markov.ResonancePole)
         self.resonators = [ResonancePole(self.rng[f"band{i}"])
-                           for i in range(len(axis.band))]
+                           for i in range(len(axis.resonators))]
         self._all = (self.poles + ([self.walk] if self.walk is not None else [])
                      + list(self.resonators))
         self.quant_prev = float(self.rng["quant"].standard_normal()) if self.uses["quant"] else 0.0
@@ -180,7 +180,7 @@ class NoiseGenerator:
     ) -> None:
         self.profile = load_profile(profile)
         self.mode = check_mode(mode)
-        rate = check_rate(rate_hz)
+        rate = check_rate(rate_hz, self._own_rate())
         for other in SUPPORTED_RATES_HZ:  # a profile must run at every rate a driver may set
             for axis in self.profile.axes:
                 axis_coefficients(axis, other, self.mode)
@@ -262,13 +262,19 @@ class NoiseGenerator:
             self._k += rest
         return out, post
 
+    def _own_rate(self) -> float | None:
+        """The rate the profile was identified at (physical mode: its terms scale with dt at
+        any rate; the paper's constants are of 200 Hz), beside the BMG160's ODRs."""
+        output = self.profile.output
+        return output.rate_hz if output is not None and self.mode == "physical" else None
+
     def set_rate(self, rate_hz: float) -> None:
         """Continue the same realisation at another output data rate.
 
         The Gauss-Markov and random-walk states of the last sample handed out carry over; the
         coefficients (white std, alpha, gains) change from the next sample on.
         """
-        rate = check_rate(rate_hz)
+        rate = check_rate(rate_hz, self._own_rate())
         if rate == self._rate_hz:
             return
         # coefficients first: if the profile cannot run at this rate, nothing has changed

@@ -129,6 +129,7 @@ class AxisIdentification:
             Q=self.Q.value if self.Q else 0.0, R=self.R.value if self.R else 0.0,
             gm=terms if len(terms) > 1 else (), sine=sine,
             band=stage.band_terms() if stage is not None else (),
+            slow_band=stage.slow_band_terms() if stage is not None else (),
             response=stage.response.cosine if stage is not None and stage.carries_response
             else (),
         )
@@ -168,6 +169,15 @@ class AxisIdentification:
              "resonators": [{"f_hz": r.f0_hz, "width_hz": r.width_hz, "B": r.B * s}
                             for r in b.resonances]}
             for b in stage.findings.bands]
+        if stage is not None and stage.slow_bands:  # below the response: drawn in every route
+            out["bands"] += [
+                {"centre_hz": b.centre_hz, "centre_ci95_half_hz": b.centre_half,
+                 "width_hz": b.width_hz, "width_ci95_half_hz": b.width_half,
+                 "B": {"value": b.B * s, "unit": units},
+                 "power": b.power * s * s, "power_ci95_half": b.power_half * s * s,
+                 "resonators": [{"f_hz": r.f0_hz, "width_hz": r.width_hz, "B": r.B * s}
+                                for r in b.resonances], "slow": True}
+                for b in stage.slow_bands]
         for key, est in (("Q", self.Q), ("R", self.R)):
             if est is not None:
                 out[key] = est.as_dict(s, unit(key))
@@ -238,7 +248,11 @@ class Identification:
         steps = [a.lsb_dps for a in self.axes if a.lsb_dps]
         measured = any(a.stage is not None and a.stage.carries_response for a in self.axes)
         if not filters and not steps and not measured:
-            return None
+            from bmg160_emu.noise.discretization import SUPPORTED_RATES_HZ
+
+            # a rate the BMG160 does not offer: the profile still runs at the record's own
+            return (None if self.rate_hz in SUPPORTED_RATES_HZ
+                    else OutputStage(rate_hz=self.rate_hz))
         order = corner = None
         if filters:
             order = Counter(f.order for f in filters).most_common(1)[0][0]
@@ -318,6 +332,9 @@ class Identification:
                 lines.append(f"  {band.text().replace('deg/s', units)}; drawn by "
                              f"{len(band.resonances)} resonator"
                              f"{'s' if len(band.resonances) != 1 else ''}")
+            for band in (a.stage.slow_bands if a.stage is not None else []):
+                lines.append(f"  slow {band.text().replace('deg/s', units)} (below the "
+                             "response: a resonator drawn in every route)")
             if a.lsb_dps:
                 lines.append(f"  quantized: LSB {a.lsb_dps * s:.6g} {units} (its white floor "
                              "LSB^2/12 is in the model)")

@@ -28,6 +28,7 @@ import numpy as np
 from bmg160_emu.durations import duration_text
 from bmg160_emu.noise import diagnostics
 from bmg160_emu.noise.allan import AllanCurve, allan_confidence, noise_alpha_from_slope
+from bmg160_emu.noise.blas_threads import with_one_blas_thread
 from bmg160_emu.noise.fit import CurveFit, FitError, fit_curve
 from bmg160_emu.noise.identification_result import AxisIdentification, Identification
 from bmg160_emu.noise.output_stage import (
@@ -198,6 +199,7 @@ def _fit_curve_axis(
     return fit, reason, notes + _fit_notes(fit, n / rate_hz)
 
 
+@with_one_blas_thread
 def identify_axis(
     rate_dps: np.ndarray,
     rate_hz: float,
@@ -241,10 +243,11 @@ def identify_axis(
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
     record_stage = None
     flat = False
+    flat_stage = None
     if output_stage and tau_range[0] is None and not with_q:
         # (--with-q: angle quantization's PSD rises as f^2; a measured response would take it)
         # the stage of any shape, read on the PSD, and the fit through it (issue 37)
-        from bmg160_emu.noise.stage_identification import fit_through_stage
+        from bmg160_emu.noise.stage_identification import Flat, fit_through_stage
 
         grid = output_grid(x)
 
@@ -254,8 +257,9 @@ def identify_axis(
         through = fit_through_stage(
             x, rate_hz, curve, grid.step if grid is not None else None, fit_with, tau_range[1],
             spectrum)
-        flat = isinstance(through, str)
-        if through is not None and not isinstance(through, str):
+        flat = isinstance(through, (str, Flat))
+        flat_stage = through if isinstance(through, Flat) else None
+        if isinstance(through, tuple):
             fit, record_stage, notes = through
             reason = ("every tau fitted: the output filter is part of the white term (the "
                       "measured response is that filter)" if record_stage.family is not None
@@ -269,6 +273,15 @@ def identify_axis(
             stage = _sensor_output(x, rate_hz, spectrum) if output_stage else SensorOutput()
         fit, reason, notes = _fit_curve_axis(axis, curve, rate_hz, n, tau_range, options,
                                              method, record=x, stage=stage)
+        if flat_stage is not None and fit.output_filter is None:
+            from bmg160_emu.noise.stage_identification import slow_bands_of_flat
+
+            slow = slow_bands_of_flat(flat_stage, fit, rate_hz, fit_with, tau_range[1])
+            if slow is not None:  # the flat record's slow spectrum has a band: fitted with it
+                fit, record_stage, found_notes = slow
+                reason = ("every tau fitted: white noise (the PSD shows no output filter), "
+                          "the slow bands known")
+                notes = found_notes + _fit_notes(fit, n / rate_hz)
     if progress is not None:
         progress(f"{axis}: fit")
     for check in (diagnostics.warmup_check, diagnostics.step_check):
@@ -300,6 +313,7 @@ def _curve_from_record(x: np.ndarray, rate_hz: float) -> AllanCurve:
     return overlapping_adev(x, rate_hz, taus="octave")
 
 
+@with_one_blas_thread
 def identify_curve(
     taus_s: np.ndarray,
     adev_dps: np.ndarray,
@@ -355,7 +369,7 @@ def identify_curve(
         def search(base: CurveFit, fit_range, notes_so_far):
             def fit_with(frequencies: tuple[float, ...]) -> CurveFit:
                 return _fit(method, curve, rate_hz, n_samples, fit_range,
-                            {**options, "poles": len(base.terms) if poles is None else poles,
+                            {**options,
                              "output_filter": base.output_filter, "free_sines": frequencies})
 
             lined, found_notes = find_periodic_terms(fit_with, base, rate_hz, float(taus[-1]))
@@ -494,6 +508,7 @@ def _selection_notes(fit: CurveFit) -> list[str]:
     return [text]
 
 
+@with_one_blas_thread
 def identify(
     rate_dps: np.ndarray,
     rate_hz: float,

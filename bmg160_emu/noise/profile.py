@@ -42,7 +42,7 @@ else:  # pragma: no cover - Python 3.10
 
 AXES = ("x", "y", "z")
 REQUIRED_FIELDS = ("N", "B", "T", "K", "bias")
-OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K", "gm", "sine", "band", "response")
+OPTIONAL_FIELDS = ("Q", "R", "sigma_gyro", "sigma_K", "gm", "sine", "band", "slow_band", "response")
 UNITS = {
     "N": "deg/s/sqrt(Hz)",
     "B": "deg/s",
@@ -103,6 +103,8 @@ class AxisNoise:
     # resonant bands (noise.resonant_bands): resonators (centre f Hz, -3 dB width Hz, std B
     # deg/s), sensing-element noise like the white term
     band: tuple[tuple[float, float, float], ...] = ()
+    # bands of the slow spectrum (noise.slow_bands): resonators never inside the response
+    slow_band: tuple[tuple[float, float, float], ...] = ()
     # the record's measured output response at [output] rate_hz (noise.output_response):
     # |H(f)|^2 = c0 + 2 sum c_k cos(2 pi k f / rate), c0 + 2 sum c_k = 1; () none
     response: tuple[float, ...] = ()
@@ -113,7 +115,14 @@ class AxisNoise:
         object.__setattr__(self, "sine", tuple((float(A), float(f)) for A, f in self.sine))
         object.__setattr__(self, "band", tuple((float(f), float(w), float(B))
                                                for f, w, B in self.band))
+        object.__setattr__(self, "slow_band", tuple((float(f), float(w), float(B))
+                                                    for f, w, B in self.slow_band))
         object.__setattr__(self, "response", tuple(float(c) for c in self.response))
+
+    @property
+    def resonators(self) -> tuple[tuple[float, float, float], ...]:
+        """Every resonator the generator draws: the bands', then the slow bands'."""
+        return self.band + self.slow_band
 
     @property
     def poles(self) -> tuple[tuple[float, float], ...]:
@@ -179,13 +188,15 @@ class Profile:
         out: dict[str, Any] = {"name": self.name, "description": self.description}
         for axis_name, axis in zip(AXES, self.axes):
             table = {k: v for k, v in asdict(axis).items()
-                     if v is not None and k not in ("gm", "sine", "band", "response")}
+                     if v is not None and k not in ("gm", "sine", "band", "slow_band", "response")}
             if axis.gm:
                 table["gm"] = [{"B": B, "T": T} for B, T in axis.gm]
             if axis.sine:
                 table["sine"] = [{"A": A, "f": f} for A, f in axis.sine]
             if axis.band:
                 table["band"] = [{"f": f, "width": w, "B": B} for f, w, B in axis.band]
+            if axis.slow_band:
+                table["slow_band"] = [{"f": f, "width": w, "B": B} for f, w, B in axis.slow_band]
             if axis.response:
                 table["response"] = list(axis.response)
             out[axis_name] = table
@@ -361,8 +372,8 @@ def _axis_from_mapping(table: Mapping[str, Any], where: str) -> AxisNoise:
         if key == "sine":
             values["sine"] = _sine_terms(raw, where)
             continue
-        if key == "band":
-            values["band"] = _band_terms(raw, where)
+        if key in ("band", "slow_band"):
+            values[key] = _band_terms(raw, where, key)
             continue
         if key == "response":
             values["response"] = _response(raw, where)
@@ -434,13 +445,14 @@ def _sine_terms(raw: Any, where: str) -> tuple[tuple[float, float], ...]:
     return tuple(terms)
 
 
-def _band_terms(raw: Any, where: str) -> tuple[tuple[float, float, float], ...]:
+def _band_terms(raw: Any, where: str, key: str = "band"
+                ) -> tuple[tuple[float, float, float], ...]:
     if not isinstance(raw, (list, tuple)):
-        raise ProfileError(f"{where}: band must be a list of {{ f = ..., width = ..., B = ... }} "
+        raise ProfileError(f"{where}: {key} must be a list of {{ f = ..., width = ..., B = ... }} "
                            "tables")
     terms = []
     for i, entry in enumerate(raw):
-        at = f"{where} band[{i}]"
+        at = f"{where} {key}[{i}]"
         if isinstance(entry, Mapping):
             if set(entry) != set(BAND_KEYS):
                 raise ProfileError(f"{at}: needs exactly f (Hz), width (Hz) and B (deg/s), got "
@@ -494,8 +506,8 @@ def format_profile(profile: Profile, header: str = "") -> str:
             if f.name == "sine":
                 lines += _sine_lines(value)
                 continue
-            if f.name == "band":
-                lines += _band_lines(value)
+            if f.name in ("band", "slow_band"):
+                lines += _band_lines(value, f.name)
                 continue
             if f.name == "response":
                 if value:
@@ -553,10 +565,11 @@ def _sine_lines(terms: tuple[tuple[float, float], ...]) -> list[str]:
     return lines + ["]"]
 
 
-def _band_lines(terms: tuple[tuple[float, float, float], ...]) -> list[str]:
+def _band_lines(terms: tuple[tuple[float, float, float], ...], key: str = "band") -> list[str]:
     if not terms:
         return []
-    lines = ["band = [                # resonant band: resonators f Hz, width Hz, B deg/s"]
+    what = "resonant band" if key == "band" else "slow band (below the response)"
+    lines = [f"{key} = [".ljust(24) + f"# {what}: resonators f Hz, width Hz, B deg/s"]
     for f, w, B in terms:
         lines.append(f"  {{ f = {toml_float(f, 'f')}, width = {toml_float(w, 'width')}, "
                      f"B = {toml_float(B, 'B')} }},")

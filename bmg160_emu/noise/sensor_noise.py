@@ -227,6 +227,9 @@ class SensorNoise:
             logging.getLogger(__name__).info(note)
 
 
+FIR_BLOCK = 1 << 14  # samples per step of a measured response's FIR (3 columns: 384 kB)
+
+
 class ProfileNoise:
     """A profile's noise as ``generate`` writes it: the sensing element's noise through the
     profile's own output stage (``[output]``: a Butterworth order and corner, or a BW code;
@@ -293,14 +296,20 @@ class ProfileNoise:
         _, out = self._noise.take(self._k, n)
         self._k += n
         if self.responses is not None and n:
-            out = np.array(out)
-            for i, memory in enumerate(self._fir_memory):
-                h = self.responses[i]
-                if memory is None or h is None:
-                    continue
-                joined = np.concatenate([memory, out[:, i]])
-                self._fir_memory[i] = joined[joined.size - memory.size:]
-                out[:, i] = np.convolve(joined, h, "valid")
+            source, out = out, np.empty(out.shape)
+            # in blocks that stay in cache (a column of a 2^18-row block is strided over 6 MB)
+            for start in range(0, n, FIR_BLOCK):
+                stop = min(start + FIR_BLOCK, n)
+                for i, memory in enumerate(self._fir_memory):
+                    h = self.responses[i]
+                    if memory is None or h is None:
+                        out[start:stop, i] = source[start:stop, i]
+                        continue
+                    joined = np.empty(memory.size + stop - start)  # the FIR's memory, then
+                    joined[:memory.size] = memory                  # this block
+                    joined[memory.size:] = source[start:stop, i]
+                    self._fir_memory[i] = joined[stop - start:]
+                    out[start:stop, i] = np.convolve(joined, h, "valid")
         if self.lsb_dps:
             return np.rint(out / self.lsb_dps) * self.lsb_dps
         return out  # rows handed out once: the buffer never writes them nor uses them again

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -47,6 +47,19 @@ BAND_SHARE = 0.25  # of the white term's Allan variance: where the first fit sta
 STAGE_SEGMENT = 4096  # samples per Welch segment of the stage's PSD (0.024 Hz at 100 Hz)
 SHAPE_PASSES = 2
 FLAT = "flat"  # fit_through_stage's answer for a record whose PSD shows no stage
+
+
+@dataclass
+class Flat:
+    """fit_through_stage's answer for a record whose PSD shows no stage: what the PSD shows
+    (lines, no response) and what the slow-band search needs after the caller's own fit
+    (slow_bands_of_flat)."""
+
+    found: SpectralFindings
+    fine: Any
+    segments: float
+    line_spans: tuple[tuple[float, float], ...]
+    lsb_dps: float | None
 MIN_SEGMENTS = 16  # Welch segments below which the PSD cannot tell a shape (the firmware's
 # 6 s capture: 8 segments of 256 read a spurious shape that took N 22 % low)
 
@@ -62,6 +75,8 @@ class RecordStage:
     # autocorrelation is the measured one's within FAMILY_ACF, no band: the profile carries it
     # (a corner in Hz holds at any rate); None: the measured response
     family: Any = None
+    # bands of the slow spectrum (slow_bands.py): never inside the response, drawn everywhere
+    slow_bands: list = field(default_factory=list)
 
     @property
     def carries_response(self) -> bool:
@@ -86,6 +101,11 @@ class RecordStage:
         return tuple((r.f0_hz, r.width_hz, r.B) for b in self.findings.bands
                      for r in b.resonances)
 
+    def slow_band_terms(self) -> tuple[tuple[float, float, float], ...]:
+        """Every resonator of every slow band: (centre Hz, width Hz, B deg/s)."""
+        return tuple((r.f0_hz, r.width_hz, r.B) for b in self.slow_bands
+                     for r in b.resonances)
+
 
 def stage_spectrum(x: np.ndarray, rate_hz: float):
     """The Welch PSD the stage is read on, and its number of half-overlapping segments."""
@@ -98,10 +118,11 @@ def stage_spectrum(x: np.ndarray, rate_hz: float):
 
 def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps: float | None,
                       fit: Callable[..., CurveFit], tau_max: float | None, fine: Any = None
-                      ) -> tuple[CurveFit, RecordStage, list[str]] | str | None:
-    """The final Allan fit through the record's output stage, the stage, and notes; FLAT
-    when the PSD shows no stage (flat, no band: the caller fits white noise, no filter
-    searched), None when the record is too short to tell (the caller's former route).
+                      ) -> tuple[CurveFit, RecordStage, list[str]] | Flat | str | None:
+    """The final Allan fit through the record's output stage, the stage, and notes; a Flat
+    (FLAT without the long-segment PSD) when the PSD shows no stage (flat, no band: the
+    caller fits white noise, no filter searched, then slow_bands_of_flat), None when the
+    record is too short to tell (the caller's former route).
     ``fit(tau_range, **stage options)`` is the identification's fit method; ``fine``, the
     record's long-segment PSD (spectrum.one_sided_psd), locates lines to its finer bins
     (output_stage.find_lines: A and f of a 1.3 Hz line to 10 % and 0.003 Hz on 20 min)."""
@@ -117,16 +138,21 @@ def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps:
         count = max((x.shape[0] - fine.segment_samples) / step + 1, 1.0)
         spans = [(b.centre_hz - 4.0 * b.width_hz, b.centre_hz + 4.0 * b.width_hz)
                  for b in found.bands]
+        every_line = find_lines(fine, rate_hz, count)
         found.lines = [
             (line.amplitude.value, line.frequency_hz,
              line.amplitude.ci_high - line.amplitude.value)
-            for line in find_lines(fine, rate_hz, count)
+            for line in every_line
             if line.frequency_hz >= rate_hz / 100.0
             and not any(lo <= line.frequency_hz <= hi for lo, hi in spans)]
-    if found.response.order == 0 and not found.bands:
-        return FLAT
+        df = float(fine.frequency_hz[0])
+        line_spans = tuple((line.frequency_hz - 4.0 * df, line.frequency_hz + 4.0 * df)
+                           for line in every_line)
     stage = RecordStage(found, found.response, lsb_dps)
     sines = stage.sines
+    if found.response.order == 0 and not found.bands:
+        # flat: white noise; the slow spectrum is searched for bands after the caller's fit
+        return FLAT if fine is None else Flat(found, fine, count, line_spans, lsb_dps)
     if not found.bands and found.response.order > 0:
         from bmg160_emu.noise.output_stage import fit_filter_psd
 
@@ -140,20 +166,24 @@ def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps:
                 stage.family = butterworth
                 final = fit((None, tau_max), output_filter=butterworth, sines=sines,
                             lsb_dps=lsb_dps)
-                return final, stage, [(f"the measured output response is that filter "
-                                       f"(autocorrelation at lags 1-5 within {gap:.3f}): the "
-                                       "profile carries it")]
+                notes = [(f"the measured output response is that filter (autocorrelation at "
+                          f"lags 1-5 within {gap:.3f}): the profile carries it")]
+                if fine is not None:
+                    stage.slow_bands = _slow_bands(fine, count, rate_hz, final, found, lsb_dps,
+                                                   line_spans)
+                if stage.slow_bands:
+                    slow = _known(stage.slow_bands, found.response, rate_hz)
+                    final = fit((None, tau_max), output_filter=butterworth, known_avar=slow,
+                                sines=sines, lsb_dps=lsb_dps)
+                    notes.append(_slow_note(stage.slow_bands))
+                return final, stage, notes
     known = None
     start = None
     if found.bands:
-        acov = bands_autocovariance(found.bands, found.response, rate_hz)
-        from bmg160_emu.noise.butterworth import WhiteThroughFilter
-
-        bands_stats = WhiteThroughFilter(acov)
+        bands_stats = _stats_of(found.bands, found.response, rate_hz)
 
         def known(tau: np.ndarray) -> np.ndarray:
-            m = np.maximum(np.rint(np.asarray(tau, dtype=float) * rate_hz), 1)
-            return bands_stats.avar_unit(m.astype(np.int64))
+            return _avar(bands_stats, tau, rate_hz)
 
         share = known(curve.taus) / (found.response.white_avar_unit(curve.taus)
                                       * found.N_psd**2)
@@ -161,17 +191,112 @@ def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps:
         start = float(curve.taus[below[0]]) if below.size else None
     first = fit((start, tau_max), response=found.response, known_avar=known, sines=sines,
                 lsb_dps=lsb_dps)
+    slow_bands: list = []
+    if fine is not None:
+        slow_bands = _slow_bands(fine, count, rate_hz, first, found, lsb_dps, line_spans)
+    slow_known = None
+    if slow_bands:
+        stage.slow_bands = slow_bands
+        slow_first = _known(slow_bands, found.response, rate_hz)
+
+        def with_slow(tau: np.ndarray) -> np.ndarray:
+            out = slow_first(tau)
+            return out if known is None else out + known(tau)
+
+        first = fit((start, tau_max), response=found.response, known_avar=with_slow,
+                    sines=sines, lsb_dps=lsb_dps)
     current = first
     for _ in range(SHAPE_PASSES):
         slow = random_walk_psd(current.K.value, f) + sum(
             (gauss_markov_psd(B, T, f) for B, T in current.gauss_markov_terms()),
-            np.zeros(f.size))
+            np.zeros(f.size)) + _bands_psd(slow_bands, f, rate_hz)
         response, _level = fit_fast_shape(f, psd, segments, rate_hz, lsb_dps, slow,
                                           found.lines)
-        current = fit((None, tau_max), response=response, sines=sines, lsb_dps=lsb_dps)
+        if slow_bands:
+            slow_known = _known(slow_bands, response, rate_hz)
+        current = fit((None, tau_max), response=response, known_avar=slow_known, sines=sines,
+                      lsb_dps=lsb_dps)
     stage.response = response
     notes = []
     if found.bands:
         notes.append("the bands are drawn inside the measured response at the record's rate "
                      "(generate); the chip draws their resonators before its own filter")
+    if slow_bands:
+        notes.append(_slow_note(slow_bands))
     return current, stage, notes
+
+
+def slow_bands_of_flat(flat: Flat, fit_done: CurveFit, rate_hz: float,
+                       fit: Callable[..., CurveFit], tau_max: float | None
+                       ) -> tuple[CurveFit, RecordStage, list[str]] | None:
+    """A flat record's slow bands against the caller's own fit (white noise, Gauss-Markov
+    terms, random walk): None when there is none (the caller's fit stands, and this cost one
+    scan, about 50 ms), else the fit with them known, the stage that carries them, a note."""
+    bands = _slow_bands(flat.fine, flat.segments, rate_hz, fit_done, flat.found, flat.lsb_dps,
+                        flat.line_spans)
+    if not bands:
+        return None
+    stage = RecordStage(flat.found, flat.found.response, flat.lsb_dps, slow_bands=bands)
+    final = fit((None, tau_max), response=flat.found.response,
+                known_avar=_known(bands, flat.found.response, rate_hz),
+                sines=stage.sines, lsb_dps=flat.lsb_dps)
+    return final, stage, [_slow_note(bands)]
+
+
+def _slow_note(bands: list) -> str:
+    return (f"{len(bands)} slow band{'s' if len(bands) > 1 else ''} below the output stage's "
+            "range (slow_bands.py): drawn as resonators in every route")
+
+
+def _known(bands: list, response: OutputResponse, rate_hz: float
+           ) -> Callable[[np.ndarray], np.ndarray]:
+    """The bands' Allan variance at tau through the response, a known term of the fit."""
+    stats = _stats_of(bands, response, rate_hz)
+
+    def known(tau: np.ndarray) -> np.ndarray:
+        return _avar(stats, tau, rate_hz)
+
+    return known
+
+
+def _stats_of(bands: list, response: OutputResponse, rate_hz: float) -> Any:
+    """The bands' resonators through the response: their autocovariance's statistics (long
+    enough for the slowest resonator to decay to 1e-6: 4.4 / (pi width) s)."""
+    from bmg160_emu.noise.butterworth import WhiteThroughFilter
+
+    narrowest = min(r.width_hz for b in bands for r in b.resonances)
+    lags = int(min(max(8192, math.ceil(4.4 * rate_hz / (math.pi * narrowest))), 1 << 20))
+    return WhiteThroughFilter(bands_autocovariance(bands, response, rate_hz, lags))
+
+
+def _avar(stats: Any, tau: np.ndarray, rate_hz: float) -> np.ndarray:
+    m = np.maximum(np.rint(np.asarray(tau, dtype=float) * rate_hz), 1)
+    return np.asarray(stats.avar_unit(m.astype(np.int64)))
+
+
+def _bands_psd(bands: list, f: np.ndarray, rate_hz: float) -> np.ndarray:
+    out = np.zeros(np.shape(f))
+    for band in bands:
+        for r in band.resonances:
+            out = out + r.psd(f, rate_hz)
+    return out
+
+
+def _slow_bands(fine: Any, segments: float, rate_hz: float, first: CurveFit,
+                found: SpectralFindings, lsb_dps: float | None,
+                lines: tuple[tuple[float, float], ...]) -> list:
+    """Bands below the output stage's range on the long-segment PSD (slow_bands.py), against
+    the first fit's model through the broadband response."""
+    from bmg160_emu.noise.slow_bands import find_slow_bands
+
+    floor = lsb_dps**2 / (6.0 * rate_hz) if lsb_dps else 0.0
+
+    def fixed(fr: np.ndarray) -> np.ndarray:
+        return floor + _bands_psd(found.bands, fr, rate_hz) * found.response.power(fr)
+
+    def columns(fr: np.ndarray) -> list[np.ndarray]:
+        cols = [2.0 * found.response.power(fr), random_walk_psd(1.0, fr)]
+        return cols + [gauss_markov_psd(1.0, T, fr) for _, T in first.gauss_markov_terms()]
+
+    return find_slow_bands(fine.frequency_hz, fine.psd, segments, rate_hz, fixed, columns,
+                           lines)
