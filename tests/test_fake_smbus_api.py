@@ -163,6 +163,10 @@ def test_force_true_reaches_an_address_a_kernel_driver_holds(bus):
         ("write_word_data", (0x68, 0x30, -1)),
         ("write_block_data", (0x68, 0x30, b"\x01\x02")),
         ("write_i2c_block_data", (0x68, 0x30, [1, 300])),
+        ("write_i2c_block_data", (0x68, 0x30, [])),  # a count of 0: EINVAL (Linux 6.1.190)
+        ("write_block_data", (0x68, 0x30, [])),
+        ("block_process_call", (0x68, 0x03, [])),
+        ("read_i2c_block_data", (0x68, 0x02, -256)),  # ctypes makes it 0
         ("read_byte", (0x68,)),
         ("write_byte", (0x68, 0x11)),
         ("write_quick", (0x68,)),

@@ -15,7 +15,11 @@ and the order of checks, copies and transfers here is the kernel's:
 - ``I2C_SMBUS``: size and direction checked (EINVAL), quick and send-byte need no data, any
   other kind with a NULL data pointer is EINVAL; the union is copied in and out with the
   kernel's sizes (1, 2 or 34 bytes) and only for the kinds i2cdev_ioctl_smbus copies; size 6
-  (I2C_SMBUS_I2C_BLOCK_BROKEN) becomes an I2C block read of 32 bytes.
+  (I2C_SMBUS_I2C_BLOCK_BROKEN) becomes an I2C block read of 32 bytes. The i2c core
+  (``__i2c_smbus_xfer``) refuses a block count of 0 or over 32 for an I2C block transfer
+  (either way), a block write and a block process call with EINVAL before any transfer:
+  Debian 12's kernel since 6.1.190 ("i2c: smbus: reject oversized block transfers in the
+  common path"); older 6.1 kernels passed a count of 0 on to the adapter.
 - ``I2C_RDWR``: 1..42 messages, each at most 8192 bytes, every buffer copied in first; after
   the transfer the read buffers are copied back, last first, until one faults (EFAULT).
 - Every copy of the caller's memory may fault (``UserMemory``): EFAULT, never a crash, at
@@ -78,6 +82,8 @@ ULONG_MASK = 0xFFFFFFFFFFFFFFFF  # an ioctl argument is an unsigned long (LP64)
 # i2cdev_ioctl_smbus: kinds whose data union is copied in even for a read
 _COPIED_IN = frozenset((I2C_SMBUS_PROC_CALL, I2C_SMBUS_BLOCK_PROC_CALL, I2C_SMBUS_I2C_BLOCK_DATA))
 _PROC_CALLS = frozenset((I2C_SMBUS_PROC_CALL, I2C_SMBUS_BLOCK_PROC_CALL))
+# __i2c_smbus_xfer: kinds whose caller-supplied block count must be 1..32 (and a block write)
+_COUNTED_BLOCKS = frozenset((I2C_SMBUS_I2C_BLOCK_DATA, I2C_SMBUS_BLOCK_PROC_CALL))
 
 
 def smbus_data_size(size: int) -> int:
@@ -224,8 +230,11 @@ class I2CDevFile:
 
     def _smbus_transfer(self, reading: bool, command: int, size: int, temp: bytearray) -> None:
         """i2c_smbus_xfer on the union ``temp`` (the kernel's copy)."""
-        bus, pec, address = self.bus, self.pec, self._target()
         count = temp[0]
+        if (size in _COUNTED_BLOCKS or (size == I2C_SMBUS_BLOCK_DATA and not reading)) \
+                and not 1 <= count <= I2C_SMBUS_BLOCK_MAX:  # __i2c_smbus_xfer, before all
+            raise os_error(errno.EINVAL)
+        bus, pec, address = self.bus, self.pec, self._target()
         if size == I2C_SMBUS_BYTE:
             temp[0] = bus.read_byte(address, pec)
         elif size == I2C_SMBUS_BYTE_DATA:
@@ -245,20 +254,13 @@ class I2CDevFile:
             if reading:
                 _put_block(temp, bus.read_block_data(address, command, pec))
             else:
-                if count > I2C_SMBUS_BLOCK_MAX:
-                    raise os_error(errno.EINVAL)
                 bus.write_block_data(address, command, bytes(temp[1 : 1 + count]), pec)
         elif size == I2C_SMBUS_BLOCK_PROC_CALL:
-            if count > I2C_SMBUS_BLOCK_MAX:
-                raise os_error(errno.EINVAL)
             _put_block(temp, bus.block_process_call(address, command, bytes(temp[1 : 1 + count]), pec))
-        else:  # I2C_SMBUS_I2C_BLOCK_DATA: block[0] is the count both ways, no PEC
-            if count > I2C_SMBUS_BLOCK_MAX:
-                raise os_error(errno.EINVAL)
-            if reading:
-                temp[1 : 1 + count] = bus.read_i2c_block_data(address, command, count)
-            else:
-                bus.write_i2c_block_data(address, command, bytes(temp[1 : 1 + count]))
+        elif reading:  # I2C_SMBUS_I2C_BLOCK_DATA: block[0] is the count both ways, no PEC
+            temp[1 : 1 + count] = bus.read_i2c_block_data(address, command, count)
+        else:
+            bus.write_i2c_block_data(address, command, bytes(temp[1 : 1 + count]))
 
     # ------------------------------------------------------------------ I2C_RDWR
 
@@ -271,8 +273,6 @@ class I2CDevFile:
             raise os_error(errno.EINVAL)
         table = block.follow(0, count * I2C_MSG_SIZE)
         headers = table.read()
-        if not self.bus.funcs & I2C_FUNC_I2C:
-            raise os_error(errno.EOPNOTSUPP)
         messages: list[I2CMessage] = []
         buffers: list[UserMemory | None] = []
         ten_bit = recv_len = False
@@ -299,6 +299,8 @@ class I2CDevFile:
             else:
                 messages.append(I2CMessage(address, False, payload))
             buffers.append(buffer)
+        if not self.bus.funcs & I2C_FUNC_I2C:  # i2c_transfer: no master_xfer, after the copies
+            raise os_error(errno.EOPNOTSUPP)
         if ten_bit:
             raise os_error(errno.ENXIO)
         if recv_len:

@@ -24,7 +24,7 @@ from typing import Any
 
 from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus
 from bmg160_emu.bus.i2c_dev_node import I2cDevKernel, buses_from_mapping, patch_i2c_dev
-from bmg160_emu.bus.smbus import FakeSMBus
+from bmg160_emu.bus.smbus import FakeSMBus, check_block_count
 from bmg160_emu.bus.spi import FakeSpiDev, register_spi_device, unregister_spi_device
 
 __all__ = ["I2cDevKernel", "LegacySMBus", "patch_i2c_dev", "patch_smbus", "patch_spidev"]
@@ -59,6 +59,7 @@ class LegacySMBus(FakeSMBus):
     ) -> list[int]:
         self._set_address(addr)
         count = operator.index(len) & 0xFF
+        check_block_count(count)
         data = self._bus().read_i2c_block_data(self._client, operator.index(cmd) & 0xFF, count)
         return list(data)
 

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from smbus2 import I2cFunc, i2c_msg
 
-from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
+from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage, os_error
 from bmg160_emu.bus.kernel_abi import I2C_M_RD
 from bmg160_emu.bus.registry import emulated_bus, emulated_bus_for_path
 from bmg160_emu.traffic.transaction import TransactionLog
@@ -33,6 +33,13 @@ __all__ = ["FakeSMBus", "I2cFunc", "i2c_msg"]
 def _u8(value: Any) -> int:
     """A ctypes c_uint8 field assignment: __index__ then truncation."""
     return operator.index(value) & 0xFF
+
+
+def check_block_count(count: int) -> None:
+    """A block count of 0 (I2C block read or write, block write, block process call) is
+    EINVAL in the i2c core before any transfer (__i2c_smbus_xfer, Linux 6.1.190 on)."""
+    if count == 0:
+        raise os_error(errno.EINVAL)
 
 
 def _block(data: Sequence[Any]) -> bytes:
@@ -272,6 +279,7 @@ class FakeSMBus:
         self._set_address(i2c_addr, force=force)
         command = _u8(register)
         payload = _block(data)
+        check_block_count(length)
         self._bus().write_block_data(self._client, command, payload, bool(self._pec))
 
     def block_process_call(
@@ -285,6 +293,7 @@ class FakeSMBus:
         self._set_address(i2c_addr, force=force)
         command = _u8(register)
         payload = _block(data)
+        check_block_count(length)
         return list(self._bus().block_process_call(self._client, command, payload, bool(self._pec)))
 
     def read_i2c_block_data(
@@ -297,7 +306,7 @@ class FakeSMBus:
             and register.__class__ is int
             and length.__class__ is int
             and 0 <= register <= 0xFF
-            and 0 <= length <= I2C_SMBUS_BLOCK_MAX
+            and 0 < length <= I2C_SMBUS_BLOCK_MAX
         ):  # the hot path of a polling driver: the same address again, plain ints in range
             # I2CBus.read_i2c_block_data and TransactionLog.add inlined (one Python call
             # fewer, 60-100 ns of a 1.5 us poll): no hook, no sink, every kind supported
@@ -327,6 +336,7 @@ class FakeSMBus:
             self._set_address(i2c_addr, force=force)
         bus = self._bus()
         count = operator.index(length) & 0xFF
+        check_block_count(count)
         data = bus.read_i2c_block_data(self._client, operator.index(register) & 0xFF, count)
         if count == length:
             return list(data)
@@ -342,7 +352,9 @@ class FakeSMBus:
             raise ValueError(f"Data length cannot exceed {I2C_SMBUS_BLOCK_MAX} bytes")
         self._set_address(i2c_addr, force=force)
         command = _u8(register)
-        self._bus().write_i2c_block_data(self._client, command, _block(data))
+        payload = _block(data)
+        check_block_count(length)
+        self._bus().write_i2c_block_data(self._client, command, payload)
 
     def i2c_rdwr(self, *i2c_msgs: i2c_msg) -> None:
         """Combine a series of i2c read and write operations in a single transaction (with

@@ -9,7 +9,11 @@ made by the kernel itself on our behalf: ``process_vm_readv``/``process_vm_write
 own pid (no ptrace permission needed for oneself; page protections apply), or, where a
 sandbox refuses those calls (EPERM, ENOSYS), through a pipe (``write(pipe, address, n)``
 copies from the address, ``read(pipe, address, n)`` into it, EFAULT either way).
-A copy is all or nothing, as the kernel's is: a partial copy is EFAULT.
+A copy is all or nothing, as the kernel's is: a partial copy is EFAULT. Before it, the
+range is checked as x86-64's ``access_ok`` checks it: it must end at or below TASK_SIZE_MAX
+(2**47 - 4096, or 2**56 - 4096 with 5-level paging), so an address in the kernel's half,
+the vsyscall page included, is EFAULT whatever the host's vsyscall mode lets
+``process_vm_readv`` see (other machines: the process_vm calls alone decide).
 
 A checked copy costs a system call (a few microseconds), so memory known to be there is
 read directly: the ctypes objects an ioctl argument keeps alive (``_objects``, ctypes'
@@ -23,6 +27,7 @@ import ctypes
 import errno
 import operator
 import os
+import platform
 import threading
 from typing import Any
 
@@ -32,6 +37,27 @@ __all__ = ["AddressMemory", "BufferMemory", "IoctlArgument", "KeptAlive", "copy_
 ULONG_MASK = 0xFFFFFFFFFFFFFFFF  # an ioctl argument is an unsigned long (LP64)
 USER_POINTER = 0x7FFF_0000_0000  # what the kernel sees as the argument when it is a buffer
 IOCTL_BUFSZ = 1024  # CPython's fcntl.ioctl copies a buffer argument through 1024 bytes
+
+
+def task_size_max() -> int:
+    """The first address x86-64's ``access_ok`` refuses (arch/x86/include/asm/
+    page_64_types.h: one page below 2**47, or 2**56 where the kernel runs 5-level page
+    tables, which it shows as the ``la57`` CPU flag); past the address space elsewhere."""
+    if platform.machine() not in ("x86_64", "AMD64"):
+        return ULONG_MASK + 1
+    flags: list[str] = []
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as cpuinfo:
+            for line in cpuinfo:  # the first CPU's flags are every CPU's
+                if line.startswith("flags"):
+                    flags = line.split()
+                    break
+    except OSError:
+        pass
+    return (1 << (56 if "la57" in flags else 47)) - 4096
+
+
+TASK_SIZE_MAX = task_size_max()
 
 
 def _efault() -> OSError:
@@ -72,7 +98,7 @@ class _Copier:
         (into ``local`` unless ``to_user``); EFAULT unless every byte was copied."""
         if size == 0:
             return  # the kernel copies nothing and succeeds, whatever the address
-        if not 0 <= address <= ULONG_MASK - size + 1:
+        if not 0 <= address <= TASK_SIZE_MAX - size:  # access_ok
             raise _efault()
         libc = self._libc()
         if not self.use_pipe:

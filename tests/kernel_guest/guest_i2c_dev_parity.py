@@ -34,7 +34,7 @@ I2C_SLAVE, I2C_SLAVE_FORCE, I2C_TENBIT, I2C_FUNCS = 0x0703, 0x0706, 0x0704, 0x07
 I2C_RETRIES, I2C_TIMEOUT, I2C_RDWR, I2C_PEC, I2C_SMBUS = 0x0701, 0x0702, 0x0707, 0x0708, 0x0720
 I2C_M_RD, I2C_M_RECV_LEN = 0x0001, 0x0400
 SMBUS_READ, SMBUS_WRITE = 1, 0
-SMBUS_BYTE, SMBUS_BYTE_DATA, SMBUS_WORD_DATA = 1, 2, 3
+SMBUS_BYTE, SMBUS_BYTE_DATA, SMBUS_WORD_DATA, SMBUS_BLOCK_DATA = 1, 2, 3, 5
 SMBUS_I2C_BLOCK_BROKEN, SMBUS_I2C_BLOCK_DATA = 6, 8
 CHIP_ID, BW, BGW_SOFTRESET = 0x00, 0x10, 0x14
 INT_MAX = 0x7FFFFFFF
@@ -77,14 +77,22 @@ def plain(value: Any) -> Any:
     return type(value).__name__
 
 
-def read_only_page() -> int:
-    """The address of one page mapped read-only: copy_to_user into it faults."""
+TASK_SIZE_MAX = (1 << 47) - 4096  # x86-64's first address access_ok refuses (4-level paging)
+VSYSCALL_PAGE = 0xFFFFFFFFFF600000  # x86-64's legacy vsyscall page, in the kernel's half
+
+
+def read_only_page(first: int = 0) -> int:
+    """The address of one page mapped read-only, its first byte ``first`` (the rest 0):
+    copy_from_user from it works, copy_to_user into it faults."""
     libc = ctypes.CDLL(None, use_errno=True)
     libc.mmap.restype = ctypes.c_void_p
     libc.mmap.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int, ctypes.c_int,
                           ctypes.c_int, ctypes.c_long]
-    address = libc.mmap(None, 4096, 0x1, 0x22, -1, 0)  # PROT_READ, MAP_PRIVATE|MAP_ANONYMOUS
-    assert address not in (None, ctypes.c_void_p(-1).value)
+    libc.mprotect.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    address = libc.mmap(None, 4096, 0x3, 0x22, -1, 0)  # PROT_READ|PROT_WRITE, MAP_PRIVATE|
+    assert address not in (None, ctypes.c_void_p(-1).value)  # MAP_ANONYMOUS
+    ctypes.c_uint8.from_address(address).value = first
+    assert libc.mprotect(address, 4096, 0x1) == 0  # PROT_READ
     return address
 
 
@@ -97,6 +105,7 @@ class Checks:
         self.results: dict[str, Any] = {}
         self.keep: list[Any] = []  # ctypes objects whose addresses are in flight
         self.read_only = read_only_page()
+        self.read_only_count_4 = read_only_page(4)  # an I2C block request of 4 bytes
 
     def check(self, name: str, call: Callable[[], Any]) -> None:
         self.results[name] = outcome(call)
@@ -253,9 +262,27 @@ class Checks:
                        lambda s=size: ioctl(fd, I2C_SMBUS, self.smbus(SMBUS_READ, 0, s, 8)))
             self.check(f"{via} I2C_SMBUS write {name}, data at 8",
                        lambda s=size: ioctl(fd, I2C_SMBUS, self.smbus(SMBUS_WRITE, BW, s, 8)))
+            # the I2C block's count is read from the page (4): the transfer happens, the
+            # copy back faults
+            page = self.read_only_count_4 if size == SMBUS_I2C_BLOCK_DATA else self.read_only
             self.check(f"{via} I2C_SMBUS read {name} into a read-only page",
-                       lambda s=size: ioctl(fd, I2C_SMBUS,
-                                            self.smbus(SMBUS_READ, 0, s, self.read_only)))
+                       lambda s=size, p=page: ioctl(fd, I2C_SMBUS,
+                                                    self.smbus(SMBUS_READ, 0, s, p)))
+        for where, address in (("at TASK_SIZE_MAX", TASK_SIZE_MAX),
+                               ("in the vsyscall page", VSYSCALL_PAGE)):  # access_ok refuses
+            self.check(f"{via} I2C_SMBUS read byte, data {where}",
+                       lambda a=address: ioctl(fd, I2C_SMBUS,
+                                               self.smbus(SMBUS_READ, 0, SMBUS_BYTE_DATA, a)))
+        # a block count of 0: EINVAL in the i2c core since 6.1.190, before any transfer
+        self.check(f"{via} I2C_SMBUS i2c block read of 0",
+                   lambda: ioctl(fd, I2C_SMBUS, self.smbus(SMBUS_READ, 0, SMBUS_I2C_BLOCK_DATA,
+                                                            bytes([0]))))
+        self.check(f"{via} I2C_SMBUS i2c block write of 0",
+                   lambda: ioctl(fd, I2C_SMBUS, self.smbus(SMBUS_WRITE, BW, SMBUS_I2C_BLOCK_DATA,
+                                                            bytes([0]))))
+        self.check(f"{via} I2C_SMBUS block write of 0",
+                   lambda: ioctl(fd, I2C_SMBUS, self.smbus(SMBUS_WRITE, BW, SMBUS_BLOCK_DATA,
+                                                            bytes([0]))))
         self.check(f"{via} I2C_SMBUS send byte, data at 8 (not used)",
                    lambda: ioctl(fd, I2C_SMBUS, self.smbus(SMBUS_WRITE, 0, SMBUS_BYTE, 8)))
         self.check(f"{via} I2C_SMBUS receive byte, data at 8",
