@@ -13,6 +13,7 @@ good calls of the same argument type: what was learnt about an argument's layout
 
 from __future__ import annotations
 
+import array
 import ast
 import ctypes
 import errno
@@ -219,3 +220,26 @@ def test_owned_range_is_the_memory_an_object_keeps_alive_itself():
     assert owned_range(Buffer.from_address(start)) is None  # anybody's address
     assert owned_range(ctypes.pointer(owner).contents) is None  # where a pointer points
     assert owned_range(ctypes.cast(ctypes.pointer(owner), ctypes.POINTER(Buffer))[0]) is None
+
+
+def test_a_request_in_a_plain_buffer_is_followed_with_checks_only():
+    # a bytearray or array.array argument keeps nothing alive: every pointer in it is
+    # copied with the kernel's checks (the table and buffers are the caller's: they work;
+    # a buffer at 0x10 is EFAULT)
+    def work(fd: int) -> dict[str, Any]:
+        register = (ctypes.c_uint8 * 1)(0x02)
+        out = Buffer()
+        table = (i2c_msg * 2)(i2c_msg(0x68, 0, 1, register), i2c_msg(0x68, I2C_M_RD, 6, out))
+        raw = bytes(i2c_rdwr_ioctl_data(table, 2))
+        answers: dict[str, Any] = {}
+        for name, argument in (("bytearray", bytearray(raw)), ("array", array.array("B", raw))):
+            out[:] = bytes(6)
+            answers[name] = (fcntl.ioctl(fd, I2C_RDWR, argument), bytes(out))
+        table[1].buf = ctypes.cast(UNMAPPED, ctypes.POINTER(ctypes.c_uint8))
+        answers["buffer at 0x10"] = errno_of(
+            lambda: fcntl.ioctl(fd, I2C_RDWR, bytearray(bytes(i2c_rdwr_ioctl_data(table, 2)))))
+        return answers
+
+    assert in_child(lambda: with_node(work)) == {
+        "bytearray": (2, REGISTERS[2:8]), "array": (2, REGISTERS[2:8]),
+        "buffer at 0x10": errno.EFAULT}
