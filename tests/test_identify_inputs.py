@@ -187,3 +187,34 @@ def test_a_generate_csv_cut_short_is_refused_not_read_as_a_shorter_record(tmp_pa
     assert main(["identify", str(cut)]) == 2
     err = capsys.readouterr().err
     assert "says samples=2000 but it holds 498 rows: the file was cut short" in err
+
+
+@pytest.mark.parametrize(("name", "per_second", "epoch"), [
+    ("timestamp_s", 1, 0), ("time_ms", 1_000, 0), ("timestamp_us", 1_000_000, 0),
+    ("t_ns", 10**9, 0), ("timestamp [ns]", 10**9, 1_403_636_579_758_555_392)])
+def test_a_time_column_in_any_unit_its_name_says_gives_the_rate(tmp_path, samples, name,
+                                                                per_second, epoch):
+    # stamps of a 250 Hz log in the column's unit; the last from an epoch in ns as ROS and
+    # EuRoC stamp (1.4e18: a float64 holds it to 256 ns, an int64 exactly)
+    n = samples.shape[0]
+    if per_second >= 10**6:  # integer stamps
+        t = epoch + np.arange(n, dtype=np.int64) * (per_second // 250)
+        cells = [str(int(v)) for v in t]
+    else:
+        t = np.arange(n) * (per_second / 250)
+        cells = [repr(float(v)) for v in t]
+    path = tmp_path / "stamped.csv"
+    path.write_text("\n".join([f"{name},gx,gy,gz"] + [
+        c + "," + ",".join(repr(float(v)) for v in row) for c, row in zip(cells, samples)])
+        + "\n")
+    assert load_rate_record(path).rate_hz == pytest.approx(250.0, rel=1e-6)
+    archive = tmp_path / "stamped.npz"
+    np.savez(archive, **{name: t}, x=samples[:, 0])
+    assert load_rate_record(archive).rate_hz == pytest.approx(250.0, rel=1e-9)
+
+
+def test_a_file_without_a_time_column_names_the_ones_that_work(tmp_path, samples):
+    path = tmp_path / "stamped.csv"
+    write_csv(path, samples, ["stamp", "gx", "gy"])
+    with pytest.raises(RecordError, match=r"t, time or timestamp in seconds, or with a unit"):
+        load_rate_record(path)

@@ -38,7 +38,13 @@ from bmg160_emu.io.formats import (
     register_format,
 )
 from bmg160_emu.io.rate_table import RateFileError, RateTable
-from bmg160_emu.io.time_column import TIME_COLUMN_NAMES, check_time_column
+from bmg160_emu.io.time_column import (
+    check_time_column,
+    in_seconds,
+    time_column_help,
+    time_column_index,
+    time_column_scale_s,
+)
 
 
 @dataclass(frozen=True)
@@ -103,9 +109,10 @@ def load_rate_record(
 ) -> RateRecord:
     """Read a static record (deg/s); ``rate_hz`` overrides (and is checked against) a time column.
 
-    - CSV: one column per axis, optionally a time column (t, t_s, time, time_s or
-      timestamp); an optional header row names the columns; when it has x_dps, y_dps,
-      z_dps (the ``record`` and ``generate`` layout) those are the axes.
+    - CSV: one column per axis, optionally a time column (t, time or timestamp in
+      seconds, or with its unit: time_ms, timestamp_us, t_ns, ``timestamp [ns]``); an
+      optional header row names the columns; when it has x_dps, y_dps, z_dps (the
+      ``record`` and ``generate`` layout) those are the axes.
     - .npy: an (n,) or (n, k) array, k <= 3, no time.
     - .npz: a single array, or rate_dps (n, 3) and t_s, or x, y, z with an optional t.
     - .resd: Renode sensor data, angular-rate channel 0; .txt or .log holding the firmware's
@@ -137,10 +144,9 @@ def _resolve_rate(table: RateTable, rate_hz: float | None, n: int) -> float:
         raise RateFileError(f"sample rate must be a positive number of Hz, got {rate_hz!r}")
     if t is None:
         if rate_hz is None:
-            raise RateFileError("no time column (a column named "
-                                + ", ".join(TIME_COLUMN_NAMES[:-1]) + f" or {TIME_COLUMN_NAMES[-1]}"
-                                "): give the sample rate (--rate HZ) or name the time column "
-                                "so", path=path)
+            raise RateFileError(f"no time column (a column named {time_column_help()}): "
+                                "give the sample rate (--rate HZ) or name the time column so",
+                                path=path)
         return float(rate_hz)
     check_time_column(t, table.where, GAP_FACTOR)
     if n < 2:
@@ -172,15 +178,18 @@ class NpzRates(RateFileReader):
         path = self.path
         with open_npz(path) as archive:
             keys = list(archive.files)
-            t_key = next((k for k in TIME_COLUMN_NAMES if k in keys), None)
-            t = numeric(npz_array(archive, t_key, path), path, f"key {t_key}") if t_key else None
+            t_key = next((k for k in keys if time_column_scale_s(k) is not None), None)
+            t = None
+            if t_key is not None:
+                t = numeric(npz_array(archive, t_key, path), path, f"key {t_key}")
+                t = in_seconds(t, time_column_scale_s(t_key))
             if "rate_dps" in keys:
                 return RateTable(path, None, t, numeric(npz_array(archive, "rate_dps", path), path))
             for names in RATE_COLUMN_SETS:
                 present = [k for k in names if k in keys]
                 if present:
                     return RateTable(path, present, t, npz_columns(archive, present, path))
-            others = [k for k in keys if k not in TIME_COLUMN_NAMES]
+            others = [k for k in keys if time_column_scale_s(k) is None]
             numbers = [k for k in others if npz_array(archive, k, path).dtype.kind in "fiu"]
             if len(numbers) == 1:
                 return RateTable(path, None, t, numeric(npz_array(archive, numbers[0], path), path))
@@ -198,6 +207,7 @@ class CsvRates(RateFileReader):
     def table(self, rate_hz: float | None, columns: list[str] | None) -> RateTable:
         path = self.path
         chosen: list[str] = []
+        time_scale_s = [1.0]  # seconds per unit of the time column (its name says)
 
         def choose(header: list[str] | None, width: int, where: str) -> tuple[int | None, list[int]]:
             if header is None:
@@ -205,7 +215,10 @@ class CsvRates(RateFileReader):
                     raise RateFileError(f"{where}: --columns needs a header row naming the columns")
                 return None, list(range(width))
             names = [c.lower() for c in header]
-            time_index = next((names.index(n) for n in TIME_COLUMN_NAMES if n in names), None)
+            found = time_column_index(names)
+            time_index = None if found is None else found[0]
+            if found is not None:
+                time_scale_s[0] = found[1]
             if columns:
                 wanted = [c.lower() for c in columns]
                 missing = [c for c in wanted if c not in names]
@@ -230,7 +243,10 @@ class CsvRates(RateFileReader):
         table = read_csv_table(path, choose)
         if table.header is not None:
             table.header = chosen
+        if table.t_s is not None:
+            table.t_s = in_seconds(table.t_s, time_scale_s[0])
         return table
+
 
 
 class TextRates(CsvRates):

@@ -21,7 +21,13 @@ from bmg160_emu.io.csv_table import read_csv_table
 from bmg160_emu.io.errors import loads_json
 from bmg160_emu.io.formats import FileFormat, FileReader, format_for, register_format
 from bmg160_emu.io.rate_table import RateFileError
-from bmg160_emu.io.time_column import TIME_COLUMN_NAMES, check_time_column
+from bmg160_emu.io.time_column import (
+    check_time_column,
+    in_seconds,
+    time_column_help,
+    time_column_index,
+    time_column_scale_s,
+)
 
 UNITS = ("dps", "counts")
 DEFAULT_MAX_GAP_FACTOR = 3.0  # a step over 3x the median step is a gap, not jitter
@@ -66,9 +72,9 @@ def _split_unit(name: str) -> tuple[str, str | None]:
 def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, list[int]]:
     """Index of the time column and of the x, y, z columns for ``unit``."""
     names = [h.strip().lower() for h in header]
-    time_candidates = [i for i, n in enumerate(names) if n in TIME_COLUMN_NAMES]
-    if not time_candidates:
-        raise RateFileError(f"{where}: no time column (one of {', '.join(TIME_COLUMN_NAMES)})")
+    time_column = time_column_index(names)
+    if time_column is None:
+        raise RateFileError(f"{where}: no time column (a column named {time_column_help()})")
     axes = []
     for axis in "xyz":
         bases = {axis, f"g{axis}", f"rate_{axis}", f"gyro_{axis}", f"omega_{axis}"}
@@ -84,7 +90,7 @@ def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, list[i
             )
         else:
             raise RateFileError(f"{where}: no {axis} column among {', '.join(header)}")
-    return time_candidates[0], axes
+    return time_column[0], axes
 
 
 def _check_values(t: np.ndarray, xyz: np.ndarray, unit: str, where: Callable[[int], str],
@@ -207,6 +213,9 @@ def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
                 break
     t, xyz = table.t_s, table.values
     assert t is not None
+    if table.header is not None:  # a header's time column may carry a unit (time_ms, ...)
+        named = time_column_index([h.strip().lower() for h in table.header])
+        t = in_seconds(t, named[1] if named else 1.0)
     finite = np.isfinite(t) & np.isfinite(xyz).all(axis=1)
     if not finite.all():
         row = int(np.argmin(finite))
@@ -220,9 +229,9 @@ def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
 def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
     with open_npz(path) as data:
         keys = set(data.files)
-        t_key = next((k for k in TIME_COLUMN_NAMES if k in keys), None)
+        t_key = next((k for k in sorted(keys) if time_column_scale_s(k) is not None), None)
         if t_key is None:
-            raise RateFileError(f"{path}: no time array (one of {', '.join(TIME_COLUMN_NAMES)})")
+            raise RateFileError(f"{path}: no time array (an array named {time_column_help()})")
         if "metadata" in keys and lsb_per_dps is None:
             lsb_per_dps = _lsb_from_settings(str(npz_array(data, "metadata", path)))
         wanted = {"dps": ("rate_dps", "gyro_dps"), "counts": ("counts", "raw")}[unit]
@@ -242,7 +251,8 @@ def _load_npz(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
                 )
         else:
             xyz = numeric(npz_array(data, key, path), path, f"key {key}")
-        t = numeric(npz_array(data, t_key, path), path, f"key {t_key}").reshape(-1)
+        t = in_seconds(numeric(npz_array(data, t_key, path), path, f"key {t_key}").reshape(-1),
+                       time_column_scale_s(t_key))
     if xyz.ndim != 2 or xyz.shape[1] != 3:
         raise RateFileError(f"{path}: the rate array must have 3 columns (x, y, z), not shape {xyz.shape}")
     if len(xyz) != len(t):

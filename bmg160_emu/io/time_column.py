@@ -16,8 +16,53 @@ import numpy as np
 from bmg160_emu.io.rate_table import RateFileError
 
 TIME_COLUMN_NAMES = ("t", "t_s", "time", "time_s", "timestamp")
+# A unit on a time column's name: seconds per unit. Logs stamp in other units: ROS and the
+# EuRoC/TUM-VI datasets in ns ("timestamp [ns]"), PX4's ulog CSV export in us
+# ("timestamp", left to mean seconds here: a bare name is seconds, as t and time are).
+TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
+_TIME_BASES = ("t", "time", "timestamp")
+
+
+def time_column_scale_s(name: str) -> float | None:
+    """Seconds per unit of a column or array named ``name`` if it is a time column, else
+    None: t, time or timestamp, bare (seconds) or with a unit as a suffix (``time_ms``,
+    ``timestamp_ns``) or in brackets (``timestamp [ns]``)."""
+    text = name.strip().lower().lstrip("#").strip()
+    if text.endswith("]") and "[" in text:
+        base, _, unit = text[:-1].partition("[")
+        text = f"{base.strip()}_{unit.strip()}"
+    if text in _TIME_BASES:
+        return 1.0
+    base, _, unit = text.rpartition("_")
+    return TIME_UNITS_S.get(unit) if base in _TIME_BASES else None
+
+
+def time_column_index(names: list[str]) -> tuple[int, float] | None:
+    """The first time column of a header and its seconds per unit, or None."""
+    for index, name in enumerate(names):
+        scale = time_column_scale_s(name)
+        if scale is not None:
+            return index, scale
+    return None
+
+
+def time_column_help() -> str:
+    """The accepted time column names, for an error that says which work."""
+    return ("t, time or timestamp in seconds, or with a unit: _s, _ms, _us, _ns "
+            "(time_ms, timestamp_ns, 'timestamp [ns]')")
 CHUNK_ROWS = 1 << 20  # rows of a time column checked at a time
 MEDIAN_STEPS = 1 << 21  # steps the median step is taken from (evenly spread over the record)
+
+
+def in_seconds(t: np.ndarray, scale_s: float | None) -> np.ndarray:
+    """A time column in seconds: as it is, or times its unit (``time_ms``, ``timestamp_ns``),
+    counted from its first stamp so that a ns epoch stamp keeps its sample spacing in a
+    float64 (1.6e18 ns carries steps of 256 ns; from the start, a day in ns, 0.02 ns)."""
+    if scale_s is None or scale_s == 1.0 or len(t) == 0:
+        return t
+    if t.dtype.kind in "iu":  # int64 ns stamps: subtract exactly, then scale
+        return (t - t[0]).astype(np.float64) * scale_s
+    return (t - t[0]) * scale_s
 
 
 def check_time_column(t: np.ndarray, where: Callable[[int], str], gap_factor: float,
