@@ -49,6 +49,10 @@ PUBLIC_UNDERSCORE = {
                                 "number; CPython's argparse has kept this attribute since 2.7",
     "_objects": "ctypes: documented (_CData._objects, the objects that keep a structure's "
                 "pointed-to memory alive); read only, by bus.user_memory",
+    "_b_base_": "ctypes: documented (_CData._b_base_, the object whose memory a field or "
+                "element shares); read only, by bus.user_memory",
+    "_b_needsfree_": "ctypes: documented (_CData._b_needsfree_, true when the object "
+                     "allocated its memory); read only, by bus.user_memory",
 }
 
 

@@ -18,7 +18,10 @@ the vsyscall page included, is EFAULT whatever the host's vsyscall mode lets
 A checked copy costs a system call (a few microseconds), so memory known to be there is
 read directly: the ctypes objects an ioctl argument keeps alive (``_objects``, ctypes'
 record of what a structure's pointers point to: smbus2's data union, periphery's and
-PureIO's message buffers) are Python's own, mapped and writable for the whole call.
+PureIO's message buffers) whose memory is their own (allocated by them, or a buffer they
+hold with ``from_buffer``, or a field of such an object) are mapped and writable for the
+whole call. A kept-alive object that views other memory (``from_address``, what a pointer
+points to) is anybody's address and goes through the checked copy like any other.
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ import threading
 from typing import Any
 
 __all__ = ["AddressMemory", "BufferMemory", "IoctlArgument", "KeptAlive", "copy_from_user",
-           "copy_to_user"]
+           "copy_to_user", "owned_range"]
 
 ULONG_MASK = 0xFFFFFFFFFFFFFFFF  # an ioctl argument is an unsigned long (LP64)
 USER_POINTER = 0x7FFF_0000_0000  # what the kernel sees as the argument when it is a buffer
@@ -154,55 +157,212 @@ def copy_to_user(address: int, data: bytes) -> None:
     _COPIER.copy(address, local, len(data), to_user=True)
 
 
-class KeptAlive:
-    """The memory of every ctypes object an ioctl argument keeps alive through its pointers
-    (ctypes' ``_objects``, documented as the objects that keep its memory valid), looked
-    through when an address is asked about: a Python buffer argument without pointers
-    costs nothing."""
+_CDATA: Any = ctypes.c_char.__mro__[-2]  # _ctypes._CData: every ctypes instance
+_FROM_BUFFER = "ffffffff"  # where from_buffer() keeps the memoryview it views (index -1)
+_WALK_LIMIT = 256  # objects looked at per argument at most (a structure can be cyclic)
 
-    __slots__ = ("argument", "ranges")
+Range = tuple[int, int, Any]  # start, stop, the object that keeps that memory alive
+
+
+def owned_range(item: Any) -> Range | None:
+    """The memory of a ctypes object if it is there for as long as the object lives: it lies
+    inside the memory of the object at the root of its ``_b_base_`` chain, and that root
+    allocated its memory (``_b_needsfree_``) or views a buffer it holds on to
+    (``from_buffer``). A field or an array element lies inside its root; what a pointer
+    points to (``p.contents``, ``p[i]``: their base is the pointer) does not, nor does an
+    object made by ``from_address`` (that address is anybody's), nor a field left behind
+    by ``ctypes.resize`` of its root; those are None."""
+    start = ctypes.addressof(item)
+    stop = start + ctypes.sizeof(item)
+    root = item
+    while (base := root._b_base_) is not None:
+        root = base
+    if not root._b_needsfree_:
+        objects = root._objects
+        view = objects.get(_FROM_BUFFER) if objects.__class__ is dict else None
+        if view.__class__ is not memoryview:
+            return None
+        try:
+            view.nbytes  # noqa: B018 - released views answer ValueError
+        except ValueError:
+            return None
+    if root is item:
+        return start, stop, item
+    first = ctypes.addressof(root)
+    if first <= start and stop <= first + ctypes.sizeof(root):
+        return start, stop, item
+    return None
+
+
+_INNER = "_objects"  # a step through a ctypes object to what it keeps alive
+_EACH = "*"  # a step to every value of a dict keyed by id() (cast() keeps its source so)
+
+
+def _walk(objects: Any) -> tuple[list[Range], list[tuple[Any, ...]]]:
+    """The range of every ctypes object reachable from ``objects`` whose memory is its own,
+    and the path to each (dict keys, tuple indices, _INNER and _EACH steps)."""
+    ranges: list[Range] = []
+    paths: list[tuple[Any, ...]] = []
+    stack: list[tuple[Any, tuple[Any, ...]]] = [(objects, ())]
+    seen: set[int] = set()  # PureIO's cast() objects keep themselves alive: a cycle
+    looked = 0
+    while stack and looked < _WALK_LIMIT:
+        item, path = stack.pop()
+        looked += 1
+        kind = item.__class__
+        if kind is dict:
+            stack.extend((value, (*path, _EACH if key.__class__ is int else key))
+                         for key, value in item.items())
+        elif kind is tuple or kind is list:
+            stack.extend((value, (*path, index)) for index, value in enumerate(item))
+        elif isinstance(item, _CDATA) and id(item) not in seen:
+            seen.add(id(item))
+            owned = owned_range(item)
+            if owned is not None:
+                ranges.append(owned)
+                paths.append(path)
+            inner = item._objects
+            if inner:
+                stack.append((inner, (*path, _INNER)))
+    return ranges, sorted(set(paths), key=repr)
+
+
+def _follow(objects: Any, path: tuple[Any, ...], out: list[Range]) -> None:
+    """Add the ranges of the objects ``path`` leads to from ``objects`` whose memory is
+    theirs to ``out``. Only containers are indexed: a ctypes pointer indexed would be
+    dereferenced."""
+    items = [objects]
+    for step in path:
+        following = []
+        for item in items:
+            kind = item.__class__
+            if step is _INNER:
+                if isinstance(item, _CDATA) and item._objects:
+                    following.append(item._objects)
+            elif kind is dict:
+                if step is _EACH:
+                    following.extend(item.values())
+                elif step in item:
+                    following.append(item[step])
+            elif (kind is tuple or kind is list) and step.__class__ is int and step < len(item):
+                following.append(item[step])
+        items = following
+    for item in items:
+        if isinstance(item, _CDATA):
+            owned = owned_range(item)
+            if owned is not None:
+                out.append(owned)
+
+
+def _lookup(objects: Any, path: tuple[Any, ...]) -> Any:
+    """What a path of plain keys and indices leads to from ``objects``, or None."""
+    item = objects
+    for step in path:
+        kind = item.__class__
+        if kind is dict:
+            item = item.get(step)
+            if item is None:
+                return None
+        elif (kind is tuple or kind is list) and step.__class__ is int and step < len(item):
+            item = item[step]
+        else:
+            return None
+    return item
+
+
+_KEYS = "keys"  # a path of dictionary keys alone
+_PLAIN = "plain"  # of keys and sequence indices
+_DEEP = "deep"  # through ctypes objects' _objects or every value of a dict (_follow)
+
+
+def _kind_of(path: tuple[Any, ...]) -> str:
+    if any(step is _INNER or step is _EACH for step in path):
+        return _DEEP
+    return _KEYS if all(step.__class__ is str for step in path) else _PLAIN
+
+
+# argument type -> the paths in its ``_objects`` where objects whose memory is theirs were
+# found last (its shape), each with its kind: the next request of the same library (new
+# objects, the same shape) is looked up along them, not searched
+_SHAPES: dict[type, list[tuple[tuple[Any, ...], str]]] = {}
+_SHAPES_KEPT = 64  # argument types remembered at most
+
+
+class KeptAlive:
+    """The memory of the ctypes objects an ioctl argument keeps alive through its pointers
+    (ctypes' ``_objects``, documented as the objects that keep its memory valid), found at
+    the first question about an address and held until the call ends (a hook the transfer
+    runs cannot free them): a Python buffer argument without pointers costs nothing. Only
+    objects whose memory is theirs count (:func:`owned_range`). Where they lie in an
+    argument is remembered per argument type, so smbus2's request (a new data union every
+    call) is answered in two dictionary look-ups; an address outside what that shape finds
+    gets one full search of the argument."""
+
+    __slots__ = ("argument", "ranges", "searched")
 
     def __init__(self, argument: Any) -> None:
         self.argument = argument
-        self.ranges: list[tuple[int, int]] = []  # the objects seen so far
+        self.ranges: list[Range] | None = None
+        self.searched = False
 
     def covers(self, address: int, size: int) -> bool:
         """Whether ``address`` .. ``address + size`` lies inside one such object."""
         end = address + size
-        for start, stop in self.ranges:
+        ranges = self.ranges
+        if ranges is None:  # the first question: look where the shape says (inlined: this
+            ranges = self.ranges = []  # is most of what a smbus2 read pays for the checks)
+            shape = _SHAPES.get(self.argument.__class__)
+            if shape is not None:
+                objects = self.argument._objects
+                for path, kind in shape:
+                    if kind is _KEYS:  # dictionary keys alone, as smbus2's ('3', '1')
+                        item = objects
+                        for key in path:
+                            item = item.get(key) if item.__class__ is dict else None
+                    elif kind is _PLAIN:
+                        item = _lookup(objects, path)
+                    else:
+                        _follow(objects, path, ranges)
+                        continue
+                    try:
+                        if item._b_needsfree_ and item._b_base_ is None:  # its own memory,
+                            start = ctypes.addressof(item)  # the usual case
+                            ranges.append((start, start + ctypes.sizeof(item), item))
+                            continue
+                    except (AttributeError, TypeError):  # not a ctypes object (None, bytes)
+                        continue
+                    if isinstance(item, _CDATA):
+                        owned = owned_range(item)
+                        if owned is not None:
+                            ranges.append(owned)
+        for start, stop, _ in ranges:
             if start <= address and end <= stop:
                 return True
-        if self.argument is None:
+        if self.searched:
             return False
-        stack: list[Any] = [getattr(self.argument, "_objects", None)]
-        self.argument, self.ranges = None, []  # looked through once, completely
-        found = False
-        seen: set[int] = set()  # PureIO's structures point back at each other
-        while stack:
-            item: Any = stack.pop()
-            if item is None or id(item) in seen:
-                continue
-            seen.add(id(item))
-            kind = type(item)
-            if kind is dict:
-                stack.extend(item.values())
-            elif kind is tuple or kind is list:
-                stack.extend(item)
-            else:
-                try:
-                    start = ctypes.addressof(item)
-                except TypeError:
-                    continue
-                stop = start + ctypes.sizeof(item)
-                self.ranges.append((start, stop))
-                found = found or (start <= address and end <= stop)
-                inner = getattr(item, "_objects", None)
-                if inner:
-                    stack.append(inner)
-        return found
+        self.searched = True
+        objects = getattr(self.argument, "_objects", None)
+        if not objects:
+            return False
+        found, paths = _walk(objects)
+        if len(_SHAPES) >= _SHAPES_KEPT:  # a program making a structure type per call
+            _SHAPES.clear()
+        _SHAPES[self.argument.__class__] = [(path, _kind_of(path)) for path in paths]
+        ranges[:] = found
+        return any(start <= address and end <= stop for start, stop, _ in found)
 
 
 NOTHING_KNOWN = KeptAlive(None)
+_CHAR_ARRAYS: dict[int, Any] = {}  # size -> ctypes.c_char * size (making a type is slow)
+
+
+def _chars(size: int) -> Any:
+    """The ctypes type of ``size`` bytes (a direct copy of known memory goes through it:
+    its ``raw`` is a third cheaper than ctypes.string_at)."""
+    array = _CHAR_ARRAYS.get(size)
+    if array is None:
+        array = _CHAR_ARRAYS.setdefault(size, ctypes.c_char * size)
+    return array
 
 
 class AddressMemory:
@@ -215,23 +375,25 @@ class AddressMemory:
         self.address, self.size, self.known = address, size, known
 
     def read(self) -> bytes:
-        if self.known.covers(self.address, self.size):
-            return ctypes.string_at(self.address, self.size)
-        return copy_from_user(self.address, self.size)
+        address, size = self.address, self.size
+        if self.known.covers(address, size):
+            return _chars(size).from_address(address).raw
+        return copy_from_user(address, size)
 
     def write(self, data: bytes) -> None:
-        data = data[: self.size]
-        if self.known.covers(self.address, len(data)):
-            ctypes.memmove(self.address, data, len(data))
+        address, size = self.address, min(len(data), self.size)
+        if self.known.covers(address, size):
+            _chars(size).from_address(address).raw = data[:size]
             return
-        copy_to_user(self.address, data)
+        copy_to_user(address, data[:size])
 
     def follow(self, offset: int, size: int) -> AddressMemory:
-        if self.known.covers(self.address + offset, 8):
-            raw = ctypes.string_at(self.address + offset, 8)
+        at = self.address + offset
+        if self.known.covers(at, 8):
+            pointer = ctypes.c_uint64.from_address(at).value
         else:
-            raw = copy_from_user(self.address + offset, 8)
-        return AddressMemory(int.from_bytes(raw, "little"), size, self.known)
+            pointer = int.from_bytes(copy_from_user(at, 8), "little")
+        return AddressMemory(pointer, size, self.known)
 
 
 class BufferMemory:

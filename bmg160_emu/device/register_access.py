@@ -67,7 +67,9 @@ def read_reg(s: ChipState, addr: int, now: int) -> int:
 
 
 def peek_reg(s: ChipState, addr: int, now: int) -> int:
-    """One register's content without side effects."""
+    """One register's content without side effects, at the address the bus would reach
+    (bit 7 not decoded, spec 2.4: peek(0x80) is what a read of 0x80 returns)."""
+    addr &= choice.REGISTER_ADDRESS_MASK
     if addr >= FIRST_OUTSIDE_MAP:
         return 0
     if RATE_X_LSB <= addr < RATE_END:
