@@ -181,3 +181,24 @@ def test_an_entry_of_the_wrong_width_is_refused_whole():
     with pytest.raises(ValueError, match="8 fields"):
         log.add((0.0, 1, 0x68, "read_byte"))
     assert (len(log), log.total) == (0, 0)
+
+
+def test_fake_smbus_fast_lane_keeps_the_log_bounded_by_maxlen():
+    # the lane has the log trimmed at every 1024th transaction index (not at each read):
+    # the kept entries are the newest maxlen at any time, memory at most 1024 entries more
+    # than the log's own limit, and total counts every read
+    from bmg160_emu.bus.smbus import FakeSMBus
+    from bmg160_emu.device.chip import BMG160
+
+    log = TransactionLog(maxlen=5)
+    chip = BMG160(seed=3)
+    fake = FakeSMBus(I2CBus(1, {0x68: chip}, log=log))
+    longest, times = 0, []
+    for _ in range(5000):
+        chip.advance(0.01)
+        fake.read_i2c_block_data(0x68, 0x02, 6)
+        times.append(chip.time)
+        longest = max(longest, len(log.fields))
+    assert (len(log), log.total) == (5, 5000)
+    assert [t.time for t in log] == times[-5:]
+    assert longest <= log.limit + 1024 * log.WIDTH

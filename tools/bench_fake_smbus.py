@@ -155,7 +155,7 @@ def main() -> int:
         """advance(period) + the 6-byte read + its log entry, nothing called that can be
         inlined: one sample due each time, a plain chip (no hook, no per-sample engine)."""
         s, clock, lock, i2c = bound_chip.state, bound_chip.clock, bound_chip.lock, bound_bus.i2c_bus
-        fields, limit, step = bound_log.fields, bound_log.limit, round(period * NS_PER_S)
+        fields, step = bound_log.fields, round(period * NS_PER_S)
         for _ in loop:
             lock.acquire()
             try:
@@ -171,7 +171,7 @@ def main() -> int:
                     s.data_ready_pending = True
             finally:
                 lock.release()
-            next(i2c.indices)
+            index = next(i2c.indices)
             lock.acquire()
             try:
                 data = s.cur
@@ -180,7 +180,7 @@ def main() -> int:
                 lock.release()
             fields += (None, 1, 0x68, "read_i2c_block_data", RATE_X_LSB, b"", data, None,
                        clock.ns)
-            if len(fields) > limit:
+            if not index & 1023:
                 bound_log.trim()
             received = [*data]  # what smbus2 returns
             del received

@@ -138,8 +138,9 @@ class TransactionLog:
     collector to scan (a kept tuple per entry cost a polling read about 100 ns of
     collections), and keeping the clock's own ``ns`` object allocates nothing (a new float
     per entry cost about 100 ns more; tools/bench_fake_smbus.py). A front end's fast path
-    records an entry with ``log.fields += (...)`` when there is no sink, then calls
-    :meth:`trim` once ``len(log.fields)`` is over ``log.limit``. Dropped entries go in bulk
+    records an entry with ``log.fields += (...)`` when there is no sink and calls
+    :meth:`trim` every so often (it does nothing until ``len(log.fields)`` is over
+    ``log.limit``). Dropped entries go in bulk
     (the list holds up to twice ``maxlen`` entries before a trim): a few ns per entry.
     """
 
@@ -190,11 +191,11 @@ class TransactionLog:
                 sink(transaction)
 
     def trim(self) -> None:
-        """Drop the entries beyond the newest ``maxlen`` (the front ends call this once
-        ``fields`` is over ``limit``)."""
-        if self.maxlen is None:
-            return
+        """Drop the entries beyond the newest ``maxlen`` once ``fields`` is over ``limit``
+        (a front end's fast path may call this as often as it likes: it looks first)."""
         fields = self.fields
+        if self.maxlen is None or len(fields) <= self.limit:
+            return
         excess = len(fields) - self.WIDTH * self.maxlen  # (a whole number of entries: each
         if excess > 0:  # entry goes in by one list extend, atomic under the GIL)
             del fields[:excess]
