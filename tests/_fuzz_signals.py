@@ -43,6 +43,8 @@ PACKAGE_DIR = str(REPO / "bmg160_emu")
 HANG_S = 30.0  # after the signal: a command stops within a second or two; 30 s for load
 EARLY_S = 0.15  # "the first 0.1 s" of issue 24, with a margin
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# montecarlo --progress off a terminal: a line as each run finishes ("3/4 runs (75 %), ...")
+RUNS_DONE = re.compile(r": ([\d,]+)/[\d,]+ runs \(")
 DASK_LOG = re.compile(r" - (distributed|tornado|asyncio)[\w.]* - (WARNING|ERROR|CRITICAL) - ")
 
 # a register script that runs about a second: 2000 polls and bursts at 200 Hz
@@ -90,9 +92,11 @@ COMMANDS = [
                          "-o", "{work}/replayed.npz"], ["replayed.npz"]),
     Command("dump-o", ["dump", "--seed", "7", "-o", "{work}/regs.txt"], ["regs.txt"]),
     Command("montecarlo-csv", ["montecarlo", "{work}/s.toml", "--runs", "6", "--scheduler",
-                               "sync", "--output", "{work}/curves.csv"], ["curves.csv"]),
+                               "sync", "--progress", "--output", "{work}/curves.csv"],
+            ["curves.csv"]),
     Command("montecarlo-json", ["montecarlo", "{work}/s.toml", "--runs", "6", "--scheduler",
-                                "sync", "--output", "{work}/curves.json"], ["curves.json"]),
+                                "sync", "--progress", "--output", "{work}/curves.json"],
+            ["curves.json"]),
     Command("run-trace", ["run", "--seed", "8", "--trace", "{work}/run.jsonl",
                           "--log", "{work}/run.log", "--", "sleep", "0.5"],
             ["run.jsonl", "run.log"], optional=True),
@@ -103,8 +107,8 @@ COMMANDS = [
     Command("serve", ["serve", "--socket", "{work}/sv.sock", "--seed", "9", "--duration", "1s",
                       "--stats", "{work}/sv.json", "--log", "{work}/sv.log"],
             ["sv.json", "sv.log"], server=True),
-    Command("montecarlo-dask", ["montecarlo", "{work}/s.toml", "--runs", "4", "--workers", "1",
-                                "--output", "{work}/curves.csv"], ["curves.csv"],
+    Command("montecarlo-dask", ["montecarlo", "{work}/s.toml", "--runs", "12", "--workers", "1",
+                                "--progress", "--output", "{work}/curves.csv"], ["curves.csv"],
             campaign_only=True),
     Command("montecarlo-dask-json", ["montecarlo", "{work}/s.toml", "--runs", "8", "--workers",
                                      "2", "--no-progress", "--output", "{work}/curves.json"],
@@ -355,6 +359,12 @@ def trial(command: Command, work: Path, ref: Reference, seed: int) -> Outcome:
     for name in command.outputs:
         outcome.files[name] = _judge(work / name, ref.contents[name], outcome.problems,
                                      finished=process.returncode == 0)
+    finished_runs = max((int(m.group(1).replace(",", "")) for m in RUNS_DONE.finditer(err)),
+                        default=0)
+    if finished_runs and all(state == "absent" for state in outcome.files.values()):
+        # its progress said these runs were done: a stop keeps them (issue 35: a late
+        # SIGTERM on Dask removed every output though 6-8 of 8 runs had finished)
+        outcome.problems.append(f"{finished_runs} finished runs lost: no output kept")
     leftovers = [p.name for p in work.iterdir() if ".part" in p.name]
     if leftovers:
         outcome.problems.append(f"temporary files left: {leftovers}")

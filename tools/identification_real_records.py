@@ -1,12 +1,14 @@
 """Identify real static recordings with the defaults and set each against the spread of its
 profile's emulated records (issue 37): every figure per axis and record, and pooled.
 
-    python tools/identification_real_records.py ../shared/data/real-gyro/adis16405_run1.npz \
-        ../shared/data/public-gyro/mpu6050-imucalibration/mpu6050_static_tinit.npz
+    python tools/identification_real_records.py            # every known record that is present
+    python tools/identification_real_records.py ../shared/data/real-gyro/adis16405_run1.npz
 
-A path that is absent is skipped with a line saying so (the recordings are not in the
-repository: their licenses keep them out). A file is an .npz with ``counts`` (n, k),
-``lsb_dps`` and ``rate_hz`` (the layout of ../shared/data), or anything
+Without paths the tool takes the known records (KNOWN_RECORDS, under the first ``shared/data``
+found beside the repository or above it); a path that is absent is skipped with a line saying
+so (the recordings are not in the repository: their licenses keep them out). A file is an .npz
+with ``counts`` (n, k), ``lsb_dps`` and ``rate_hz`` (the layout of ../shared/data), an .npz
+with ``rate_dps`` (n, k) and ``rate_hz`` (an unquantized record), or anything
 ``bmg160_emu.io.rates.load_rate_record`` reads (give --rate for files without a time column).
 Figures (docs/identification.md, "Real recordings"): std ratio (median emulated / recorded),
 the largest autocorrelation difference at lags 1-5, PSD bins inside the recording's 95 %
@@ -24,12 +26,33 @@ from pathlib import Path
 
 import numpy as np
 
+# The public static records the figures in docs/identification.md come from, relative to
+# shared/data (each described, with source and license, in the README beside it).
+KNOWN_RECORDS = (
+    "real-gyro/adis16405_run1.npz",  # Analog Devices ADIS16405, 2.78 h at 100 Hz
+    "public-gyro/mpu6050-imucalibration/mpu6050_static_tinit.npz",  # InvenSense MPU-6050
+    "public-gyro/imudata-mtig-cont/mtig_cont_imu1.npz",  # Xsens MTi-G, x axis, 1.39 h
+)
+
+
+def shared_data() -> Path:
+    """The first ``shared/data`` beside the repository or above it (a worktree sits deeper
+    than the main checkout); the repository's parent's when there is none."""
+    root = Path(__file__).resolve().parents[1]
+    for parent in root.parents:
+        if (parent / "shared" / "data").is_dir():
+            return parent / "shared" / "data"
+    return root.parent / "shared" / "data"
+
 
 def load(path: Path, rate_hz: float | None) -> tuple[np.ndarray, float]:
     if path.suffix == ".npz":
         with np.load(path) as d:
             if "counts" in d:
                 return d["counts"].astype(float) * float(d["lsb_dps"]), float(d["rate_hz"])
+            if "rate_dps" in d and "rate_hz" in d:  # an unquantized record (deg/s)
+                rate = np.asarray(d["rate_dps"], dtype=float)
+                return rate.reshape(rate.shape[0], -1), float(d["rate_hz"])
     from bmg160_emu.io.rates import load_rate_record
 
     record = load_rate_record(path, rate_hz)
@@ -38,7 +61,8 @@ def load(path: Path, rate_hz: float | None) -> tuple[np.ndarray, float]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("paths", nargs="+", type=Path)
+    parser.add_argument("paths", nargs="*", type=Path,
+                        help="record files (default: the known records under shared/data)")
     parser.add_argument("--seeds", type=int, default=40)
     parser.add_argument("--rate", type=float, default=None)
     parser.add_argument("--profile-dir", type=Path, default=None,
@@ -48,7 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     from bmg160_emu.noise.verdict import TAU_MIN_S, compare_profile
 
     rows = []
-    for path in args.paths:
+    paths = args.paths or [shared_data() / name for name in KNOWN_RECORDS]
+    for path in paths:
         if not path.exists():
             print(f"{path}: absent, skipped")
             continue
