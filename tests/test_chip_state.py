@@ -27,7 +27,7 @@ PUBLIC = {
     "power_on_reset", "queue_true_rate", "read", "sample_hooks", "seed", "sensitivity",
     "sensitivity_table", "sensor_errors", "set_acceleration", "set_temperature",
     "set_true_rate", "soft_reset", "state", "stream_true_rate", "strict", "strict_log", "time",
-    "truth_hooks", "turn_on_bias_dps", "write",
+    "truth_hooks", "turn_on_bias_dps", "virtual_clock", "write",
 }
 
 

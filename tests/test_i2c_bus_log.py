@@ -132,3 +132,73 @@ def test_fake_smbus_fast_lane_logs_what_the_bus_logs():
         return out, [t.to_dict() for t in bus.log], [t.to_dict() for t in sunk], indices, bus.log.total
 
     assert session(True) == session(False)
+
+
+def test_fake_smbus_fast_lane_logs_the_bmg160_time_from_its_clock_ns():
+    # on a BMG160 the lane logs its virtual clock's ns (no float made) and the log turns it
+    # into seconds when read: the same Transaction, time included, as I2CBus's own path
+    from bmg160_emu.bus.smbus import FakeSMBus
+    from bmg160_emu.device.chip import BMG160
+
+    def session(through_fake: bool):
+        chip = BMG160(seed=3)
+        bus = I2CBus(2, {0x68: chip})
+        fake = FakeSMBus(bus)
+        times = []
+        for _ in range(5):
+            chip.advance(0.0125)  # not a whole number of ns per float second: 12.5 ms steps
+            if through_fake:
+                fake.read_i2c_block_data(0x68, 0x02, 6)
+            else:
+                bus.read_i2c_block_data(0x68, 0x02, 6)
+            times.append(chip.time)
+        return [t.to_dict() for t in bus.log], times, bus.log.entries
+
+    fast, slow = session(True), session(False)
+    assert fast == slow
+    assert [t["time"] for t in fast[0]] == fast[1]  # exactly chip.time, float for float
+    assert all(type(entry[0]) is float for entry in fast[2])
+
+
+def test_maxlen_drops_in_bulk_and_indexes_the_kept_entries_from_either_end():
+    log = TransactionLog(maxlen=3)
+    for i in range(10):
+        log.record(float(i), 1, 0x68, "read_byte", None)
+    assert [t.time for t in log] == [7.0, 8.0, 9.0]
+    assert (len(log), log.total) == (3, 10)
+    assert (log[0].time, log[-1].time, log[-3].time) == (7.0, 9.0, 7.0)
+    for index in (3, -4):
+        with pytest.raises(IndexError):
+            log[index]
+    assert len(log.fields) <= log.limit  # bounded: trimmed back to maxlen past twice it
+    assert log.kinds() == ["read_byte"] * 3
+    log.clear()
+    assert (len(log), log.total, bool(log), str(log)) == (0, 10, False, "(no transactions)")
+
+
+def test_an_entry_of_the_wrong_width_is_refused_whole():
+    log = TransactionLog()
+    with pytest.raises(ValueError, match="8 fields"):
+        log.add((0.0, 1, 0x68, "read_byte"))
+    assert (len(log), log.total) == (0, 0)
+
+
+def test_fake_smbus_fast_lane_keeps_the_log_bounded_by_maxlen():
+    # the lane has the log trimmed at every 1024th transaction index (not at each read):
+    # the kept entries are the newest maxlen at any time, memory at most 1024 entries more
+    # than the log's own limit, and total counts every read
+    from bmg160_emu.bus.smbus import FakeSMBus
+    from bmg160_emu.device.chip import BMG160
+
+    log = TransactionLog(maxlen=5)
+    chip = BMG160(seed=3)
+    fake = FakeSMBus(I2CBus(1, {0x68: chip}, log=log))
+    longest, times = 0, []
+    for _ in range(5000):
+        chip.advance(0.01)
+        fake.read_i2c_block_data(0x68, 0x02, 6)
+        times.append(chip.time)
+        longest = max(longest, len(log.fields))
+    assert (len(log), log.total) == (5, 5000)
+    assert [t.time for t in log] == times[-5:]
+    assert longest <= log.limit + 1024 * log.WIDTH

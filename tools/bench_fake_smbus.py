@@ -155,7 +155,7 @@ def main() -> int:
         """advance(period) + the 6-byte read + its log entry, nothing called that can be
         inlined: one sample due each time, a plain chip (no hook, no per-sample engine)."""
         s, clock, lock, i2c = bound_chip.state, bound_chip.clock, bound_chip.lock, bound_bus.i2c_bus
-        entries, step = bound_log.entries, round(period * NS_PER_S)
+        fields, step = bound_log.fields, round(period * NS_PER_S)
         for _ in loop:
             lock.acquire()
             try:
@@ -171,16 +171,17 @@ def main() -> int:
                     s.data_ready_pending = True
             finally:
                 lock.release()
-            next(i2c.indices)
+            index = next(i2c.indices)
             lock.acquire()
             try:
                 data = s.cur
                 s.data_ready_pending = False
             finally:
                 lock.release()
-            entries.append((clock.ns / NS_PER_S, 1, 0x68, "read_i2c_block_data", RATE_X_LSB,
-                            b"", data, None))
-            bound_log.total += 1
+            fields += (None, 1, 0x68, "read_i2c_block_data", RATE_X_LSB, b"", data, None,
+                       clock.ns)
+            if not index & 1023:
+                bound_log.trim()
             received = [*data]  # what smbus2 returns
             del received
 

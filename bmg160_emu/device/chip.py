@@ -210,13 +210,14 @@ class BMG160:
         contract.check_clock(clock)
         self._clock = clock
         # a plain VirtualClock guarded by this chip's lock: advance and read use its time
-        # directly (VirtualClock.advance_ns and now_ns inlined, tools/bench_fake_smbus.py)
-        self._virtual = clock if type(clock) is VirtualClock and clock.lock is self.lock else None
+        # directly (VirtualClock.advance_ns and now_ns inlined, tools/bench_fake_smbus.py),
+        # and a front end's fast path logs its ``ns`` (the same time as ``time``, no float made)
+        self.virtual_clock = clock if type(clock) is VirtualClock and clock.lock is self.lock else None
 
     @property
     def time(self) -> float:
         """The chip's current time in seconds (every bus transaction logs it)."""
-        clock = self._virtual
+        clock = self.virtual_clock
         return clock.ns / NS_PER_S if clock is not None else self.clock.now()
 
     @property
@@ -287,7 +288,7 @@ class BMG160:
         lock.acquire()  # (75 against 150 ns, tools/bench_fake_smbus.py's hot path)
         try:
             s = self.state
-            clock = self._virtual
+            clock = self.virtual_clock
             now = clock.ns if clock is not None else self._clock.now_ns()
             if now >= s.next_ns:
                 catch_up(s, now)
@@ -361,7 +362,7 @@ class BMG160:
         lock.acquire()
         try:
             s = self.state
-            clock = self._virtual
+            clock = self.virtual_clock
             if clock is not None:  # VirtualClock.advance_ns inlined: its lock is held
                 now = clock.ns = clock.ns + ns
             else:

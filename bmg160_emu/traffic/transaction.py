@@ -8,10 +8,12 @@ a log forwards each new transaction to its ``sinks`` (for example a trace writer
 from __future__ import annotations
 
 import errno as _errno
-from collections import deque
+import operator
+import sys
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
+from bmg160_emu.clock import NS_PER_S
 from bmg160_emu.traffic.kinds import is_annotation, register_writes
 
 Sink = Callable[["Transaction"], None]
@@ -123,19 +125,42 @@ class Transaction:
 class TransactionLog:
     """The transactions of one bus, oldest first.
 
-    Entries are stored as plain tuples (cheap, and ignored by the garbage collector) and
-    handed out as :class:`Transaction` objects. ``maxlen`` bounds memory for long sessions
-    (oldest entries drop out; ``total`` keeps counting). ``enabled = False`` stops recording.
-    ``sinks`` are called with each new :class:`Transaction` (e.g. a trace writer).
-    ``entries`` is the store of tuples in ``Transaction`` field order; a front end's fast
-    path appends to it directly (and counts ``total``) when there is no sink.
+    ``maxlen`` bounds memory for long sessions (oldest entries drop out; ``total`` keeps
+    counting). ``enabled = False`` stops recording. ``sinks`` are called with each new
+    :class:`Transaction` (e.g. a trace writer). Entries are handed out as
+    :class:`Transaction` objects (``entries``: as tuples in ``Transaction`` field order).
+
+    The store is one flat list, ``fields``: each entry's eight fields in ``Transaction``
+    order and a ninth, the time in integer ns when a fast path gives that instead (its
+    ``time`` field is None then; the seconds are ``time_ns / NS_PER_S``, as the chip's
+    ``time`` computes them, when the entry is read), one entry after another. Extending a
+    list by a tuple frees the tuple at once, so an entry leaves nothing for the garbage
+    collector to scan (a kept tuple per entry cost a polling read about 100 ns of
+    collections), and keeping the clock's own ``ns`` object allocates nothing (a new float
+    per entry cost about 100 ns more; tools/bench_fake_smbus.py). A front end's fast path
+    records an entry with ``log.fields += (...)`` when there is no sink and calls
+    :meth:`trim` every so often (it does nothing until ``len(log.fields)`` is over
+    ``log.limit``). Dropped entries go in bulk
+    (the list holds up to twice ``maxlen`` entries before a trim): a few ns per entry.
     """
 
+    WIDTH = 9  # fields per entry: Transaction.__slots__ in order, then time_ns
+
     def __init__(self, maxlen: int | None = 100_000, sinks: Iterable[Sink] = ()) -> None:
-        self.entries: deque[tuple] = deque(maxlen=maxlen)
+        if maxlen is not None and maxlen < 0:
+            raise ValueError(f"maxlen must be >= 0 or None, not {maxlen!r}")
+        self.maxlen = maxlen
+        self.fields: list[Any] = []
+        # the fields' length at which a trim is due: 2 x maxlen entries (never, unbounded)
+        self.limit = 2 * self.WIDTH * maxlen if maxlen is not None else sys.maxsize
         self.sinks: list[Sink] = list(sinks)
         self.enabled = True
-        self.total = 0
+        self._dropped = 0  # entries trimmed or cleared out: total counts them
+
+    @property
+    def total(self) -> int:
+        """Every transaction recorded since the log was made, dropped and cleared ones too."""
+        return self._dropped + len(self.fields) // self.WIDTH
 
     def record(
         self,
@@ -152,34 +177,76 @@ class TransactionLog:
         self.add((time, bus, address, kind, register, written, read, error))
 
     def add(self, entry: tuple) -> None:
-        """Append one transaction given as the tuple of its fields in ``Transaction`` order
-        (the front ends' fast path: one argument to bind, no Transaction built unless a sink
-        wants one)."""
-        self.entries.append(entry)
-        self.total += 1
+        """Append one transaction given as the tuple of its eight fields in ``Transaction``
+        order (one argument to bind, no Transaction built unless a sink wants one)."""
+        if len(entry) != 8:
+            raise ValueError(f"a transaction has 8 fields, not {len(entry)}: {entry!r}")
+        fields = self.fields
+        fields += (*entry, None)
+        if len(fields) > self.limit:
+            self.trim()
         if self.sinks:
             transaction = Transaction(*entry)
             for sink in self.sinks:
                 sink(transaction)
+
+    def trim(self) -> None:
+        """Drop the entries beyond the newest ``maxlen`` once ``fields`` is over ``limit``
+        (a front end's fast path may call this as often as it likes: it looks first)."""
+        fields = self.fields
+        if self.maxlen is None or len(fields) <= self.limit:
+            return
+        excess = len(fields) - self.WIDTH * self.maxlen  # (a whole number of entries: each
+        if excess > 0:  # entry goes in by one list extend, atomic under the GIL)
+            del fields[:excess]
+            self._dropped += excess // self.WIDTH
 
     def append(self, transaction: Transaction) -> None:
         t = transaction
         self.record(t.time, t.bus, t.address, t.kind, t.register, t.written, t.read, t.error)
 
     def clear(self) -> None:
-        self.entries.clear()
+        fields = self.fields
+        self._dropped += len(fields) // self.WIDTH
+        del fields[:]
+
+    def _window(self) -> list[Any]:
+        """A snapshot of the fields of the newest ``maxlen`` entries."""
+        fields = self.fields[:]
+        if self.maxlen is not None and len(fields) > self.WIDTH * self.maxlen:
+            del fields[: len(fields) - self.WIDTH * self.maxlen]
+        return fields
+
+    @property
+    def entries(self) -> list[tuple]:
+        """The entries, oldest first, as tuples in ``Transaction`` field order (a snapshot)."""
+        return [
+            (time_ns / NS_PER_S if time is None else time, *rest)
+            for time, *rest, time_ns in zip(*[iter(self._window())] * self.WIDTH)
+        ]
 
     def __len__(self) -> int:
-        return len(self.entries)
+        n = len(self.fields) // self.WIDTH
+        return n if self.maxlen is None else min(n, self.maxlen)
 
     def __iter__(self) -> Iterator[Transaction]:
-        return (Transaction(*entry) for entry in list(self.entries))
+        return (Transaction(*entry) for entry in self.entries)
 
     def __getitem__(self, index: int) -> Transaction:
-        return Transaction(*self.entries[index])
+        fields = self.fields[:]
+        n = len(fields) // self.WIDTH
+        shown = n if self.maxlen is None else min(n, self.maxlen)
+        i = operator.index(index)
+        if i < 0:
+            i += shown
+        if not 0 <= i < shown:
+            raise IndexError("transaction log index out of range")
+        start = (n - shown + i) * self.WIDTH
+        time, *rest, time_ns = fields[start : start + self.WIDTH]
+        return Transaction(time_ns / NS_PER_S if time is None else time, *rest)
 
     def __bool__(self) -> bool:
-        return bool(self.entries)
+        return len(self) > 0
 
     def filter(
         self,
@@ -200,22 +267,22 @@ class TransactionLog:
         ]
 
     def kinds(self) -> list[str]:
-        return [entry[3] for entry in list(self.entries)]
+        return self._window()[3 :: self.WIDTH]
 
     def register_writes(self, address: int | None = None) -> list[tuple[int, int]]:
         """``(register, value)`` of every byte written into a device's registers (of the
         device at ``address``, or any), oldest first, one pair per register of a burst:
         the same for a driver whichever stack it uses (smbus2's ``write_byte_data``,
         Blinka's or MicroPython's ``i2c_write``)."""
-        return register_writes(list(self.entries), address)
+        return register_writes(self.entries, address)
 
     def to_dicts(self) -> list[dict[str, Any]]:
         return [t.to_dict() for t in self]
 
     def __str__(self) -> str:
-        if not self.entries:
+        if not self:
             return "(no transactions)"
         return "\n".join(str(t) for t in self)
 
     def __repr__(self) -> str:
-        return f"<TransactionLog {len(self.entries)} of {self.total} transactions>"
+        return f"<TransactionLog {len(self)} of {self.total} transactions>"
