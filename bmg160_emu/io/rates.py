@@ -229,7 +229,8 @@ class NpzRates(RateFileReader):
                     raise RateFileError("counts without lsb_dps (deg/s per count): store the "
                                         "step, or the rates as rate_dps", path=path)
                 counts = numeric(npz_array(archive, "counts", path), path, "key counts")
-                values = counts * lsb
+                with np.errstate(over="ignore"):  # an inf is refused by row below
+                    values = counts * lsb
                 width = values.shape[1] if values.ndim == 2 else 1
                 return RateTable(path, _npz_axis_names(archive, width, path), t, values)
             for names in RATE_COLUMN_SETS:
