@@ -141,6 +141,10 @@ def seed_folder() -> Path:
         with contextlib.redirect_stdout(out):
             main(["dump", "--format", fmt, "--seed", "4"])
         (folder / f"dump.{fmt}").write_text(out.getvalue())
+    # a sensor's raw output as a logger keeps it (the shared ADIS16405 record's layout)
+    np.savez(folder / "counts.npz",
+             counts=np.random.default_rng(5).integers(-40, 40, (400, 3)).astype(np.int16),
+             lsb_dps=np.float64(0.05), rate_hz=np.float64(100.0), axes=np.array(["x", "y", "z"]))
     from importlib.resources import files
 
     (folder / "profile.toml").write_text(
@@ -266,6 +270,8 @@ FORMATS: tuple[FuzzFormat, ...] = (
     FuzzFormat("recording-csv", "recording.csv", load_recording,
                _errors("bmg160_emu.io.rates.RateFileError")),
     FuzzFormat("recording-npz", "recording.npz", load_recording,
+               _errors("bmg160_emu.io.rates.RateFileError"), text=False),
+    FuzzFormat("rates-counts-npz", "counts.npz", load_rate_file,
                _errors("bmg160_emu.io.rates.RateFileError"), text=False),
     FuzzFormat("rates-resd", "noise.resd", load_rate_file,
                _errors("bmg160_emu.io.rates.RateFileError"), text=False),
