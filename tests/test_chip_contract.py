@@ -52,3 +52,18 @@ def test_the_gyros_are_rate_sensors_and_a_stand_in_is_not():
     standin = StandinDevice(load_standin("bmm150"), address=0x10)
     assert isinstance(standin, RegisterDevice) and not isinstance(standin, RateSensor)
     assert not isinstance(RegisterFileChip(), RateSensor)
+
+
+def test_the_gyros_drive_interrupt_pins_and_a_stand_in_does_not():
+    # what serve asks before it carries a device's INT1/INT2 levels as events
+    from bmg160_emu.device.contract import InterruptPins
+    from bmg160_emu.device.parts import PART_NAMES, make_chip
+    from bmg160_emu.device.standin import StandinDevice
+    from bmg160_emu.io.standin_file import load_standin
+
+    for part in PART_NAMES:
+        chip = make_chip(part, seed=1)
+        assert isinstance(chip, InterruptPins), part
+        assert chip.int_pin_level(1) in (0, 1)
+    assert not isinstance(StandinDevice(load_standin("bmm150"), address=0x10), InterruptPins)
+    assert not isinstance(RegisterFileChip(), InterruptPins)

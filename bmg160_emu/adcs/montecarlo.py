@@ -353,7 +353,7 @@ def run_montecarlo(
     ``scheduler``: ``"local"`` (Dask local cluster, ``workers`` processes, default all cores),
     ``"sync"`` (this process, no Dask), or a Dask scheduler address such as
     ``"tcp://10.0.0.5:8786"``. ``run`` replaces the default per-seed run
-    (:func:`bmg160_emu.adcs.evaluation.propagation_run`) by any picklable ``f(seed) ->
+    (:class:`bmg160_emu.adcs.evaluation.PropagationRun`) by any picklable ``f(seed) ->
     RunResult``.
     """
     if not isinstance(scenario, Scenario):

@@ -60,6 +60,17 @@ class RateSensor(RegisterDevice, Protocol):
 
 
 @runtime_checkable
+class InterruptPins(Protocol):
+    """A device that drives interrupt lines (the gyro parts' INT1 and INT2, spec 4.15-4.16): a
+    front end that carries pin levels (serve's events, virtio-gpio) asks
+    ``isinstance(device, InterruptPins)``, as Zephyr's emulators offer a GPIO backend."""
+
+    def int_pin_level(self, pin: int) -> int: ...
+
+    def next_pin_change_ns(self) -> int | None: ...
+
+
+@runtime_checkable
 class SpiFramedDevice(RegisterDevice, Protocol):
     """A register device that decodes its SPI frames itself: a register-file stand-in
     (``device.standin``), whose chip may shift out a dummy byte before read data, start in

@@ -25,6 +25,7 @@ from typing import Any
 from bmg160_emu.bus.i2c import I2C_SMBUS_BLOCK_MAX, I2CBus, I2CMessage
 from bmg160_emu.bus.spi import FakeSpiDev
 from bmg160_emu.clock import NS_PER_S, VirtualClock
+from bmg160_emu.device.contract import InterruptPins, RateSensor
 from bmg160_emu.device.registers import address_of
 from bmg160_emu.durations import MAX_SIMULATED_S
 from bmg160_emu.serve import protocol as p
@@ -87,7 +88,7 @@ class Session:
             + [board.spi[c] for c in sorted(board.spi)]))
         # (bit of ``levels``, chip, pin): INT1 of chip i is bit 2i, INT2 bit 2i + 1
         self.pins = [(2 * i + pin - 1, chip, pin) for i, chip in enumerate(self.chips)
-                     if hasattr(chip, "int_pin_level") for pin in (1, 2)]
+                     if isinstance(chip, InterruptPins) for pin in (1, 2)]
         self.stats = SessionStats(edges=[0] * 2 * len(self.chips))
         self.greeted = False
         self.client_name = ""
@@ -144,7 +145,7 @@ class Session:
             cs = next((s for s, c in self.board.spi.items() if c is chip), None)
             records.append(p.ChipRecord(
                 _chip_name(chip), _chip_id(chip), address, cs,
-                2 if hasattr(chip, "int_pin_level") else 0, self.board.bus_number).pack())
+                2 if isinstance(chip, InterruptPins) else 0, self.board.bus_number).pack())
         head = p.HELLO_REPLY.pack(p.VERSION, p.MODE_REALTIME if self.realtime
                                   else p.MODE_SIMULATED, len(self.chips), 0,
                                   self.levels(), _or_never(self.next_change_ns()))
@@ -312,7 +313,7 @@ class Session:
             raise p.ProtocolError(f"SET_RATE of {len(payload)} bytes: expected "
                                   f"{p.SET_RATE_REQUEST.size}")
         index, x, y, z = p.SET_RATE_REQUEST.unpack(payload)
-        if index >= len(self.chips) or not hasattr(self.chips[index], "set_true_rate"):
+        if index >= len(self.chips) or not isinstance(self.chips[index], RateSensor):
             return self.result(-errno.ENODEV)
         from bmg160_emu import limits
         from bmg160_emu.io.trace import true_rate_entry
