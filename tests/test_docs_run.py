@@ -3,18 +3,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import re
-import sys
 from pathlib import Path
 
 import pytest
+from _tools import load_tool
 
 ROOT = Path(__file__).resolve().parents[1]
-_spec = importlib.util.spec_from_file_location("run_docs", ROOT / "tools" / "run_docs.py")
-run_docs = importlib.util.module_from_spec(_spec)
-sys.modules["run_docs"] = run_docs  # dataclasses look their module up by name
-_spec.loader.exec_module(run_docs)
+run_docs = load_tool("run_docs")
 
 # Pages that other branches of issue 18 rewrite at the same time; the lead makes their blocks
 # follow the convention when merging them and then empties this set.

@@ -2,19 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
-TOOL = Path(__file__).resolve().parent.parent / "tools" / "identification_accuracy.py"
+from _tools import load_tool
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("identification_accuracy", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("identification_accuracy")
 
 
 def test_bootstrap_intervals_are_scored_beside_the_asymptotic_ones(tmp_path):

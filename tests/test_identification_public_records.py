@@ -3,20 +3,15 @@ record layouts it reads, its skipping of absent files, and, where the records ar
 beside the checkout (../shared/data/public-gyro/, described in its README; their licenses
 keep them out of the repository), default identification reproducing each of them."""
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-TOOL = Path(__file__).resolve().parent.parent / "tools" / "identification_real_records.py"
+from _tools import load_tool
 
 
 def _tool():
-    spec = importlib.util.spec_from_file_location("identification_real_records", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("identification_real_records")
 
 
 def test_counts_and_unquantized_records_are_read_in_deg_s(tmp_path):

@@ -218,3 +218,24 @@ def test_a_file_without_a_time_column_names_the_ones_that_work(tmp_path, samples
     write_csv(path, samples, ["stamp", "gx", "gy"])
     with pytest.raises(RecordError, match=r"t, time or timestamp in seconds, or with a unit"):
         load_rate_record(path)
+
+
+def test_an_npz_of_raw_counts_with_their_step_and_rate_is_read_in_deg_s(tmp_path):
+    # a sensor's raw output as a logger keeps it (the shared ADIS16405 record's layout:
+    # counts int16, lsb_dps, rate_hz, axes), read by default identify with no option
+    counts = np.random.default_rng(1).integers(-40, 40, size=(3000, 3)).astype(np.int16)
+    path = tmp_path / "raw.npz"
+    np.savez(path, counts=counts, lsb_dps=np.float64(0.05), rate_hz=np.float64(100.0),
+             axes=np.array(["gx", "gy", "gz"]))
+    rec = load_rate_record(path)
+    assert rec.rate_hz == 100.0 and rec.axis_names == ("gx", "gy", "gz")
+    np.testing.assert_array_equal(rec.rate_dps, counts * 0.05)
+    assert load_rate_record(path, rate_hz=100.5).rate_hz == 100.5  # within 1 %: the user's
+    with pytest.raises(RecordError, match="disagrees with the file's rate_hz"):
+        load_rate_record(path, rate_hz=200.0)
+    np.savez(path, counts=counts, rate_hz=np.float64(100.0))
+    with pytest.raises(RecordError, match="counts without lsb_dps"):
+        load_rate_record(path)
+    np.savez(path, counts=counts, lsb_dps=np.array([0.05, 0.1]))
+    with pytest.raises(RecordError, match="key lsb_dps must be one positive number"):
+        load_rate_record(path, rate_hz=100.0)

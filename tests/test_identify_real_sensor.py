@@ -60,14 +60,9 @@ def test_the_synthetic_real_sensor_comes_back_through_identify_and_generate():
 
 
 def _example():
-    import importlib.util
-    from pathlib import Path
+    from _tools import load_tool
 
-    path = Path(__file__).resolve().parent.parent / "tools" / "identification_example.py"
-    spec = importlib.util.spec_from_file_location("identification_example", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("identification_example")
 
 
 def test_an_unfiltered_record_is_fitted_from_the_first_tau():

@@ -41,6 +41,7 @@ class RateTable:
     # lines row_lines[i] (an int: consecutive lines from it; an array: line of each row)
     row_starts: list[int] = field(default_factory=list)
     row_lines: list[int | np.ndarray] = field(default_factory=list)
+    rate_hz: float | None = None  # the sample rate the file itself states (an NPZ's rate_hz)
 
     def where(self, row: int) -> str:
         """``path:LINE`` of CSV data row ``row`` (0-based), or ``path: row N`` for arrays."""

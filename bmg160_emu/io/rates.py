@@ -16,6 +16,7 @@ from abc import abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -114,7 +115,8 @@ def load_rate_record(
       optional header row names the columns; when it has x_dps, y_dps, z_dps (the
       ``record`` and ``generate`` layout) those are the axes.
     - .npy: an (n,) or (n, k) array, k <= 3, no time.
-    - .npz: a single array, or rate_dps (n, 3) and t_s, or x, y, z with an optional t.
+    - .npz: a single array, or rate_dps (n, 3) and t_s, or x, y, z with an optional t, or
+      counts with lsb_dps (and axes); a rate_hz number gives the rate without a time array.
     - .resd: Renode sensor data, angular-rate channel 0; .txt or .log holding the firmware's
       UART stream (told from a CSV by its first line): io/resd.py, io/uart_stream.py.
     """
@@ -142,6 +144,12 @@ def _resolve_rate(table: RateTable, rate_hz: float | None, n: int) -> float:
     valid = isinstance(rate_hz, (int, float)) and math.isfinite(rate_hz) and rate_hz > 0
     if rate_hz is not None and not valid:
         raise RateFileError(f"sample rate must be a positive number of Hz, got {rate_hz!r}")
+    stated = table.rate_hz
+    if t is None and stated is not None:
+        if rate_hz is not None and abs(stated / rate_hz - 1.0) > 0.01:
+            raise RateFileError(f"--rate {rate_hz:g} Hz disagrees with the file's rate_hz "
+                                f"({stated:g} Hz)", path=path)
+        return float(rate_hz if rate_hz is not None else stated)
     if t is None:
         if rate_hz is None:
             raise RateFileError(f"no time column (a column named {time_column_help()}): "
@@ -171,10 +179,40 @@ class NpyRates(RateFileReader):
         return RateTable(self.path, None, None, read_npy(self.path))
 
 
+def _npz_scalar(archive: Any, key: str, path: Path) -> float | None:
+    """A positive finite number stored as a 0-d (or one-element) array, or None when absent."""
+    if key not in archive.files:
+        return None
+    value = numeric(npz_array(archive, key, path), path, f"key {key}").reshape(-1)
+    if value.size != 1 or not math.isfinite(float(value[0])) or float(value[0]) <= 0:
+        raise RateFileError(f"key {key} must be one positive number, got {value[:4].tolist()}",
+                            path=path)
+    return float(value[0])
+
+
+def _npz_axis_names(archive: Any, width: int, path: Path) -> list[str] | None:
+    """The ``axes`` array's names when it holds one string per column."""
+    if "axes" not in archive.files:
+        return None
+    names = npz_array(archive, "axes", path).reshape(-1)
+    if names.dtype.kind not in "US" or names.size != width:
+        return None
+    return [str(n.decode() if isinstance(n, bytes) else n) for n in names]
+
+
 class NpzRates(RateFileReader):
-    """An .npz archive: rate_dps (and t_s), or x, y, z (and a time key), or one array."""
+    """An .npz archive: rate_dps (and t_s), or x, y, z (and a time key), or integer
+    ``counts`` with their step ``lsb_dps`` (a sensor's raw output, as recorded: rates are
+    counts x lsb_dps), or one array; a ``rate_hz`` number gives the rate when there is no
+    time array."""
 
     def table(self, rate_hz: float | None, columns: list[str] | None) -> RateTable:
+        table = self._table(rate_hz, columns)
+        with open_npz(self.path) as archive:
+            table.rate_hz = _npz_scalar(archive, "rate_hz", self.path)
+        return table
+
+    def _table(self, rate_hz: float | None, columns: list[str] | None) -> RateTable:
         path = self.path
         with open_npz(path) as archive:
             keys = list(archive.files)
@@ -185,12 +223,22 @@ class NpzRates(RateFileReader):
                 t = in_seconds(t, time_column_scale_s(t_key))
             if "rate_dps" in keys:
                 return RateTable(path, None, t, numeric(npz_array(archive, "rate_dps", path), path))
+            if "counts" in keys:
+                lsb = _npz_scalar(archive, "lsb_dps", path)
+                if lsb is None:
+                    raise RateFileError("counts without lsb_dps (deg/s per count): store the "
+                                        "step, or the rates as rate_dps", path=path)
+                counts = numeric(npz_array(archive, "counts", path), path, "key counts")
+                values = counts * lsb
+                width = values.shape[1] if values.ndim == 2 else 1
+                return RateTable(path, _npz_axis_names(archive, width, path), t, values)
             for names in RATE_COLUMN_SETS:
                 present = [k for k in names if k in keys]
                 if present:
                     return RateTable(path, present, t, npz_columns(archive, present, path))
             others = [k for k in keys if time_column_scale_s(k) is None]
-            numbers = [k for k in others if npz_array(archive, k, path).dtype.kind in "fiu"]
+            numbers = [k for k in others if k not in ("rate_hz", "lsb_dps")
+                       and npz_array(archive, k, path).dtype.kind in "fiu"]
             if len(numbers) == 1:
                 return RateTable(path, None, t, numeric(npz_array(archive, numbers[0], path), path))
         raise RateFileError(
