@@ -19,7 +19,7 @@ the emulator alike. Beside the best-of ratios it prints the median over the roun
 round's own ratio (the emulator's loop over the reference loop of the same round): on a
 host whose speed drifts by several per cent within a minute, that pairing is the steadier
 figure. The advance includes the chip's block-wise filter computation (1024 samples at a
-time), its noise draws (2048 at a time) and the noise engine's super-blocks (32768 samples
+time), its noise draws (4096 at a time) and the noise engine's super-blocks (32768 samples
 of each Gauss-Markov and random-walk term at once), amortised over the loop: a round is a
 whole number of each. ``--bound`` adds the same work with every Python call inlined into one
 loop body (the chip's state read and written directly, white-box): what the interpreter
@@ -76,12 +76,14 @@ class ListBus:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     # a whole number of the chip's blocks (datapath.SPAN), of its noise draws
-    # (sensor_noise.NOISE_CHUNK) and of the Gauss-Markov and random-walk super-blocks the noise
+    # (sensor_noise.NOISE_CHUNK, DRAW_AHEAD) and of the Gauss-Markov and random-walk super-blocks the noise
     # engine computes them in (noise/gauss_markov.py: 16 x 2048 samples at 200 Hz), 32768 calls:
     # every round carries the same share of block and noise computation whatever its phase, so
     # the best round cannot be one without it. (Rounds of 2048 calls, the default before issue
     # 36, left the super-blocks out of 15 rounds in 16, and so out of the best one: --loop 2048.)
-    whole = math.lcm(datapath.SPAN, sensor_noise.NOISE_CHUNK, SUPER_BLOCK)
+    # (a checkout before DRAW_AHEAD drew the noise a NOISE_CHUNK at a time)
+    draw = getattr(sensor_noise, "DRAW_AHEAD", sensor_noise.NOISE_CHUNK)
+    whole = math.lcm(datapath.SPAN, sensor_noise.NOISE_CHUNK, draw, SUPER_BLOCK)
     parser.add_argument("--loop", type=int, default=whole,
                         help=f"calls per timed loop (a multiple of {whole})")
     parser.add_argument("--rounds", type=int, default=30, help="interleaved rounds, best kept")

@@ -160,6 +160,10 @@ def _blocks(odr_hz: float, bandwidth_hz: float, order: int) -> _Blocks:
     return _Blocks(b, a)
 
 
+REFERENCE_ROWS_KEPT = 4096  # the largest block whose reference rows a filter keeps (96 kB)
+REFERENCE_SHAPES_KEPT = 4  # and how many block shapes at most
+
+
 class LowPass:
     """Three-axis low-pass with state ``(order, 3)`` carried between blocks."""
 
@@ -179,6 +183,7 @@ class LowPass:
         """Rest at ``level``: the next input equal to it comes out unchanged."""
         self.reference = np.array(level, dtype=float)
         self._ref = self.reference.tolist()  # the same, as floats (step, rebase_if_settled)
+        self._reference_rows: dict[tuple[int, ...], np.ndarray] = {}  # (run)
         self.state = np.zeros((len(self.a) - 1, 3))
         self.started = True
 
@@ -253,8 +258,28 @@ class LowPass:
     def run(self, x: np.ndarray, state: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Filter ``x`` (n, 3) from ``state`` (default: current); return (y, final state)."""
         state = self.state if state is None else state
-        dev = x - self.reference
+        reference = self._rows_like(x)
+        dev = x - reference
         if not np.count_nonzero(dev) and not np.count_nonzero(state):  # (.any(): 5x the cost)
-            return np.broadcast_to(self.reference, x.shape).copy(), state
+            return (reference.copy() if reference.shape == x.shape
+                    else np.broadcast_to(reference, x.shape).copy()), state
         y, final = self._blocks.run(dev, state)
-        return y + self.reference, final
+        return y + reference, final
+
+    def _rows_like(self, x: np.ndarray) -> np.ndarray:
+        """The reference as x's rows (x's shape): the same operands elementwise as the
+        reference broadcast, at a third of the cost (numpy's broadcast of 3 values over
+        1024 rows runs an inner loop of 3: 4.3 against 1 us for x - reference, 5.7 against
+        0.4 us for the copy); kept for a few shapes of up to REFERENCE_ROWS_KEPT rows until
+        the reference changes (a chip's blocks come in few sizes)."""
+        shape = x.shape
+        rows = self._reference_rows.get(shape)
+        if rows is None:
+            if x.ndim != 2 or shape[1] != self.reference.shape[0]:
+                return self.reference  # (any other shape: broadcast as it comes)
+            rows = np.broadcast_to(self.reference, shape).copy()
+            if shape[0] <= REFERENCE_ROWS_KEPT:
+                if len(self._reference_rows) >= REFERENCE_SHAPES_KEPT:
+                    self._reference_rows.clear()
+                self._reference_rows[shape] = rows
+        return rows
