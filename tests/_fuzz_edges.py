@@ -194,7 +194,10 @@ PATH_LIMIT_S = 120.0  # a hang, not a speed: a valid identify --figures run is ~
 
 def fuzz_path(label: str, kind: str, path: str, tmp: Path,
               run: Callable[[list[str]], Outcome] | None = None) -> tuple[str, Outcome]:
-    """One path option with one hostile path; also fails on a temporary file left in tmp."""
+    """One path option with one hostile path, run from a folder of its own (a relative path
+    lands there); also fails on a temporary file left in tmp, and on anything a refused
+    run leaves in that folder (a socket path past PATH_MAX once left 20 nested folders of
+    200 d's beside the checkout, made before the path was refused)."""
     if run is None:
         def run(argv: list[str]) -> Outcome:
             return run_in_process(argv, PATH_LIMIT_S)
@@ -202,10 +205,22 @@ def fuzz_path(label: str, kind: str, path: str, tmp: Path,
     (tmp / "main.py").write_text(MAIN_PY)
     argv = [a.replace("{p}", path).replace("{seeds}", seeds).replace("{tmp}", str(tmp))
             for a in PATH_OPTIONS[label]]
-    outcome = run(argv)
+    here = tmp / "cwd"
+    here.mkdir(exist_ok=True)
+    before = set(os.listdir(here))
+    previous = os.getcwd()
+    os.chdir(here)
+    try:
+        outcome = run(argv)
+    finally:
+        os.chdir(previous)
     left = [p.name for p in tmp.iterdir() if ".part" in p.name]
     if left and not outcome.broken:
         outcome = Outcome("left a temporary file", outcome.status, ", ".join(left))
+    behind = sorted(set(os.listdir(here)) - before)
+    if behind and outcome.status != 0 and not outcome.broken:
+        names = ", ".join(n if len(n) < 40 else n[:20] + "..." for n in behind)
+        outcome = Outcome("a refused run left files behind", outcome.status, names)
     shown = path if len(path) < 60 else f"{path[:25]}...({len(path)} characters)"
     return f"bmg160-emu {label} {kind} {shown}", outcome
 

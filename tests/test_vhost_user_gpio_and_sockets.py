@@ -183,6 +183,19 @@ def test_socket_directory_is_created_private(tmp_path):
     assert (path.parent.stat().st_mode & 0o777) == 0o700
 
 
+def test_a_path_past_the_socket_address_is_refused_before_any_folder_is_made(tmp_path):
+    # sun_path holds 107 bytes and a NUL (unix(7)): bind() would refuse it after the
+    # folders were made; refused first, nothing is left behind
+    deep = tmp_path / "a" / "b"
+    path = str(deep / ("s" * (108 - len(str(deep)) - 1)))
+    assert len(path) == 108
+    with pytest.raises(SocketPathError, match="at most 107 bytes"):
+        check_socket_path(path)
+    assert list(tmp_path.iterdir()) == []
+    check_socket_path(path[:-1])  # 107 bytes: served
+    assert deep.is_dir()
+
+
 def test_refuses_a_directory_open_to_others(tmp_path):
     folder = tmp_path / "shared"
     folder.mkdir(mode=0o755)

@@ -124,9 +124,23 @@ class SocketPathError(Exception):
     """A socket path the back end will not serve on (one line, for the command line)."""
 
 
+# A UNIX socket's address holds at most this many bytes of path (Linux's sockaddr_un:
+# sun_path[108], the last byte the terminating NUL; unix(7)); bind() is given the path as
+# the user wrote it, relative or absolute.
+SUN_PATH_MAX = 107
+
+
 def check_socket_path(path: str) -> None:
-    """Make sure ``path`` can be served privately: its directory is ours and closed to
-    others (created 0700 if missing); an existing file there is a stale socket of ours."""
+    """Make sure ``path`` can be served privately: short enough for a socket address, its
+    directory ours and closed to others (created 0700 if missing, and only after the
+    length is known to fit: a path past the limit leaves no folders behind); an existing
+    file there is a stale socket of ours."""
+    size = len(os.fsencode(path))
+    if size > SUN_PATH_MAX:
+        shown = path if len(path) <= 60 else path[:28] + "..." + path[-28:]
+        raise SocketPathError(f"{shown}: a UNIX socket's path holds at most {SUN_PATH_MAX} "
+                              f"bytes (sun_path, unix(7)); this one has {size}: use a "
+                              "shorter path (a folder nearer /)")
     directory = os.path.dirname(os.path.abspath(path))
     uid = os.getuid()
     if not os.path.exists(directory):
