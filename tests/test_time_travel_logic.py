@@ -19,6 +19,7 @@ from bmg160_emu.clock import VirtualClock
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.linux import calendar as cal
 from bmg160_emu.linux import virtio_gpio as vg
+from bmg160_emu.linux import virtio_gpio_spec as gpio_spec
 from bmg160_emu.linux.agent_lines import AgentLines
 from bmg160_emu.linux.vhost_user_server import Connection, Server
 
@@ -202,21 +203,21 @@ def _request(fe, device, kind, line, value=0, size=2):
 
 def test_the_agent_lines_follow_the_chips_and_carry_requests_and_replies(gpio_with_agent):
     fe, device, _chips, _clock, replies = gpio_with_agent
-    names = _request(fe, device, vg.MSG_GET_NAMES, 0, size=128)[1:].split(b"\0")
+    names = _request(fe, device, gpio_spec.MSG_GET_NAMES, 0, size=128)[1:].split(b"\0")
     assert names[:4] == [b"bmg160-0x68-INT1", b"bmg160-0x68-INT2",
                          b"bmg160-emu-agent-request", b"bmg160-emu-agent-reply"]
     # the reply line: an output of the guest; gpio-virtio sets the value before the
     # direction (virtio_gpio_direction_output), which is no reply
-    assert _request(fe, device, vg.MSG_SET_VALUE, 3, 0) == b"\x00\x00"
-    assert _request(fe, device, vg.MSG_SET_DIRECTION, 3, vg.DIRECTION_OUT) == b"\x00\x00"
+    assert _request(fe, device, gpio_spec.MSG_SET_VALUE, 3, 0) == b"\x00\x00"
+    assert _request(fe, device, gpio_spec.MSG_SET_DIRECTION, 3, gpio_spec.DIRECTION_OUT) == b"\x00\x00"
     assert replies == []
     for value in (1, 0, 1):
-        _request(fe, device, vg.MSG_SET_VALUE, 3, value)
+        _request(fe, device, gpio_spec.MSG_SET_VALUE, 3, value)
     assert replies == [1, 0, 1]
     # the request line: an input the host pulses; an edge per pulse, held until the
     # guest's event buffer is there
-    assert _request(fe, device, vg.MSG_SET_DIRECTION, 2, vg.DIRECTION_OUT) == b"\x01\x00"
-    _request(fe, device, vg.MSG_IRQ_TYPE, 2, vg.IRQ_TYPE_EDGE_RISING)
+    assert _request(fe, device, gpio_spec.MSG_SET_DIRECTION, 2, gpio_spec.DIRECTION_OUT) == b"\x01\x00"
+    _request(fe, device, gpio_spec.MSG_IRQ_TYPE, 2, gpio_spec.IRQ_TYPE_EDGE_RISING)
     device.pulse_agent_request()
     head = fe.add(1, [struct.pack("<H", 2)], [1])
     device.kick(1)
@@ -239,7 +240,7 @@ def test_each_data_ready_pulse_is_one_edge_however_often_its_instant_is_looked_a
     chip.write(0x18, b"\x01")  # int1_data
     chip.write(0x15, b"\x80")  # data_en
     clock.advance(0.05)  # past the chip's start-up (30 ms): it samples at 100 Hz
-    _request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING)
+    _request(fe, device, gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_EDGE_RISING)
     fe.add(1, [struct.pack("<H", 0)], [1])
     device.kick(1)
     fired = 0
@@ -268,7 +269,7 @@ def test_a_trigger_on_both_edges_is_also_called_at_the_end_of_each_pulse(gpio_wi
     chip.write(0x18, b"\x01")  # int1_data
     chip.write(0x15, b"\x80")  # data_en
     clock.advance(0.05)
-    _request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_BOTH)
+    _request(fe, device, gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_EDGE_BOTH)
     edges = []
     for _ in range(6):
         head = fe.add(1, [struct.pack("<H", 0)], [1])

@@ -21,6 +21,7 @@ from _vhost_front_end import FakeFrontEnd
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.linux import vhost_user as vu
 from bmg160_emu.linux import virtio_gpio as vg
+from bmg160_emu.linux import virtio_gpio_spec as gpio_spec
 from bmg160_emu.linux.vhost_user_server import (
     Connection,
     Server,
@@ -62,14 +63,14 @@ def test_config_names_and_directions(gpio):
     body = fe.call(vu.GET_CONFIG, struct.pack("<III", 0, 8, 0) + bytes(8))
     ngpio, names_size = struct.unpack_from("<HxxI", body, 12)
     assert ngpio == 4
-    names = request(fe, device, vg.MSG_GET_NAMES, size=names_size + 1)
-    assert names[0] == vg.STATUS_OK
+    names = request(fe, device, gpio_spec.MSG_GET_NAMES, size=names_size + 1)
+    assert names[0] == gpio_spec.STATUS_OK
     assert names[1:].split(b"\0")[:4] == [b"bmg160-0x68-INT1", b"bmg160-0x68-INT2",
                                           b"bmg160-0x69-INT1", b"bmg160-0x69-INT2"]
-    assert request(fe, device, vg.MSG_GET_DIRECTION, 1) == bytes([0, vg.DIRECTION_IN])
-    assert request(fe, device, vg.MSG_SET_DIRECTION, 1, vg.DIRECTION_OUT)[0] == vg.STATUS_ERR
-    assert request(fe, device, vg.MSG_SET_VALUE, 1, 1)[0] == vg.STATUS_ERR
-    assert request(fe, device, vg.MSG_GET_VALUE, 9)[0] == vg.STATUS_ERR
+    assert request(fe, device, gpio_spec.MSG_GET_DIRECTION, 1) == bytes([0, gpio_spec.DIRECTION_IN])
+    assert request(fe, device, gpio_spec.MSG_SET_DIRECTION, 1, gpio_spec.DIRECTION_OUT)[0] == gpio_spec.STATUS_ERR
+    assert request(fe, device, gpio_spec.MSG_SET_VALUE, 1, 1)[0] == gpio_spec.STATUS_ERR
+    assert request(fe, device, gpio_spec.MSG_GET_VALUE, 9)[0] == gpio_spec.STATUS_ERR
 
 
 def test_line_level_follows_a_latched_interrupt_and_reset_int(gpio):
@@ -79,16 +80,16 @@ def test_line_level_follows_a_latched_interrupt_and_reset_int(gpio):
     chip.write(0x18, b"\x04")  # int1_fifo
     chip.write(0x15, b"\x40")  # fifo_en
     chip.write(0x3E, b"\x40")  # FIFO mode
-    assert request(fe, device, vg.MSG_GET_VALUE, 2) == b"\x00\x00"
+    assert request(fe, device, gpio_spec.MSG_GET_VALUE, 2) == b"\x00\x00"
     chip.advance(0.06)  # 100 frames at 2000 Hz: full
-    assert request(fe, device, vg.MSG_GET_VALUE, 2) == b"\x00\x01"
+    assert request(fe, device, gpio_spec.MSG_GET_VALUE, 2) == b"\x00\x01"
     chip.write(0x3E, b"\x00")  # bypass: no longer full, but the status is latched
     chip.read(0x0A)  # reads do not clear it (spec 6.3)
-    assert request(fe, device, vg.MSG_GET_VALUE, 2) == b"\x00\x01"
+    assert request(fe, device, gpio_spec.MSG_GET_VALUE, 2) == b"\x00\x01"
     chip.write(0x21, b"\x8f")  # reset_int
-    assert request(fe, device, vg.MSG_GET_VALUE, 2) == b"\x00\x00"
+    assert request(fe, device, gpio_spec.MSG_GET_VALUE, 2) == b"\x00\x00"
     chip.write(0x16, b"\x0e")  # INT1 active low (int1_lvl = 0): the idle level is high
-    assert request(fe, device, vg.MSG_GET_VALUE, 2) == b"\x00\x01"
+    assert request(fe, device, gpio_spec.MSG_GET_VALUE, 2) == b"\x00\x01"
 
 
 def test_data_ready_edges_raise_one_interrupt_per_queued_buffer(gpio):
@@ -97,7 +98,7 @@ def test_data_ready_edges_raise_one_interrupt_per_queued_buffer(gpio):
     chip.write(0x10, b"\x07")  # ODR 100 Hz
     chip.write(0x18, b"\x01")  # int1_data
     chip.write(0x15, b"\x80")  # data_en
-    assert request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING) == b"\x00\x00"
+    assert request(fe, device, gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_EDGE_RISING) == b"\x00\x00"
     head = queue_event(fe, device, 0)
     assert fe.used(1) == []
     chip.advance(0.0005)
@@ -134,7 +135,7 @@ def test_an_i2c_transfer_looks_at_the_lines_while_a_trigger_is_set(gpio):
     chip.write(0x18, b"\x01")  # int1_data
     chip.write(0x15, b"\x80")  # data_en
     device.after_transfer()  # no trigger yet: nothing to follow
-    request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING)
+    request(fe, device, gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_EDGE_RISING)
     head = queue_event(fe, device, 0)
     chip.advance(0.0005)
     device.after_transfer()
@@ -147,10 +148,10 @@ def test_an_i2c_transfer_looks_at_the_lines_while_a_trigger_is_set(gpio):
 
 def test_disabling_the_interrupt_returns_the_buffer_invalid(gpio):
     fe, device, chips = gpio
-    request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING)
+    request(fe, device, gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_EDGE_RISING)
     head = queue_event(fe, device, 0)
     assert chips[0x68].truth_hooks  # watched while a trigger is set ...
-    request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_NONE)
+    request(fe, device, gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_NONE)
     assert fe.used(1) == [(head, 1)] and fe.read_back(1, head, [1])[0] == b"\x00"
     assert not chips[0x68].truth_hooks  # ... and not after
 
@@ -160,7 +161,7 @@ def test_level_high_fires_while_the_latched_line_is_active(gpio):
     chip = chips[0x68]
     for reg, value in ((0x21, 0x0F), (0x18, 0x04), (0x15, 0x40), (0x3E, 0x40)):
         chip.write(reg, bytes([value]))
-    request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_LEVEL_HIGH)
+    request(fe, device, gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_LEVEL_HIGH)
     head = queue_event(fe, device, 0)
     assert fe.used(1) == []
     chip.advance(0.06)
@@ -335,7 +336,7 @@ def test_an_edge_whose_sample_the_driver_already_read_is_dropped(gpio):
     chip.write(0x10, b"\x07")  # ODR 100 Hz
     chip.write(0x18, b"\x01")
     chip.write(0x15, b"\x80")
-    request(fe, device, vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING)
+    request(fe, device, gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_EDGE_RISING)
     head = queue_event(fe, device, 0)
     chip.advance(0.010)
     # the driver read the rates (the I2C device records when) before this look saw the

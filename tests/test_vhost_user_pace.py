@@ -16,6 +16,7 @@ from _vhost_front_end import FakeFrontEnd
 
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.linux import virtio_gpio as vg
+from bmg160_emu.linux import virtio_gpio_spec as gpio_spec
 from bmg160_emu.linux.guest_pace import NEVER, GuestPacedClock
 from bmg160_emu.linux.vhost_user_server import Connection
 
@@ -85,7 +86,7 @@ def paced(wall):
     chip.write(0x10, b"\x07")  # ODR 100 Hz
     chip.write(0x18, b"\x01")  # INT_MAP_1: data-ready on INT1
     chip.write(0x15, b"\x80")  # INT_EN_0: data_en
-    head = fe.add(0, [struct.pack("<HHI", vg.MSG_IRQ_TYPE, 0, vg.IRQ_TYPE_EDGE_RISING)], [2])
+    head = fe.add(0, [struct.pack("<HHI", gpio_spec.MSG_IRQ_TYPE, 0, gpio_spec.IRQ_TYPE_EDGE_RISING)], [2])
     device.kick(0)
     assert fe.used(0) == [(head, 2)]
     device.poll(wall.move(MS))  # past the reset's data-ready pulse; the first sample at 10 ms

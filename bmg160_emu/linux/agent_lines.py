@@ -19,23 +19,25 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from bmg160_emu.linux.virtio_gpio_spec import (
+    DIRECTION_IN,
+    DIRECTION_NONE,
+    DIRECTION_OUT,
+    IRQ_TYPE_EDGE_RISING,
+    IRQ_TYPE_NONE,
+    MSG_GET_DIRECTION,
+    MSG_GET_VALUE,
+    MSG_IRQ_TYPE,
+    MSG_SET_DIRECTION,
+    MSG_SET_VALUE,
+    STATUS_ERR,
+    STATUS_OK,
+)
+
 REQUEST_NAME = "bmg160-emu-agent-request"
 REPLY_NAME = "bmg160-emu-agent-reply"
 NAMES = (REQUEST_NAME, REPLY_NAME)
 
-# virtio 1.2, 5.18.6 (as in virtio_gpio)
-MSG_GET_DIRECTION = 0x0002
-MSG_SET_DIRECTION = 0x0003
-MSG_GET_VALUE = 0x0004
-MSG_SET_VALUE = 0x0005
-MSG_IRQ_TYPE = 0x0006
-STATUS_OK = 0
-STATUS_ERR = 1
-DIRECTION_NONE = 0
-DIRECTION_OUT = 1
-DIRECTION_IN = 2
-IRQ_TYPE_NONE = 0x00
-IRQ_TYPE_EDGE_RISING = 0x01
 
 
 class RequestLine:
