@@ -41,6 +41,7 @@ from functools import cached_property
 import numpy as np
 
 from bmg160_emu.noise.resonant_bands import Band, Resonance, measure_band
+from bmg160_emu.noise.spectrum import rounding_floor_psd
 
 ORDERS = (0, 1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48)  # K tried (autocovariance lags)
 SMOOTH_ORDER = 8  # the first pass's largest K: too smooth to follow a band
@@ -149,15 +150,10 @@ def minimum_phase_fir(cosine: np.ndarray, grid: int = FFT_GRID) -> np.ndarray:
     return h / h.sum()
 
 
-def find_output_stage(frequency_hz: np.ndarray, psd: np.ndarray, segments: float,
-                      rate_hz: float, lsb_dps: float | None = None) -> SpectralFindings:
-    """The output response, bands and lines from a one-sided Welch PSD of ``segments``
-    half-overlapping segments."""
-    from scipy.stats import chi2
-
-    floor = lsb_dps**2 / (6.0 * rate_hz) if lsb_dps else 0.0  # LSB^2/12 over rate/2
-    sel = frequency_hz >= rate_hz / 100.0
-    f, S = frequency_hz[sel], psd[sel]
+def _fit_bins(f: np.ndarray, S: np.ndarray, segments: float) -> tuple[
+        int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The PSD averaged into up to FIT_BINS equal bins: (count of bins, bin edges, the bin
+    of each frequency, frequencies per bin, mean frequency, mean PSD, chi-square dof)."""
     nb = max(min(FIT_BINS, f.size // 2), 8)
     edges = np.linspace(f[0], f[-1] * (1 + 1e-12), nb + 1)
     idx = np.searchsorted(edges, f, side="right") - 1
@@ -167,6 +163,19 @@ def find_output_stage(frequency_hz: np.ndarray, psd: np.ndarray, segments: float
     # chi-square dof of a bin: 1.9 per half-overlapping Hann segment (Welch 1967), halved
     # because neighbouring Welch bins share data
     dof = 0.95 * max(segments, 1.0) * cnt
+    return nb, edges, idx, cnt, fb, sb, dof
+
+
+def find_output_stage(frequency_hz: np.ndarray, psd: np.ndarray, segments: float,
+                      rate_hz: float, lsb_dps: float | None = None) -> SpectralFindings:
+    """The output response, bands and lines from a one-sided Welch PSD of ``segments``
+    half-overlapping segments."""
+    from scipy.stats import chi2
+
+    floor = rounding_floor_psd(lsb_dps, rate_hz)
+    sel = frequency_hz >= rate_hz / 100.0
+    f, S = frequency_hz[sel], psd[sel]
+    nb, edges, idx, cnt, fb, sb, dof = _fit_bins(f, S, segments)
     u = fb / rate_hz
     limit = (chi2.isf(FALSE_ALARM / nb, dof) / dof - 1.0) * np.sqrt(dof)
 
@@ -344,18 +353,12 @@ def fit_fast_shape(frequency_hz: np.ndarray, psd: np.ndarray, segments: float, r
     slow terms' PSD (``slow_psd``, from the Allan fit) and the lines' bins, fitted as a cosine
     series of order up to 64 by BIC. Anchored that low, its DC value is the white level the
     slow terms sit on; a band narrower than rate / 128 is followed by it exactly."""
-    floor = lsb_dps**2 / (6.0 * rate_hz) if lsb_dps else 0.0
+    floor = rounding_floor_psd(lsb_dps, rate_hz)
     sel = frequency_hz >= rate_hz * FULL_LOW_FRACTION
     f, S = frequency_hz[sel], psd[sel].copy()
     if slow_psd is not None:
         S = S - slow_psd[sel]
-    nb = max(min(FIT_BINS, f.size // 2), 8)
-    edges = np.linspace(f[0], f[-1] * (1 + 1e-12), nb + 1)
-    idx = np.searchsorted(edges, f, side="right") - 1
-    cnt = np.maximum(np.bincount(idx, minlength=nb), 1)
-    fb = np.bincount(idx, f, nb) / cnt
-    sb = np.bincount(idx, S, nb) / cnt
-    dof = 0.95 * max(segments, 1.0) * cnt
+    nb, edges, _, _, fb, sb, dof = _fit_bins(f, S, segments)
     keep = np.ones(nb, dtype=bool)
     df = float(f[1] - f[0]) if f.size > 1 else 1.0
     for _, fl, _ in lines:

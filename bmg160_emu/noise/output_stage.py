@@ -30,7 +30,7 @@ from bmg160_emu.noise.allan import AllanCurve
 from bmg160_emu.noise.bandwidths import LOWPASS_ORDER
 from bmg160_emu.noise.butterworth import Butterworth, white_avar_unit
 from bmg160_emu.noise.estimate import Estimate
-from bmg160_emu.noise.spectrum import Spectrum
+from bmg160_emu.noise.spectrum import Spectrum, rounding_floor_psd
 
 FILTER_ORDERS = (1, 2, 3, 4)
 PSD_BINS = 60  # logarithmic bins of the PSD fit
@@ -141,7 +141,7 @@ def fit_filter_psd(spectrum: Spectrum, rate_hz: float, lsb_dps: float | None = N
         return None
     f, which, counts, used, log_s = binned
     weights = counts[used].astype(float)  # each bin's log mean: variance ~ 1 / its bins
-    floor = lsb_dps**2 / (6.0 * rate_hz) if lsb_dps else 0.0  # one-sided, LSB^2/12 spread
+    floor = rounding_floor_psd(lsb_dps, rate_hz)
     nyquist = rate_hz / 2.0
 
     def binned_power(order: int, corner: float) -> np.ndarray:

@@ -31,6 +31,7 @@ from bmg160_emu.noise.spectrum import (
     quantization_psd,
     ramp_psd,
     random_walk_psd,
+    rounding_floor_psd,
     white_psd,
 )
 
@@ -332,7 +333,7 @@ def draw_psd(
                       f"{result.output_filter.text()} Hz")
     total = white + random_walk_psd(K, f)
     if result.lsb_dps:  # the rounding's white floor after the filter, LSB^2 / 12
-        total = total + result.lsb_dps**2 / (6.0 * rate_hz)
+        total = total + rounding_floor_psd(result.lsb_dps, rate_hz)
     for B, T in terms:
         total = total + gauss_markov_psd(B, T, f)
     if result.Q:

@@ -108,5 +108,11 @@ def quantization_psd(Q: float, f: np.ndarray, rate_hz: float) -> np.ndarray:
     return 2.0 * (2.0 * math.pi * np.asarray(f, dtype=float)) ** 2 * Q**2 / rate_hz
 
 
+def rounding_floor_psd(lsb_dps: float | None, rate_hz: float) -> float:
+    """The white one-sided PSD of rounding the output to ``lsb_dps``: the uniform error's
+    variance LSB^2/12 spread over 0 .. rate/2 ((deg/s)^2/Hz); 0 without rounding."""
+    return lsb_dps**2 / (6.0 * rate_hz) if lsb_dps else 0.0
+
+
 def ramp_psd(R: float, f: np.ndarray) -> np.ndarray:
     return 2.0 * R**2 / (2.0 * math.pi * np.asarray(f, dtype=float)) ** 3

@@ -40,7 +40,12 @@ from bmg160_emu.noise.output_response import (
     find_output_stage,
     fit_fast_shape,
 )
-from bmg160_emu.noise.spectrum import gauss_markov_psd, one_sided_psd, random_walk_psd
+from bmg160_emu.noise.spectrum import (
+    gauss_markov_psd,
+    one_sided_psd,
+    random_walk_psd,
+    rounding_floor_psd,
+)
 
 FAMILY_ACF = 0.01  # a Butterworth within this of the measured autocorrelation (lags 1-5) is it
 BAND_SHARE = 0.25  # of the white term's Allan variance: where the first fit starts
@@ -289,7 +294,7 @@ def _slow_bands(fine: Any, segments: float, rate_hz: float, first: CurveFit,
     the first fit's model through the broadband response."""
     from bmg160_emu.noise.slow_bands import find_slow_bands
 
-    floor = lsb_dps**2 / (6.0 * rate_hz) if lsb_dps else 0.0
+    floor = rounding_floor_psd(lsb_dps, rate_hz)
 
     def fixed(fr: np.ndarray) -> np.ndarray:
         return floor + _bands_psd(found.bands, fr, rate_hz) * found.response.power(fr)
