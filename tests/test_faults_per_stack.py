@@ -138,6 +138,28 @@ def _periphery_shapes() -> list[Shape]:
     ]
 
 
+def _busio_shapes(stack: str, i2c: Callable[[Any], Any],
+                  errors: dict[str, int] | None = None) -> list[Shape]:
+    """The three transfer shapes of a busio.I2C (Blinka's and CircuitPython's alike)."""
+    def combined(ctx: Any) -> bytes:
+        data = bytearray(2)
+        i2c(ctx).writeto_then_readfrom(ADDRESS, bytes([RANGE]), data)
+        return bytes(data)
+
+    def plain(ctx: Any) -> bytes:
+        data = bytearray(2)
+        i2c(ctx).readfrom_into(ADDRESS, data)
+        return bytes(data)
+
+    return [
+        Shape(stack, "writeto_then_readfrom read", combined, errors=errors),
+        Shape(stack, "writeto", lambda c: i2c(c).writeto(ADDRESS, bytes([RANGE, 2])),
+              errors=errors),
+        Shape(stack, "readfrom_into read", plain, names_register=False,
+              setup=lambda c: i2c(c).writeto(ADDRESS, bytes([RANGE])), errors=errors),
+    ]
+
+
 def _blinka_shapes() -> list[Shape]:
     def i2c(ctx: Any) -> Any:
         if "blinka" not in ctx.kept:
@@ -150,22 +172,7 @@ def _blinka_shapes() -> list[Shape]:
             ctx.kept["blinka"] = bus
         return ctx.kept["blinka"]
 
-    def combined(ctx: Any) -> bytes:
-        data = bytearray(2)
-        i2c(ctx).writeto_then_readfrom(ADDRESS, bytes([RANGE]), data)
-        return bytes(data)
-
-    def plain(ctx: Any) -> bytes:
-        data = bytearray(2)
-        i2c(ctx).readfrom_into(ADDRESS, data)
-        return bytes(data)
-
-    return [
-        Shape("Blinka busio", "writeto_then_readfrom read", combined),
-        Shape("Blinka busio", "writeto", lambda c: i2c(c).writeto(ADDRESS, bytes([RANGE, 2]))),
-        Shape("Blinka busio", "readfrom_into read", plain, names_register=False,
-              setup=lambda c: i2c(c).writeto(ADDRESS, bytes([RANGE]))),
-    ]
+    return _busio_shapes("Blinka busio", i2c)
 
 
 def _circuitpython_shapes() -> list[Shape]:
@@ -177,24 +184,7 @@ def _circuitpython_shapes() -> list[Shape]:
             ctx.kept["busio"] = bus
         return ctx.kept["busio"]
 
-    def combined(ctx: Any) -> bytes:
-        data = bytearray(2)
-        i2c(ctx).writeto_then_readfrom(ADDRESS, bytes([RANGE]), data)
-        return bytes(data)
-
-    def plain(ctx: Any) -> bytes:
-        data = bytearray(2)
-        i2c(ctx).readfrom_into(ADDRESS, data)
-        return bytes(data)
-
-    return [
-        Shape("CircuitPython busio", "writeto_then_readfrom read", combined,
-              errors=MICROPYTHON),
-        Shape("CircuitPython busio", "writeto",
-              lambda c: i2c(c).writeto(ADDRESS, bytes([RANGE, 2])), errors=MICROPYTHON),
-        Shape("CircuitPython busio", "readfrom_into read", plain, names_register=False,
-              setup=lambda c: i2c(c).writeto(ADDRESS, bytes([RANGE])), errors=MICROPYTHON),
-    ]
+    return _busio_shapes("CircuitPython busio", i2c, errors=MICROPYTHON)
 
 
 def _machine_shapes() -> list[Shape]:
