@@ -49,8 +49,8 @@ FOUR_POLES = AxisNoise(
 )
 
 
-def time_generator(samples: int, mode: str, profile="paper") -> float:
-    gen = NoiseGenerator(profile, rate_hz=200.0, seed=0, mode=mode)
+def time_chunks(gen, samples: int) -> float:
+    """Seconds to draw ``samples`` from ``gen`` in CHUNK-sample requests, as generate does."""
     start = time.perf_counter()
     left = samples
     while left > 0:
@@ -58,18 +58,17 @@ def time_generator(samples: int, mode: str, profile="paper") -> float:
         gen.generate(m)
         left -= m
     return time.perf_counter() - start
+
+
+def time_generator(samples: int, mode: str, profile="paper") -> float:
+    gen = NoiseGenerator(profile, rate_hz=200.0, seed=0, mode=mode)
+    return time_chunks(gen, samples)
 
 
 def time_filtered(samples: int) -> float:
     """The paper profile through BW code 4's filter (200 Hz ODR, 23 Hz): generate --bandwidth 4."""
     gen = profile_noise("paper", seed=0, bandwidth_code=4)
-    start = time.perf_counter()
-    left = samples
-    while left > 0:
-        m = min(left, CHUNK)
-        gen.generate(m)
-        left -= m
-    return time.perf_counter() - start
+    return time_chunks(gen, samples)
 
 
 def measured_response(taps: int) -> tuple[float, ...]:
@@ -90,13 +89,7 @@ def time_identified(samples: int, taps: int) -> float:
     axis = dataclasses.replace(paper.x, response=measured_response(taps))
     profile = Profile("identified", axis, axis, axis, output=OutputStage(rate_hz=200.0))
     gen = profile_noise(profile, seed=0)
-    start = time.perf_counter()
-    left = samples
-    while left > 0:
-        m = min(left, CHUNK)
-        gen.generate(m)
-        left -= m
-    return time.perf_counter() - start
+    return time_chunks(gen, samples)
 
 
 def time_small_calls(calls: int) -> tuple[float, float]:
