@@ -207,41 +207,40 @@ class NpzRates(RateFileReader):
     time array."""
 
     def table(self, rate_hz: float | None, columns: list[str] | None) -> RateTable:
-        table = self._table(rate_hz, columns)
         with open_npz(self.path) as archive:
+            table = self._table(archive)
             table.rate_hz = _npz_scalar(archive, "rate_hz", self.path)
         return table
 
-    def _table(self, rate_hz: float | None, columns: list[str] | None) -> RateTable:
+    def _table(self, archive: Any) -> RateTable:
         path = self.path
-        with open_npz(path) as archive:
-            keys = list(archive.files)
-            t_key = next((k for k in keys if time_column_scale_s(k) is not None), None)
-            t = None
-            if t_key is not None:
-                t = numeric(npz_array(archive, t_key, path), path, f"key {t_key}")
-                t = in_seconds(t, time_column_scale_s(t_key))
-            if "rate_dps" in keys:
-                return RateTable(path, None, t, numeric(npz_array(archive, "rate_dps", path), path))
-            if "counts" in keys:
-                lsb = _npz_scalar(archive, "lsb_dps", path)
-                if lsb is None:
-                    raise RateFileError("counts without lsb_dps (deg/s per count): store the "
-                                        "step, or the rates as rate_dps", path=path)
-                counts = numeric(npz_array(archive, "counts", path), path, "key counts")
-                with np.errstate(over="ignore"):  # an inf is refused by row below
-                    values = counts * lsb
-                width = values.shape[1] if values.ndim == 2 else 1
-                return RateTable(path, _npz_axis_names(archive, width, path), t, values)
-            for names in RATE_COLUMN_SETS:
-                present = [k for k in names if k in keys]
-                if present:
-                    return RateTable(path, present, t, npz_columns(archive, present, path))
-            others = [k for k in keys if time_column_scale_s(k) is None]
-            numbers = [k for k in others if k not in ("rate_hz", "lsb_dps")
-                       and npz_array(archive, k, path).dtype.kind in "fiu"]
-            if len(numbers) == 1:
-                return RateTable(path, None, t, numeric(npz_array(archive, numbers[0], path), path))
+        keys = list(archive.files)
+        t_key = next((k for k in keys if time_column_scale_s(k) is not None), None)
+        t = None
+        if t_key is not None:
+            t = numeric(npz_array(archive, t_key, path), path, f"key {t_key}")
+            t = in_seconds(t, time_column_scale_s(t_key))
+        if "rate_dps" in keys:
+            return RateTable(path, None, t, numeric(npz_array(archive, "rate_dps", path), path))
+        if "counts" in keys:
+            lsb = _npz_scalar(archive, "lsb_dps", path)
+            if lsb is None:
+                raise RateFileError("counts without lsb_dps (deg/s per count): store the "
+                                    "step, or the rates as rate_dps", path=path)
+            counts = numeric(npz_array(archive, "counts", path), path, "key counts")
+            with np.errstate(over="ignore"):  # an inf is refused by row below
+                values = counts * lsb
+            width = values.shape[1] if values.ndim == 2 else 1
+            return RateTable(path, _npz_axis_names(archive, width, path), t, values)
+        for names in RATE_COLUMN_SETS:
+            present = [k for k in names if k in keys]
+            if present:
+                return RateTable(path, present, t, npz_columns(archive, present, path))
+        others = [k for k in keys if time_column_scale_s(k) is None]
+        numbers = [k for k in others if k not in ("rate_hz", "lsb_dps")
+                   and npz_array(archive, k, path).dtype.kind in "fiu"]
+        if len(numbers) == 1:
+            return RateTable(path, None, t, numeric(npz_array(archive, numbers[0], path), path))
         raise RateFileError(
             f"cannot tell which arrays hold the rates (found {sorted(keys)}); "
             "store one array, or rate_dps, or x, y, z", path=path,
