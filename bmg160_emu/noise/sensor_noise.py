@@ -131,11 +131,13 @@ class SensorNoise:
     def _draw(self, end: int) -> None:
         """Whole chunks from self.end until ``end`` is covered (one generator checkpoint),
         generated and filtered in pieces of PIECE samples, each while it is in the cache
-        (the generator is chunk invariant: the same samples as one call)."""
+        (the generator is chunk invariant: the same samples as one call); a sequential
+        (generate's) draw ends at ``end`` exactly."""
         gen = self.generator
-        total = -(-(end - self.end) // NOISE_CHUNK) * NOISE_CHUNK
-        if not self.sequential:  # (generate draws what it writes: one recursion, whole)
-            total = max(total, DRAW_AHEAD)
+        if self.sequential:  # generate: exactly what is asked, so nothing is held over and
+            total = end - self.end  # the next draw is one call into fresh arrays, no copy
+        else:  # (the recursion and the generator give the same bits however cut)
+            total = max(-(-(end - self.end) // NOISE_CHUNK) * NOISE_CHUNK, DRAW_AHEAD)
         self.draws.append((self.end, gen.checkpoint()))
         flt = self.filter
         held = self.end - self.k0
