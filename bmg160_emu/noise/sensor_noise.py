@@ -15,6 +15,7 @@ import numpy as np
 
 from bmg160_emu.noise.bandwidths import BANDWIDTHS, LOWPASS_ORDER, code_filter
 from bmg160_emu.noise.lowpass import LowPass
+from bmg160_emu.noise.response_fir import ResponseFIR
 
 NOISE_CHUNK = 2048  # noise computed in chunks of this many samples (a multiple of the
 # filter's 1024-sample pieces, lowpass.py), each with its filter state kept
@@ -248,9 +249,6 @@ class SensorNoise:
             logging.getLogger(__name__).info(note)
 
 
-FIR_BLOCK = 1 << 14  # samples per step of a measured response's FIR (3 columns: 384 kB)
-
-
 class ProfileNoise:
     """A profile's noise as ``generate`` writes it: the sensing element's noise through the
     profile's own output stage (``[output]``: a Butterworth order and corner, or a BW code;
@@ -262,7 +260,7 @@ class ProfileNoise:
     def __init__(self, generator: Any, bandwidth_hz: float | None, order: int,
                  lsb_dps: float | None = None,
                  responses: list[np.ndarray | None] | None = None,
-                 notes: list[str] | None = None) -> None:
+                 notes: list[str] | None = None, fir_threads: int | None = None) -> None:
         self.generator = generator
         self.lsb_dps = lsb_dps
         self.bandwidth_hz = bandwidth_hz
@@ -274,20 +272,17 @@ class ProfileNoise:
         self._k = 0
         self.responses = responses if responses and any(
             h is not None and h.size > 1 for h in responses) else None
-        # each FIR's memory: the last len(taps) - 1 inputs (numpy's direct convolution:
-        # output k is the same dot product however the record is cut, and 5-25 ns a sample
-        # for 2-65 taps, against 8-55 for lfilter)
-        self._fir_memory: list[np.ndarray | None] = []
+        # each measured response's FIR with its memory (noise.response_fir: output k the same
+        # dot product however the record is cut; on a second core when there is one)
+        self.fir: ResponseFIR | None = None
         if self.responses is not None:
+            self.fir = ResponseFIR(self.responses, fir_threads)
             # the FIRs start settled: their memory filled with the stream's first samples
             # (the realisation moves on by them, as SensorNoise's filter start does)
-            longest = max(h.size for h in self.responses if h is not None)
-            _, first = self._noise.take(0, longest - 1)
-            self._k = longest - 1
-            for i, h in enumerate(self.responses):
-                keep = h.size - 1 if h is not None else 0
-                self._fir_memory.append(np.array(first[first.shape[0] - keep:, i])
-                                        if keep > 0 else None)
+            settle = self.fir.settle_samples
+            _, first = self._noise.take(0, settle)
+            self._k = settle
+            self.fir.start(first)
 
     @property
     def rate_hz(self) -> float:
@@ -314,37 +309,32 @@ class ProfileNoise:
         return ",".join(parts) or "none"
 
     def generate(self, n: int) -> np.ndarray:
-        _, out = self._noise.take(self._k, n)
-        self._k += n
-        if self.responses is not None and n:
-            source, out = out, np.empty(out.shape)
-            # in blocks that stay in cache (a column of a 2^18-row block is strided over 6 MB)
-            for start in range(0, n, FIR_BLOCK):
-                stop = min(start + FIR_BLOCK, n)
-                for i, memory in enumerate(self._fir_memory):
-                    h = self.responses[i]
-                    if memory is None or h is None:
-                        out[start:stop, i] = source[start:stop, i]
-                        continue
-                    joined = np.empty(memory.size + stop - start)  # the FIR's memory, then
-                    joined[:memory.size] = memory                  # this block
-                    joined[memory.size:] = source[start:stop, i]
-                    self._fir_memory[i] = joined[stop - start:]
-                    out[start:stop, i] = np.convolve(joined, h, "valid")
+        if self.fir is not None and n:
+            out = self.fir.run(n, self._take)
+        else:
+            out = self._take(n)
         if self.lsb_dps:
             return np.rint(out / self.lsb_dps) * self.lsb_dps
         return out  # rows handed out once: the buffer never writes them nor uses them again
 
+    def _take(self, n: int) -> np.ndarray:
+        """The next n samples of the sensing element's noise through the low-pass, if any."""
+        _, out = self._noise.take(self._k, n)
+        self._k += n
+        return out
+
 
 def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,
                   mode: str = "physical", bandwidth_code: int | None = None,
-                  use_output: bool = True) -> ProfileNoise:
+                  use_output: bool = True, fir_threads: int | None = None) -> ProfileNoise:
     """The noise ``generate`` writes for a profile: at ``rate_hz`` (default: the BW code's
     ODR, else the rate the profile's output stage was found at, else 200 Hz) through the BW
     code's filter when one is given, else the profile's own output stage (``use_output``):
     its Butterworth, or each axis's measured response at the rate it was measured at (the
     response holds the axis's bands as measured, so the generator leaves them out there);
     rounded to its LSB; physical mode only filters (paper mode is output-referred).
+    ``fir_threads``: 1, or 2 to run the measured response's FIR on a second core beside the
+    generator (None: 2 when the process has two CPUs; noise.response_fir), the same bits.
     ValueError on a rate the code does not have."""
     import dataclasses
 
@@ -392,4 +382,4 @@ def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,
                          "(--bandwidth CODE filters it with the chip's)")
     generator = NoiseGenerator(profile, rate_hz=rate, seed=seed, mode=mode)
     lsb = stage.lsb_dps if stage is not None else None
-    return ProfileNoise(generator, bandwidth, order, lsb, responses, notes)
+    return ProfileNoise(generator, bandwidth, order, lsb, responses, notes, fir_threads)
