@@ -9,7 +9,11 @@ drawing the 6 normals per axis and sample that profile consumes, and the one-ter
 worse than the 1.32 measured before the numpy-only recursion), and the noise as generate and
 the chip make it, through the chip's low-pass (issue 23: the paper profile through BW code 4's
 23 Hz filter at 200 Hz, sensor_noise.profile_noise, at most 1.5x the same 3 normals per axis
-and sample).
+and sample), and through a measured output response as identify writes it (issue 37: at most
+1.5x the same normals). The measured response's FIR runs on a second thread beside the
+generator when the process has two CPUs (noise.response_fir): its lines print the wall-clock
+ratio and the process CPU time ratio (both threads' CPU against the reference's), and the
+65-tap response once more on one thread.
 
     python tools/bench_noise_generation.py            # the full 24 h
     python tools/bench_noise_generation.py --hours 2  # quicker
@@ -26,20 +30,26 @@ import numpy as np
 from bmg160_emu.noise import NoiseGenerator
 from bmg160_emu.noise.profile import AxisNoise, Profile
 from bmg160_emu.noise.sensor_noise import profile_noise
+from bmg160_emu.noise.worker_thread import usable_cpus
 
 CHUNK = 1 << 18  # samples per generate() call, as the generate command streams
 
 
 def time_reference(total_normals: int) -> float:
+    return time_reference_cpu(total_normals)[0]
+
+
+def time_reference_cpu(total_normals: int) -> tuple[float, float]:
+    """(wall seconds, process CPU seconds) numpy takes to draw ``total_normals``."""
     rng = np.random.default_rng(0)
     buf = np.empty(CHUNK * 3)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     left = total_normals
     while left > 0:
         m = min(left, buf.size)
         rng.standard_normal(out=buf[:m])
         left -= m
-    return time.perf_counter() - start
+    return time.perf_counter() - start, time.process_time() - cpu
 
 
 # four terms at T = 5, 60, 900, 16000 s: the shape identify fits on a real unit
@@ -51,13 +61,18 @@ FOUR_POLES = AxisNoise(
 
 def time_chunks(gen, samples: int) -> float:
     """Seconds to draw ``samples`` from ``gen`` in CHUNK-sample requests, as generate does."""
-    start = time.perf_counter()
+    return time_chunks_cpu(gen, samples)[0]
+
+
+def time_chunks_cpu(gen, samples: int) -> tuple[float, float]:
+    """(wall seconds, process CPU seconds: every thread's) of ``time_chunks``."""
+    start, cpu = time.perf_counter(), time.process_time()
     left = samples
     while left > 0:
         m = min(left, CHUNK)
         gen.generate(m)
         left -= m
-    return time.perf_counter() - start
+    return time.perf_counter() - start, time.process_time() - cpu
 
 
 def time_generator(samples: int, mode: str, profile="paper") -> float:
@@ -65,10 +80,11 @@ def time_generator(samples: int, mode: str, profile="paper") -> float:
     return time_chunks(gen, samples)
 
 
-def time_filtered(samples: int) -> float:
-    """The paper profile through BW code 4's filter (200 Hz ODR, 23 Hz): generate --bandwidth 4."""
-    gen = profile_noise("paper", seed=0, bandwidth_code=4)
-    return time_chunks(gen, samples)
+def time_filtered(samples: int, threads: int | None = None) -> tuple[float, float]:
+    """(wall s, process CPU s) of the paper profile through BW code 4's filter (200 Hz ODR,
+    23 Hz): generate --bandwidth 4; ``threads`` as profile_noise's fir_threads."""
+    gen = profile_noise("paper", seed=0, bandwidth_code=4, fir_threads=threads)
+    return time_chunks_cpu(gen, samples)
 
 
 def measured_response(taps: int) -> tuple[float, ...]:
@@ -79,17 +95,18 @@ def measured_response(taps: int) -> tuple[float, ...]:
     return tuple(float(v) for v in r / (r[0] + 2.0 * r[1:].sum()))
 
 
-def time_identified(samples: int, taps: int) -> float:
-    """The paper profile through a measured output response of ``taps`` taps at the rate it
-    was measured at (200 Hz): what generate writes from an identified profile (issue 37)."""
+def time_identified(samples: int, taps: int, threads: int | None = None) -> tuple[float, float]:
+    """(wall s, process CPU s) of the paper profile through a measured output response of
+    ``taps`` taps at the rate it was measured at (200 Hz): what generate writes from an
+    identified profile (issue 37); ``threads`` as profile_noise's fir_threads."""
     from bmg160_emu.noise import load_profile
     from bmg160_emu.noise.profile import OutputStage
 
     paper = load_profile("paper")
     axis = dataclasses.replace(paper.x, response=measured_response(taps))
     profile = Profile("identified", axis, axis, axis, output=OutputStage(rate_hz=200.0))
-    gen = profile_noise(profile, seed=0)
-    return time_chunks(gen, samples)
+    gen = profile_noise(profile, seed=0, fir_threads=threads)
+    return time_chunks_cpu(gen, samples)
 
 
 def time_small_calls(calls: int) -> tuple[float, float]:
@@ -106,6 +123,15 @@ def time_small_calls(calls: int) -> tuple[float, float]:
     return ours, ref
 
 
+def with_cpu(runs: list[tuple[float, float]], threads: int | None, ref: float,
+             ref_cpu: float) -> str:
+    """A line's figures: best wall time and ratio, best process CPU time and ratio, threads."""
+    wall, cpu = min(r[0] for r in runs), min(r[1] for r in runs)
+    used = threads or (2 if usable_cpus() >= 2 else 1)
+    return (f"{wall:8.2f} s  ratio {wall / ref:.2f}  (process CPU {cpu:.2f} s, ratio "
+            f"{cpu / ref_cpu:.2f}; {used} thread{'s' if used > 1 else ''})")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--hours", type=float, default=24.0, help="simulated hours (default 24)")
@@ -116,19 +142,28 @@ def main() -> None:
     # interleaved, best of N: the machine is shared, so load drifts between runs
     four = Profile("four-poles", FOUR_POLES, FOUR_POLES, FOUR_POLES)
     normals4 = 3 * 6 * samples  # white, four Gauss-Markov drives, random walk per axis
-    refs, ours_runs, paper_runs, refs4, four_runs, filtered_runs = [], [], [], [], [], []
-    identified_runs: dict[int, list[float]] = {5: [], 65: []}
+    refs, ours_runs, paper_runs, refs4, four_runs = [], [], [], [], []
+    # FIR threads: None as generate runs them, 1 on one thread -> (wall, CPU) per run
+    filtered_runs: dict[int | None, list[tuple[float, float]]] = {None: [], 1: []}
+    ref_cpus: list[float] = []
+    # (taps, FIR threads: None as generate runs it, 1 on one thread) -> (wall, CPU) per run
+    identified_runs: dict[tuple[int, int | None], list[tuple[float, float]]] = {
+        (5, None): [], (65, None): [], (65, 1): []}
     for _ in range(args.repeat):
-        refs.append(time_reference(normals))
+        wall, cpu = time_reference_cpu(normals)
+        refs.append(wall)
+        ref_cpus.append(cpu)
         ours_runs.append(time_generator(samples, "physical"))
         paper_runs.append(time_generator(samples, "paper"))
-        filtered_runs.append(time_filtered(samples))
-        for taps, runs in identified_runs.items():
-            runs.append(time_identified(samples, taps))
+        for threads, runs in filtered_runs.items():
+            runs.append(time_filtered(samples, threads))
+        for (taps, threads), runs in identified_runs.items():
+            runs.append(time_identified(samples, taps, threads))
         refs4.append(time_reference(normals4))
         four_runs.append(time_generator(samples, "physical", four))
     ref, ours, paper = min(refs), min(ours_runs), min(paper_runs)
-    ref4, ours4, filtered = min(refs4), min(four_runs), min(filtered_runs)
+    ref4, ours4 = min(refs4), min(four_runs)
+    ref_cpu = min(ref_cpus)
     print(f"record: 3 axes x {args.hours:g} h at 200 Hz = {3 * samples / 1e6:.1f} M samples")
     print(f"reference  numpy standard_normal x {normals / 1e6:.1f} M : {ref:8.2f} s")
     print(f"generator  physical mode                      : {ours:8.2f} s  ratio {ours / ref:.2f}")
@@ -136,13 +171,14 @@ def main() -> None:
         f"generator  paper mode                         : {paper:8.2f} s  ratio {paper / ref:.2f}"
     )
     print("target: ratio <= 2.0 (issue 11: one term not above 1.32)")
-    print(f"generator  through BW code 4's filter         : {filtered:8.2f} s  "
-          f"ratio {filtered / ref:.2f}")
+    for threads, runs in filtered_runs.items():
+        print("generator  through BW code 4's filter         : "
+              + with_cpu(runs, threads, ref, ref_cpu))
     print("target: ratio <= 1.5 (issue 23)")
-    for taps, runs in identified_runs.items():
-        print(f"generator  through a measured {taps:2d}-tap response : {min(runs):8.2f} s  "
-              f"ratio {min(runs) / ref:.2f}")
-    print("target: ratio <= 1.5 (issue 37: through an identified output stage)")
+    for (taps, threads), runs in identified_runs.items():
+        print(f"generator  through a measured {taps:2d}-tap response : "
+              + with_cpu(runs, threads, ref, ref_cpu))
+    print("target: wall ratio <= 1.5 (issue 37: through an identified output stage)")
     print(f"reference  numpy standard_normal x {normals4 / 1e6:.1f} M : {ref4:8.2f} s")
     print(
         f"generator  four Gauss-Markov terms            : {ours4:8.2f} s  "

@@ -16,6 +16,7 @@ import numpy as np
 from bmg160_emu.noise.bandwidths import BANDWIDTHS, LOWPASS_ORDER, code_filter
 from bmg160_emu.noise.lowpass import LowPass
 from bmg160_emu.noise.response_fir import ResponseFIR
+from bmg160_emu.noise.worker_thread import WorkerThread
 
 NOISE_CHUNK = 2048  # noise computed in chunks of this many samples (a multiple of the
 # filter's 1024-sample pieces, lowpass.py), each with its filter state kept
@@ -51,8 +52,11 @@ class SensorNoise:
     chip's registers hold the same model."""
 
     def __init__(self, generator: Any, filtered: bool | None = None,
-                 sequential: bool = False) -> None:
+                 sequential: bool = False, worker: WorkerThread | None = None) -> None:
         self.generator = generator
+        # generate's: a large sequential draw filters each piece on this worker while the
+        # generator draws the next (noise.worker_thread; lfilter releases the GIL)
+        self.worker = worker
         # the filter's kernel: the numpy block filter of lowpass.py in chunks (the chip: no
         # scipy on its import path), or scipy's sequential lfilter over each draw (generate:
         # a recursion gives the same bits however the record is cut, at a fifth of the cost)
@@ -142,6 +146,10 @@ class SensorNoise:
         self.draws.append((self.end, gen.checkpoint()))
         flt = self.filter
         held = self.end - self.k0
+        if self.sequential and held == 0 and flt is not None and self.worker is not None and (
+                total >= 2 * PIECE):
+            self._draw_beside(total)
+            return
         if self.sequential and held == 0:  # generate: one call, one pass of the recursion
             pre, post = gen.generate_referred(total)
             self.raw = pre if post is None else pre + post
@@ -189,6 +197,33 @@ class SensorNoise:
                 out[at:at + m], self.state = flt.run_pieces(pre, self.state, NOISE_CHUNK)
             if post is not None:
                 out[at:at + m] += post
+        self.raw, self.out = raw, out
+        self.end += total
+
+    def _draw_beside(self, total: int) -> None:
+        """A sequential draw of ``total`` samples from nothing held, in pieces of PIECE: the
+        recursion of each piece (its state from the previous) on the worker while the
+        generator draws the next; the same operations per sample as one call, so the same bits."""
+        from scipy.signal import lfilter
+
+        gen, flt = self.generator, self.filter
+        assert flt is not None and self.worker is not None
+        raw, out = np.empty((total, 3)), np.empty((total, 3))
+
+        def draw(start: int, m: int) -> tuple[np.ndarray, np.ndarray | None]:
+            return gen.generate_referred(m)  # type: ignore[no-any-return]
+
+        def work(start: int, drawn: tuple[np.ndarray, np.ndarray | None]) -> None:
+            pre, post = drawn
+            rows = slice(start, start + pre.shape[0])
+            out[rows], self.state = lfilter(flt.b, flt.a, pre, axis=0, zi=self.state)
+            if post is None:
+                raw[rows] = pre
+            else:
+                np.add(pre, post, out=raw[rows])
+                out[rows] += post
+
+        self.worker.run_pieces(total, PIECE, draw, work)
         self.raw, self.out = raw, out
         self.end += total
 
@@ -266,8 +301,10 @@ class ProfileNoise:
         self.bandwidth_hz = bandwidth_hz
         self.order = order
         self.notes = list(notes or [])
+        # one worker thread (or none) for both filters: the low-pass's pieces, then the FIR's
+        self.worker = WorkerThread(fir_threads)
         self._noise = SensorNoise(generator, filtered=generator.mode == "physical",
-                                  sequential=True)
+                                  sequential=True, worker=self.worker)
         self._noise.configure(generator.rate_hz, bandwidth_hz, 0, order)
         self._k = 0
         self.responses = responses if responses and any(
@@ -276,7 +313,7 @@ class ProfileNoise:
         # dot product however the record is cut; on a second core when there is one)
         self.fir: ResponseFIR | None = None
         if self.responses is not None:
-            self.fir = ResponseFIR(self.responses, fir_threads)
+            self.fir = ResponseFIR(self.responses, worker=self.worker)
             # the FIRs start settled: their memory filled with the stream's first samples
             # (the realisation moves on by them, as SensorNoise's filter start does)
             settle = self.fir.settle_samples
@@ -333,8 +370,9 @@ def profile_noise(profile: Any, rate_hz: float | None = None, seed: Any = None,
     its Butterworth, or each axis's measured response at the rate it was measured at (the
     response holds the axis's bands as measured, so the generator leaves them out there);
     rounded to its LSB; physical mode only filters (paper mode is output-referred).
-    ``fir_threads``: 1, or 2 to run the measured response's FIR on a second core beside the
-    generator (None: 2 when the process has two CPUs; noise.response_fir), the same bits.
+    ``fir_threads``: 1, or 2 to run the output filter (the low-pass's recursion, a measured
+    response's FIR) on a second core beside the generator (None: 2 when the process may run
+    on two CPUs; noise.worker_thread), the same bits.
     ValueError on a rate the code does not have."""
     import dataclasses
 

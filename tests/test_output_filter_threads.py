@@ -1,6 +1,7 @@
-"""A measured output response's FIR (noise.response_fir, issue 37): numpy's convolution of the
-whole stream, bit for bit, on one thread or two, however the record is cut; the second
-thread only when asked for and only for large requests."""
+"""generate's output filters on a second thread (noise.worker_thread, issue 37): a measured
+response's FIR (noise.response_fir) is numpy's convolution of the whole stream and the
+low-pass is scipy's recursion over the whole stream, bit for bit, on one thread or two,
+however the record is cut; the second thread only when asked for and for large requests."""
 
 import threading
 
@@ -8,8 +9,9 @@ import numpy as np
 import pytest
 
 from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile
-from bmg160_emu.noise.response_fir import PIECE, ResponseFIR, usable_cpus
+from bmg160_emu.noise.response_fir import PIECE, ResponseFIR
 from bmg160_emu.noise.sensor_noise import profile_noise
+from bmg160_emu.noise.worker_thread import usable_cpus
 
 RNG = np.random.default_rng(11)
 TAPS = [RNG.random(65), None, RNG.random(5)]  # a long FIR, an axis without one, a short one
@@ -44,9 +46,9 @@ def test_a_second_thread_changes_no_bit_and_is_used_only_for_large_requests():
     one, a = _run(1)
     two, b = _run(2)
     assert np.array_equal(a, b)
-    assert not one.worker_started and two.worker_started  # (CUTS holds a request of 2 pieces)
+    assert not one.worker.started and two.worker.started  # (CUTS holds a request of 2 pieces)
     small, _ = _run(2, cuts=(PIECE, 5, 2 * PIECE - 1))  # each below two pieces: no worker
-    assert not small.worker_started
+    assert not small.worker.started
 
 
 def test_one_worker_at_most():
@@ -57,8 +59,10 @@ def test_one_worker_at_most():
 
 
 def test_a_thread_count_other_than_one_or_two_is_refused():
-    with pytest.raises(ValueError, match="FIR threads must be 1 or 2, got 3"):
+    with pytest.raises(ValueError, match="filter threads must be 1 or 2, got 3"):
         ResponseFIR(TAPS, 3)
+    with pytest.raises(ValueError, match="filter threads must be 1 or 2, got 0"):
+        profile_noise("paper", seed=1, fir_threads=0)
 
 
 def test_an_error_while_drawing_comes_through_after_the_pieces_sent():
@@ -89,3 +93,22 @@ def test_generate_gives_the_same_bits_on_one_thread_or_two():
         records.append(np.concatenate([gen.generate(n) for n in (7, 2 * PIECE + 3, 100)]))
     assert np.array_equal(records[0], records[1])
     assert "response65/65/65taps" in profile_noise(p, seed=9).describe()
+
+
+@pytest.mark.parametrize("options", [
+    {"bandwidth_code": 4},  # BW code 4's low-pass alone
+    {"bandwidth_code": 3, "profile": "datasheet"},
+])
+def test_the_low_pass_gives_the_same_bits_on_one_thread_or_two(options):
+    options = {"profile": "paper", **options}
+    cuts = (5, 2 * PIECE + 11, 1000, 3 * PIECE)
+    records, gens = [], []
+    for threads in (1, 2):
+        gen = profile_noise(**options, seed=3, fir_threads=threads)
+        records.append(np.concatenate([gen.generate(n) for n in cuts]))
+        gens.append(gen)
+    assert np.array_equal(records[0], records[1])
+    assert not gens[0].worker.started and gens[1].worker.started
+    # and both are the one recursion over the whole stream: one call on one thread
+    whole = profile_noise(**options, seed=3, fir_threads=1).generate(sum(cuts))
+    assert np.array_equal(records[1], whole)
