@@ -88,7 +88,7 @@ def octave_oadev(rate_dps: np.ndarray, rate_hz: float) -> tuple[np.ndarray, ...]
         return taus_s, devs_s * scale, counts_s
     # the mean cancels in every difference, but removing it keeps the sums of long blocks
     # small beside their differences (as allantools does)
-    mean = float(np.mean(y))
+    mean = float(np.mean(y, dtype=float))
     ms = [1 << k for k in range(n.bit_length()) if 2 << k < n]  # 2m < n: at least 2 terms
     totals = dict.fromkeys(ms, 0.0)  # sum over n of (S_m(n + m) - S_m(n))^2
     with one_blas_thread():  # a dot of 64 k doubles would wake every BLAS thread
@@ -115,7 +115,9 @@ def _short_octaves(y: np.ndarray, mean: float, ms: list[int], totals: dict[int, 
     buf = np.empty(_CHUNK)
     for start in range(0, n, _CHUNK):
         stop = min(start + _CHUNK + halo, n)
-        s_m = np.subtract(y[start:stop], mean, out=a[: stop - start])  # S_1 on start..stop
+        # S_1 on start..stop, in double precision whatever the record's type (a float32
+        # record minus a Python float would be subtracted in float32)
+        s_m = np.subtract(y[start:stop], mean, out=a[: stop - start], signature="dd->d")
         other = b
         for m in ms:
             k = min(_CHUNK, n + 1 - 2 * m - start)  # this chunk's terms of octave m
