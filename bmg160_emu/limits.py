@@ -177,9 +177,12 @@ GUEST_TIMEOUT_S = Bounded("timeout", 1.0, 86_400.0, "s",
                                  "takes about that) to a day")
 I2C_BUS = Bounded("bus", 0, 2**20 - 1, integer=True,
                   reason="Linux numbers /dev/i2c-N below I2C_MINORS, 2**20 (drivers/i2c/i2c-dev.c)")
-ALLAN_DEVIATION_DPS = Bounded("Allan deviation", 0.0, 1e6, "deg/s",
+ALLAN_DEVIATION_DPS = Bounded("Allan deviation", 1e-30, 1e6, "deg/s",
                              reason="the largest angular rate a file may hold (RATE_DPS): an "
-                                    "Allan deviation is below the rates it is made of")
+                                    "Allan deviation is below the rates it is made of; the "
+                                    "fit weighs each point by its variance squared, adev^-4, "
+                                    "which overflows below 1e-77 (a 1e-320 point crashed it): "
+                                    "1e-30 is 20 orders below any gyroscope's")
 DIE_TEMPERATURE_C = Bounded("temperature", -50.0, 150.0, "deg C",
                            reason="what a die survives: the BMG160's storage range, -50 to "
                                   "150 deg C (data sheet, table 1: absolute maximum ratings)")

@@ -66,7 +66,9 @@ def test_readoffs_find_the_slope_lines_of_a_synthetic_curve():
     assert ro["B_flicker"]["value"] == pytest.approx(adev.min() / FLICKER_ADEV_FACTOR)
 
 
-@pytest.mark.parametrize("n", [1000, 4097, 123_457])
+# 16383 / 16385: just below and above the first long octave (4 x allan._SHORT_M);
+# 139_265: three chunks of the short pass, the last shorter than its halo
+@pytest.mark.parametrize("n", [1000, 4097, 16_383, 16_385, 123_457, 139_265])
 def test_the_numpy_octave_oadev_agrees_with_allantools(n):
     import allantools
 
@@ -82,3 +84,55 @@ def test_the_numpy_octave_oadev_agrees_with_allantools(n):
     np.testing.assert_array_equal(mine_taus, taus)
     np.testing.assert_array_equal(mine_counts, counts)
     np.testing.assert_allclose(mine_adev, adev, rtol=1e-12, atol=0)
+
+
+
+def test_a_float32_record_gets_the_deviations_of_its_double_precision_copy():
+    """A record stored as float32 (a logger's usual type) is summed in double precision:
+    the deviations are allantools' on the record widened to float64, not float32 sums
+    (which were 6e-8 off on 70,000 samples)."""
+    import allantools
+
+    from bmg160_emu.noise.allan import octave_oadev
+
+    data = (np.random.default_rng(3).standard_normal(70_000) * 0.25 + 0.1).astype(np.float32)
+    _taus, adev, _err, _counts = allantools.oadev(
+        data.astype(float), rate=100.0, data_type="freq", taus="octave")
+    np.testing.assert_allclose(octave_oadev(data, 100.0)[1], adev, rtol=1e-12, atol=0)
+
+def test_the_spectra_thread_gives_the_numbers_of_one_thread(monkeypatch):
+    """identify_axis computes a long record's PSDs on a second thread beside its Allan
+    deviation: the identification is the same, number for number, as on one thread."""
+    import threading
+
+    from scipy import signal
+
+    from bmg160_emu.noise import NoiseGenerator
+    from bmg160_emu.noise import identify as identify_module
+
+    # 2^20 samples: the threshold, so the default takes the thread; a filtered, quantized
+    # record so that the stage search (the second PSD) runs too
+    rate = 200.0
+    n = identify_module.SPECTRA_THREAD_SAMPLES
+    raw = NoiseGenerator("paper", rate_hz=rate, seed=5).generate(n)[:, 0]
+    x = np.round(signal.lfilter(*signal.butter(2, 40.0, fs=rate), raw) / 0.01) * 0.01
+    threads_seen: dict[str, set[str]] = {}
+    psd = identify_module.one_sided_psd
+
+    def seen(*args, **kwargs):
+        names = threads_seen.setdefault(run, set())
+        names.add(threading.current_thread().name.rsplit("_", 1)[0])
+        return psd(*args, **kwargs)
+
+    monkeypatch.setattr(identify_module, "one_sided_psd", seen)
+    run = "threaded"
+    threaded = identify_module.identify_axis(x, rate)
+    monkeypatch.setattr(identify_module, "SPECTRA_THREAD_SAMPLES", n + 1)
+    run = "single"
+    single = identify_module.identify_axis(x, rate)
+    assert threaded.stage is not None  # the stage's own PSD was read
+    for field in ("mean", "std", "psd_white_N", "tau_range_reason", "notes"):
+        assert getattr(threaded, field) == getattr(single, field)
+    np.testing.assert_array_equal(threaded.spectrum.psd, single.spectrum.psd)
+    assert repr(threaded.fit) == repr(single.fit)
+    assert threads_seen == {"threaded": {"bmg160-spectra"}, "single": {"MainThread"}}

@@ -171,3 +171,21 @@ def test_a_curve_in_deg_per_hour_whitespace_separated(tmp_path, capsys):
     out = run_json(capsys, path, "--curve", "--rate", "100", "--samples", "1000000",
                    "--curve-units", "deg/h")
     assert out["axes"]["x"]["N"]["value"] == pytest.approx(0.02, rel=1e-3)
+
+
+@pytest.mark.parametrize(("value", "where"), [(1e-320, "row 10"), (1e300, "row 10")])
+def test_a_curve_point_the_fit_cannot_weigh_is_a_one_line_error(tmp_path, capsys, value, where):
+    """A deviation whose square underflows to 0 (1e-320, found by tools/fuzz.py --cli, seed
+    7710283: the fit's weights became inf and scipy's nnls raised) or overflows is refused
+    with the file and the row, before anything is fitted."""
+    from bmg160_emu.cli import main
+
+    taus = 0.005 * 2.0 ** np.arange(14)
+    adev = 0.01 / np.sqrt(taus)
+    adev[9] = value
+    path = tmp_path / "adev.csv"
+    np.savetxt(path, np.column_stack([taus, adev, adev, adev]), delimiter=",")
+    assert main(["identify", str(path), "--curve", "--rate", "200", "--duration", "1h"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and where in err[0]
+    assert "Allan deviation must be 1e-30 to 1e+06 deg/s" in err[0]

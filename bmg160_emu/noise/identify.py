@@ -19,9 +19,13 @@ and record = the samples or None for a curve input; returning a fit.CurveFit).
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Callable, Sequence
+import os
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -229,7 +233,11 @@ def identify_axis(
     n = x.shape[0]
     mean = float(x.mean())
     std = float(x.std())
-    curve = _curve_from_record(x, rate_hz)
+    search_stage = output_stage and tau_range[0] is None and not with_q
+    # (--with-q: angle quantization's PSD rises as f^2; a measured response would take it)
+    with spectra_beside(x, rate_hz, psd_segment, search_stage) as spectra:
+        curve = _curve_from_record(x, rate_hz)
+        spectrum, staged = spectra()
     if curve.taus.size < 4:
         raise IdentificationError(
             f"the Allan deviation of axis {axis} is zero or below double precision at almost "
@@ -237,15 +245,12 @@ def identify_axis(
         )
     if progress is not None:
         progress(f"{axis}: Allan deviation")
-    spectrum = one_sided_psd(x, rate_hz, psd_segment)
-    if progress is not None:
         progress(f"{axis}: PSD")
     options = {"with_q": with_q, "with_r": with_r, "poles": poles, "flicker": flicker}
     record_stage = None
     flat = False
     flat_stage = None
-    if output_stage and tau_range[0] is None and not with_q:
-        # (--with-q: angle quantization's PSD rises as f^2; a measured response would take it)
+    if search_stage:
         # the stage of any shape, read on the PSD, and the fit through it (issue 37)
         from bmg160_emu.noise.stage_identification import Flat, fit_through_stage
 
@@ -256,7 +261,7 @@ def identify_axis(
 
         through = fit_through_stage(
             x, rate_hz, curve, grid.step if grid is not None else None, fit_with, tau_range[1],
-            spectrum)
+            spectrum, staged)
         flat = isinstance(through, (str, Flat))
         flat_stage = through if isinstance(through, Flat) else None
         if isinstance(through, tuple):
@@ -305,6 +310,33 @@ def _sensor_output(x: np.ndarray, rate_hz: float, spectrum, with_filter: bool = 
     segments = max((x.shape[0] - spectrum.segment_samples) / step + 1, 1.0)
     flt = fit_filter_psd(spectrum, rate_hz, lsb) if with_filter else None
     return SensorOutput(flt, lsb, tuple(find_lines(spectrum, rate_hz, segments)))
+
+
+# A record this long has its spectra computed on a second thread beside its Allan
+# deviation (numpy, BLAS and pocketfft release the GIL): 0.1 s and more of each on a day at
+# 200 Hz; on a shorter record a thread costs more than it saves
+SPECTRA_THREAD_SAMPLES = 1 << 20
+
+
+@contextlib.contextmanager
+def spectra_beside(x: np.ndarray, rate_hz: float, psd_segment: int | None, stage: bool
+                   ) -> Iterator[Callable[[], tuple[Any, Any]]]:
+    """The record's long-segment PSD and (``stage``) the PSD the output stage is read on,
+    computed beside the block: on a second thread when the record is long and a second
+    core is there, else when asked. Yields the function that returns both (staged is None
+    without ``stage``); the numbers are the same either way."""
+    from bmg160_emu.noise.stage_identification import stage_spectrum
+
+    def both() -> tuple[Any, Any]:
+        return (one_sided_psd(x, rate_hz, psd_segment),
+                stage_spectrum(x, rate_hz) if stage else None)
+
+    if x.shape[0] < SPECTRA_THREAD_SAMPLES or (os.cpu_count() or 1) < 2:
+        yield both
+        return
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="bmg160-spectra") as pool:
+        future = pool.submit(both)
+        yield future.result
 
 
 def _curve_from_record(x: np.ndarray, rate_hz: float) -> AllanCurve:

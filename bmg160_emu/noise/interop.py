@@ -126,11 +126,13 @@ def read_adev_csv(path: str | Path, units: str = "deg/s") -> tuple[np.ndarray, l
         adev = table[:, col] / s
         if np.any(adev <= 0):
             raise InteropError(f"{path}: column {col + 1} has an Allan deviation <= 0")
-        beyond = np.flatnonzero((adev > ALLAN_DEVIATION_DPS.high) | (taus > TAU_S.high))
-        if beyond.size:  # squared in the fit: 1e308 became inf there
+        beyond = np.flatnonzero((adev > ALLAN_DEVIATION_DPS.high) | (taus > TAU_S.high)
+                                | (adev < ALLAN_DEVIATION_DPS.low) | (taus < TAU_S.low))
+        if beyond.size:  # squared in the fit: 1e308 became inf there, 1e-320 zero
             raise InteropError(f"{path}: row {int(beyond[0]) + 1}: {ALLAN_DEVIATION_DPS.name} "
-                               f"must be at most {ALLAN_DEVIATION_DPS.high:g} deg/s and tau at "
-                               f"most {TAU_S.high:g} s")
+                               f"must be {ALLAN_DEVIATION_DPS.low:g} to "
+                               f"{ALLAN_DEVIATION_DPS.high:g} deg/s and tau {TAU_S.low:g} to "
+                               f"{TAU_S.high:g} s")
         interval = (table[:, ci[0]] / s, table[:, ci[1]] / s) if ci else None
         out.append({"name": label, "adev": adev, "ci": interval, "kind": kind})
     return taus, out
