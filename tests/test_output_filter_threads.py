@@ -10,6 +10,7 @@ import pytest
 
 from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile
 from bmg160_emu.noise.response_fir import PIECE, ResponseFIR
+from bmg160_emu.noise.sensor_noise import PIECE as LOW_PASS_PIECE
 from bmg160_emu.noise.sensor_noise import profile_noise
 from bmg160_emu.noise.worker_thread import usable_cpus
 
@@ -101,7 +102,7 @@ def test_generate_gives_the_same_bits_on_one_thread_or_two():
 ])
 def test_the_low_pass_gives_the_same_bits_on_one_thread_or_two(options):
     options = {"profile": "paper", **options}
-    cuts = (5, 2 * PIECE + 11, 1000, 3 * PIECE)
+    cuts = (5, 2 * LOW_PASS_PIECE + 11, 1000, 3 * LOW_PASS_PIECE)  # two of them on the worker
     records, gens = [], []
     for threads in (1, 2):
         gen = profile_noise(**options, seed=3, fir_threads=threads)
