@@ -211,7 +211,7 @@ class SensorNoise:
         raw, out = np.empty((total, 3)), np.empty((total, 3))
 
         def draw(start: int, m: int) -> tuple[np.ndarray, np.ndarray | None]:
-            return gen.generate_referred(m)  # type: ignore[no-any-return]
+            return gen.generate_referred(m)
 
         def work(start: int, drawn: tuple[np.ndarray, np.ndarray | None]) -> None:
             pre, post = drawn
