@@ -3,6 +3,7 @@ response's FIR (noise.response_fir) is numpy's convolution of the whole stream a
 low-pass is scipy's recursion over the whole stream, bit for bit, on one thread or two,
 however the record is cut; the second thread only when asked for and for large requests."""
 
+import os
 import threading
 
 import numpy as np
@@ -20,8 +21,8 @@ STREAM = RNG.standard_normal((3 * PIECE + 64 + 999, 3))
 CUTS = (1, 2 * PIECE + 17, 3, PIECE - 1, 978)  # two large requests (2 pieces and more)
 
 
-def _run(threads, cuts=CUTS):
-    fir = ResponseFIR(TAPS, threads)
+def _run(threads, cuts=CUTS, worker=None):
+    fir = ResponseFIR(TAPS, threads, worker)
     fir.start(STREAM[:fir.settle_samples])
     at = fir.settle_samples
 
@@ -113,3 +114,26 @@ def test_the_low_pass_gives_the_same_bits_on_one_thread_or_two(options):
     # and both are the one recursion over the whole stream: one call on one thread
     whole = profile_noise(**options, seed=3, fir_threads=1).generate(sum(cuts))
     assert np.array_equal(records[1], whole)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_forked_child_starts_its_own_worker():
+    import multiprocessing
+
+    fir, parent = _run(2)
+    assert fir.worker.started
+    context = multiprocessing.get_context("fork")
+    queue = context.Queue()
+
+    def child():
+        # the parent's worker object, without its thread: a pool of the parent's would never run
+        started = fir.worker.started
+        again = _run(2, worker=fir.worker)[1]
+        queue.put((started, fir.worker.started, again.tobytes() == parent.tobytes()))
+
+    process = context.Process(target=child)
+    process.start()
+    process.join(20)  # (the child takes milliseconds; one waiting on a lost thread is killed)
+    if process.is_alive():
+        process.kill()
+    assert process.exitcode == 0 and queue.get(timeout=5) == (False, True, True)

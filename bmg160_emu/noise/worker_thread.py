@@ -40,11 +40,13 @@ class WorkerThread:
     def __init__(self, threads: int | None = None) -> None:
         self.threads = filter_threads(threads)
         self._pool: ThreadPoolExecutor | None = None
+        self._pid = 0  # the process the worker was started in: a forked child starts its own
 
     @property
     def started(self) -> bool:
-        """Whether the worker thread exists (a large request was made with 2 threads)."""
-        return self._pool is not None
+        """Whether the worker thread exists in this process (a large request was made with
+        2 threads)."""
+        return self._pool is not None and self._pid == os.getpid()
 
     def run_pieces(self, total: int, piece: int, draw: Callable[[int, int], Any],
                    work: Callable[[int, Any], None]) -> None:
@@ -58,14 +60,17 @@ class WorkerThread:
             for start in starts:
                 work(start, draw(start, min(piece, total - start)))
             return
-        if self._pool is None:
-            from concurrent.futures import ThreadPoolExecutor
+        if not self.started:  # (after a fork the parent's worker is not in the child: the
+            from concurrent.futures import ThreadPoolExecutor  # pool would wait on it forever)
 
             self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="output-filter")
+            self._pid = os.getpid()
+        pool = self._pool
+        assert pool is not None
         pending: list[Future[None]] = []
         try:
             for start in starts:
-                pending.append(self._pool.submit(work, start, draw(start, min(piece, total - start))))
+                pending.append(pool.submit(work, start, draw(start, min(piece, total - start))))
         finally:
             for job in pending:
                 job.result()
