@@ -39,7 +39,11 @@ def main() -> int:
         return edges_main(sys.argv[1:])
     if "--full-disk" in sys.argv[1:]:
         return full_disk_main(sys.argv[1:])
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        epilog="other campaigns, each with its own options (--help after it): --signals "
+               "(SIGINT/SIGTERM at random moments), --edges (paths, schedulers, blocks, "
+               "memory), --full-disk DIR (every writer on a full disk)")
     parser.add_argument("--examples", type=int, default=1000, help="mutated files per format")
     parser.add_argument("--cli", action="store_true",
                         help="run the command line instead of the loaders: --examples mutated "
