@@ -7,9 +7,15 @@ command that needs only one part of the package does not pay for the others.
 from __future__ import annotations
 
 # First: SIGINT and SIGTERM held as the command, ignored by its workers (bmg160_emu.startup)
-from bmg160_emu import startup as _startup
+try:
+    from bmg160_emu import startup as _startup
 
-_startup.hold_signals()
+    _startup.hold_signals()
+except KeyboardInterrupt:  # a ^C while that first module loads, before its handler is in
+    from bmg160_emu import startup as _startup
+
+    _startup.interrupted_while_loading()  # the command's one line (a library import: raise)
+    raise
 
 import importlib
 from typing import Any
