@@ -67,7 +67,12 @@ def test_thermal_tables_from_a_scenario():
                          ({"kind": "wave"}, "kind must be one of"),
                          ({"kind": "table", "samples": [[0, 10], [0, 20]]}, "strictly increasing"),
                          ({"kind": "constant", "temperature_c": 1e9}, "within -150..200"),
-                         ({"kind": "orbit", "sunset": 1}, "unknown keys")]:
+                         ({"kind": "orbit", "sunset": 1}, "unknown keys"),
+                         # integers beyond a double (TOML digits): OverflowError before
+                         ({"kind": "orbit", "period_s": 10**400}, "period_s must be a positive"),
+                         ({"kind": "orbit", "phase_s": 10**400}, "phase_s must be finite"),
+                         ({"kind": "table", "samples": [[0, 10], [10**400, 20]]},
+                          "beyond a double's range")]:
         with pytest.raises(ThermalError, match=message):
             thermal_from_dict(bad)
 

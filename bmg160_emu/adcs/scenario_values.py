@@ -31,11 +31,28 @@ def check_duration(duration_s: Any) -> float:
     return float(duration_s)
 
 
+def _finite_number(value: Any) -> float | None:
+    """``value`` as a finite float, or None: a bool, a non-number, an integer beyond a
+    double's range (TOML has them: 1e400 written out in digits) or inf/nan."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
 def finite_seconds(value: Any, what: str) -> float:
-    """A finite time in seconds (``start_s``, ``end_s``)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ScenarioError(f"{what} must be a finite number of seconds, not {value!r}")
-    return float(value)
+    """A time in seconds (``start_s``, ``end_s``) within +-the cap on simulated time: a
+    motion may have started before the scenario (a tumble is integrated from its start),
+    but not further back than any run may simulate (a tumble from -1e308 s overflowed the
+    integrator: tools/fuzz.py, scenario seed 7951583)."""
+    number = _finite_number(value)
+    if number is None or abs(number) > MAX_DURATION_S:
+        raise ScenarioError(f"{what} must be a finite number of seconds within +-{MAX_TEXT}, "
+                            f"not {value!r}"[:300])
+    return number
 
 
 # Largest magnitude of any vector or slew value (deg/s, deg, deg/s2): 500 x the +-2000 deg/s range.
@@ -70,19 +87,20 @@ def positive_key(entry: dict[str, Any], key: str, where: str, default: float | N
     value = entry.get(key, default)
     if value is None:
         raise ScenarioError(f"{where}: missing {key}")
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
-            or not math.isfinite(value):
-        raise ScenarioError(f"{where}: {key} must be a positive finite number, not {value!r}")
-    if value > maximum:  # jitter: 10 kHz, five times the chip's highest ODR
-        raise ScenarioError(f"{where}: {key} must be at most {maximum:g}, not {value!r}")
-    return float(value)
+    number = _finite_number(value)
+    if number is None or not number > 0:
+        raise ScenarioError(
+            f"{where}: {key} must be a positive finite number, not {value!r}"[:300])
+    if number > maximum:  # jitter: 10 kHz, five times the chip's highest ODR
+        raise ScenarioError(f"{where}: {key} must be at most {maximum:g}, not {value!r}"[:300])
+    return number
 
 
 def inertia_matrix(value: Any, where: str) -> np.ndarray:
     """3 principal moments or a symmetric 3x3 matrix of a rigid body, in kg m^2."""
     try:
         array = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # (an integer beyond a double's range)
         array = np.zeros(0)
     if array.shape == (3,):
         array = np.diag(array)

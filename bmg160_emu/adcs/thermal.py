@@ -41,14 +41,22 @@ def _temperature(value: Any, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
             or not MIN_C <= value <= MAX_C:
         raise ThermalError(f"{what} must be a temperature in deg C within {MIN_C:g}..{MAX_C:g}, "
-                           f"not {value!r}")
+                           f"not {value!r}"[:300])
     return float(value)
+
+
+def _finite(value: Any) -> bool:
+    """A finite number; an integer beyond a double's range (TOML digits) is not."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def _positive(value: Any, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
-            or not math.isfinite(value):
-        raise ThermalError(f"{what} must be a positive number of seconds, not {value!r}")
+            or not _finite(value):
+        raise ThermalError(f"{what} must be a positive number of seconds, not {value!r}"[:300])
     return float(value)
 
 
@@ -72,7 +80,7 @@ class OrbitThermalCycle:
         _positive(self.time_constant_s, "time_constant_s")
         if not self.eclipse_s < self.period_s:
             raise ThermalError("eclipse_s must be shorter than period_s")
-        if not math.isfinite(self.phase_s):
+        if not _finite(self.phase_s):
             raise ThermalError("phase_s must be finite")
 
     @property
@@ -146,11 +154,15 @@ def thermal_from_dict(data: Mapping[str, Any], where: str = "thermal") -> float 
                     raise ThermalError(f"{k} must be a number, not {v!r}")
             return OrbitThermalCycle(**values)
         rows = data.get("samples")
-        array = np.asarray(rows, dtype=float) if isinstance(rows, list) else np.zeros((0,))
+        try:
+            array = np.asarray(rows, dtype=float) if isinstance(rows, list) else np.zeros((0,))
+        except OverflowError:  # an integer beyond a double (TOML digits)
+            raise ThermalError("samples must be rows of [t_s, deg C]: a number is beyond a "
+                               "double's range") from None
         if array.ndim != 2 or array.shape[1] != 2:
             raise ThermalError("samples must be rows of [t_s, deg C]")
         return TableTemperature(tuple(array[:, 0]), tuple(array[:, 1]))
-    except (ThermalError, ValueError, TypeError) as exc:
+    except (ThermalError, ValueError, TypeError, OverflowError) as exc:
         message = str(exc)
         raise ThermalError(message if message.startswith(where) else f"{where}: {message}") \
             from None
