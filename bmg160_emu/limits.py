@@ -30,6 +30,19 @@ def _shown(bound: float) -> str:
     return f"{bound:g}"
 
 
+def finite_number(value: Any) -> float | None:
+    """``value`` as a finite float, or None: a bool, a non-number, an integer beyond a
+    double's range (TOML and JSON hold them: 1e400 written out in digits; math.isfinite and
+    float() raise OverflowError on it) or inf/nan."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
 class LimitError(ValueError):
     """A number that is not finite, not of the right kind, or outside its stated range; the
     message is one line and starts with where the number came from."""

@@ -11,6 +11,7 @@ import numpy as np
 
 from bmg160_emu.durations import MAX_SIMULATED_S, MAX_TEXT
 from bmg160_emu.io.errors import FormatError
+from bmg160_emu.limits import finite_number
 
 
 class ScenarioError(FormatError):
@@ -31,24 +32,12 @@ def check_duration(duration_s: Any) -> float:
     return float(duration_s)
 
 
-def _finite_number(value: Any) -> float | None:
-    """``value`` as a finite float, or None: a bool, a non-number, an integer beyond a
-    double's range (TOML has them: 1e400 written out in digits) or inf/nan."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    try:
-        number = float(value)
-    except OverflowError:
-        return None
-    return number if math.isfinite(number) else None
-
-
 def finite_seconds(value: Any, what: str) -> float:
     """A time in seconds (``start_s``, ``end_s``) within +-the cap on simulated time: a
     motion may have started before the scenario (a tumble is integrated from its start),
     but not further back than any run may simulate (a tumble from -1e308 s overflowed the
     integrator: tools/fuzz.py, scenario seed 7951583)."""
-    number = _finite_number(value)
+    number = finite_number(value)
     if number is None or abs(number) > MAX_DURATION_S:
         raise ScenarioError(f"{what} must be a finite number of seconds within +-{MAX_TEXT}, "
                             f"not {value!r}"[:300])
@@ -87,7 +76,7 @@ def positive_key(entry: dict[str, Any], key: str, where: str, default: float | N
     value = entry.get(key, default)
     if value is None:
         raise ScenarioError(f"{where}: missing {key}")
-    number = _finite_number(value)
+    number = finite_number(value)
     if number is None or not number > 0:
         raise ScenarioError(
             f"{where}: {key} must be a positive finite number, not {value!r}"[:300])

@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from bmg160_emu.limits import finite_number
+
 TemperatureSource = Callable[[float], float]
 
 # The die's plausible range: beyond the BMG160's -40..+85 deg C operating range (data sheet
@@ -45,19 +47,11 @@ def _temperature(value: Any, what: str) -> float:
     return float(value)
 
 
-def _finite(value: Any) -> bool:
-    """A finite number; an integer beyond a double's range (TOML digits) is not."""
-    try:
-        return math.isfinite(value)
-    except OverflowError:
-        return False
-
-
 def _positive(value: Any, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0 \
-            or not _finite(value):
+    number = finite_number(value)
+    if number is None or not number > 0:
         raise ThermalError(f"{what} must be a positive number of seconds, not {value!r}"[:300])
-    return float(value)
+    return number
 
 
 @dataclass(frozen=True)
@@ -80,7 +74,7 @@ class OrbitThermalCycle:
         _positive(self.time_constant_s, "time_constant_s")
         if not self.eclipse_s < self.period_s:
             raise ThermalError("eclipse_s must be shorter than period_s")
-        if not _finite(self.phase_s):
+        if finite_number(self.phase_s) is None:
             raise ThermalError("phase_s must be finite")
 
     @property
