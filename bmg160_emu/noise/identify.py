@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -322,16 +321,17 @@ SPECTRA_THREAD_SAMPLES = 1 << 20
 def spectra_beside(x: np.ndarray, rate_hz: float, psd_segment: int | None, stage: bool
                    ) -> Iterator[Callable[[], tuple[Any, Any]]]:
     """The record's long-segment PSD and (``stage``) the PSD the output stage is read on,
-    computed beside the block: on a second thread when the record is long and a second
-    core is there, else when asked. Yields the function that returns both (staged is None
+    computed beside the block: on a second thread when the record is long and the process
+    may run on a second CPU (worker_thread.usable_cpus: its affinity), else when asked. Yields the function that returns both (staged is None
     without ``stage``); the numbers are the same either way."""
     from bmg160_emu.noise.stage_identification import stage_spectrum
+    from bmg160_emu.noise.worker_thread import usable_cpus
 
     def both() -> tuple[Any, Any]:
         return (one_sided_psd(x, rate_hz, psd_segment),
                 stage_spectrum(x, rate_hz) if stage else None)
 
-    if x.shape[0] < SPECTRA_THREAD_SAMPLES or (os.cpu_count() or 1) < 2:
+    if x.shape[0] < SPECTRA_THREAD_SAMPLES or usable_cpus() < 2:
         yield both
         return
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="bmg160-spectra") as pool:

@@ -122,8 +122,8 @@ def stage_spectrum(x: np.ndarray, rate_hz: float):
 
 
 def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps: float | None,
-                      fit: Callable[..., CurveFit], tau_max: float | None, fine: Any = None,
-                      staged: Any = None
+                      fit: Callable[..., CurveFit], tau_max: float | None, fine: Any,
+                      staged: tuple[Any, float]
                       ) -> tuple[CurveFit, RecordStage, list[str]] | Flat | str | None:
     """The final Allan fit through the record's output stage, the stage, and notes; a Flat
     (FLAT without the long-segment PSD) when the PSD shows no stage (flat, no band: the
@@ -132,8 +132,9 @@ def fit_through_stage(x: np.ndarray, rate_hz: float, curve: AllanCurve, lsb_dps:
     ``fit(tau_range, **stage options)`` is the identification's fit method; ``fine``, the
     record's long-segment PSD (spectrum.one_sided_psd), locates lines to its finer bins
     (output_stage.find_lines: A and f of a 1.3 Hz line to 10 % and 0.003 Hz on 20 min);
-    ``staged``, stage_spectrum(x, rate_hz) when the caller has it already."""
-    spectrum, segments = staged if staged is not None else stage_spectrum(x, rate_hz)
+    ``staged``, stage_spectrum(x, rate_hz): the PSD the stage is read on and its number of
+    segments (the caller computes it beside the Allan deviation)."""
+    spectrum, segments = staged
     if segments < MIN_SEGMENTS:
         return None
     f, psd = spectrum.frequency_hz, spectrum.psd
