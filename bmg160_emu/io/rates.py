@@ -296,7 +296,6 @@ class CsvRates(RateFileReader):
         return table
 
 
-
 class TextRates(CsvRates):
     """A .txt or .log file: the firmware's UART stream when its first lines say so (the ODR
     from the capture's line, else ``rate_hz``), else a CSV file."""

@@ -69,8 +69,9 @@ def _split_unit(name: str) -> tuple[str, str | None]:
     return name, None
 
 
-def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, list[int]]:
-    """Index of the time column and of the x, y, z columns for ``unit``."""
+def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, float, list[int]]:
+    """Index of the time column, its seconds per unit (its name says: time_ms, ...), and the
+    indices of the x, y, z columns for ``unit``."""
     names = [h.strip().lower() for h in header]
     time_column = time_column_index(names)
     if time_column is None:
@@ -90,7 +91,7 @@ def _pick_columns(header: list[str], unit: str, where: str) -> tuple[int, list[i
             )
         else:
             raise RateFileError(f"{where}: no {axis} column among {', '.join(header)}")
-    return time_column[0], axes
+    return time_column[0], time_column[1], axes
 
 
 def _check_values(t: np.ndarray, xyz: np.ndarray, unit: str, where: Callable[[int], str],
@@ -195,6 +196,8 @@ class NpzReplayData(FileReader):
 
 
 def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: float) -> ReplayData:
+    time_scale_s = [1.0]  # seconds per unit of the time column (a header's name may say)
+
     def choose(header: list[str] | None, width: int, where: str) -> tuple[int, list[int]]:
         if header is None:
             if width != 4:
@@ -203,7 +206,8 @@ def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
                     "or a header row naming the columns"
                 )
             return 0, [1, 2, 3]
-        return _pick_columns(header, unit, where)
+        time_index, time_scale_s[0], axes = _pick_columns(header, unit, where)
+        return time_index, axes
 
     table = read_csv_table(path, choose)
     if lsb_per_dps is None:
@@ -213,9 +217,7 @@ def _load_csv(path: Path, unit: str, lsb_per_dps: float | None, max_gap_factor: 
                 break
     t, xyz = table.t_s, table.values
     assert t is not None
-    if table.header is not None:  # a header's time column may carry a unit (time_ms, ...)
-        named = time_column_index([h.strip().lower() for h in table.header])
-        t = in_seconds(t, named[1] if named else 1.0)
+    t = in_seconds(t, time_scale_s[0])
     finite = np.isfinite(t) & np.isfinite(xyz).all(axis=1)
     if not finite.all():
         row = int(np.argmin(finite))

@@ -15,7 +15,6 @@ import numpy as np
 
 from bmg160_emu.io.rate_table import RateFileError
 
-TIME_COLUMN_NAMES = ("t", "t_s", "time", "time_s", "timestamp")
 # A unit on a time column's name: seconds per unit. Logs stamp in other units: ROS and the
 # EuRoC/TUM-VI datasets in ns ("timestamp [ns]"), PX4's ulog CSV export in us
 # ("timestamp", left to mean seconds here: a bare name is seconds, as t and time are).
@@ -50,6 +49,8 @@ def time_column_help() -> str:
     """The accepted time column names, for an error that says which work."""
     return ("t, time or timestamp in seconds, or with a unit: _s, _ms, _us, _ns "
             "(time_ms, timestamp_ns, 'timestamp [ns]')")
+
+
 CHUNK_ROWS = 1 << 20  # rows of a time column checked at a time
 MEDIAN_STEPS = 1 << 21  # steps the median step is taken from (evenly spread over the record)
 
