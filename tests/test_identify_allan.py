@@ -125,6 +125,9 @@ def test_the_spectra_thread_gives_the_numbers_of_one_thread(monkeypatch):
         return psd(*args, **kwargs)
 
     monkeypatch.setattr(identify_module, "one_sided_psd", seen)
+    # a second CPU whatever this host's affinity gives (a one-CPU runner would take the
+    # single-thread route both times)
+    monkeypatch.setattr("bmg160_emu.noise.worker_thread.usable_cpus", lambda: 2)
     run = "threaded"
     threaded = identify_module.identify_axis(x, rate)
     monkeypatch.setattr(identify_module, "SPECTRA_THREAD_SAMPLES", n + 1)
