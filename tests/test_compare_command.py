@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from bmg160_emu.cli import main
-from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile, write_profile
+from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile
+from bmg160_emu.noise.profile_writer import write_profile
 
 # white noise with a band at 15 Hz holding 0.0036 / (0.0036 + 0.04) = 8 % of the variance,
 # and a two-sample average at the output, 20 min at 100 Hz (the stage is the subject here)

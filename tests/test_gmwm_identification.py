@@ -10,7 +10,7 @@ from bmg160_emu.cli import main
 from bmg160_emu.noise import NoiseGenerator, load_profile
 from bmg160_emu.noise.gmwm_identification import gmwm_identification
 from bmg160_emu.noise.identify import IdentificationError, identify
-from bmg160_emu.noise.profile import write_profile
+from bmg160_emu.noise.profile_writer import write_profile
 
 RATE = 200.0
 

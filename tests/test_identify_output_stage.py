@@ -15,7 +15,8 @@ from scipy import signal
 from bmg160_emu.cli import main
 from bmg160_emu.noise import NoiseGenerator, ProfileError, load_profile
 from bmg160_emu.noise.identify import identify, identify_curve
-from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile, format_profile
+from bmg160_emu.noise.profile import AxisNoise, OutputStage, Profile
+from bmg160_emu.noise.profile_writer import format_profile
 from bmg160_emu.noise.sensor_noise import profile_noise
 
 RATE = 100.0

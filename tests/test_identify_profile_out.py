@@ -14,7 +14,8 @@ import pytest
 from bmg160_emu.cli import main
 from bmg160_emu.firmware.params_header import render_params_header
 from bmg160_emu.noise import NoiseGenerator, ProfileError, load_profile
-from bmg160_emu.noise.profile import AxisNoise, Profile, format_profile, toml_float, write_profile
+from bmg160_emu.noise.profile import AxisNoise, Profile
+from bmg160_emu.noise.profile_writer import format_profile, toml_float, write_profile
 
 # values on the search bounds of identify (T = 2 / rate, T = the longest tau), zeros of
 # absent terms, numpy scalars of every float width, and extreme but finite magnitudes

@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 
 from bmg160_emu.noise import NoiseGenerator, ProfileError, load_profile
 from bmg160_emu.noise.allan import gauss_markov_avar, overlapping_adev
-from bmg160_emu.noise.profile import AxisNoise, Profile, format_profile, write_profile
+from bmg160_emu.noise.profile import AxisNoise, Profile
+from bmg160_emu.noise.profile_writer import format_profile, write_profile
 
 THREE = AxisNoise(N=0.0, B=0.0, T=0.0, K=0.0, bias=0.0,
                   gm=((2e-3, 5.0), (1.5e-3, 60.0), (1e-3, 900.0)))

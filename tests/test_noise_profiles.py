@@ -7,7 +7,8 @@ import math
 import pytest
 
 from bmg160_emu.noise import AxisNoise, NoiseGenerator, Profile, ProfileError, load_profile
-from bmg160_emu.noise.profile import builtin_profile_names, format_profile, write_profile
+from bmg160_emu.noise.profile import builtin_profile_names
+from bmg160_emu.noise.profile_writer import format_profile, write_profile
 
 PAPER_TEXT = """
 name = "mine"

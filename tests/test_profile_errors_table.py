@@ -10,7 +10,8 @@ import pytest
 
 from bmg160_emu.device.chip import BMG160
 from bmg160_emu.noise import NoiseGenerator, load_profile
-from bmg160_emu.noise.profile import LIMITS, ProfileError, format_profile
+from bmg160_emu.noise.profile import LIMITS, ProfileError
+from bmg160_emu.noise.profile_writer import format_profile
 from bmg160_emu.noise.sensor_errors import SensorErrors
 
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from bmg160_emu.noise import NoiseGenerator
-from bmg160_emu.noise.profile import AxisNoise, Profile, ProfileError, load_profile, write_profile
+from bmg160_emu.noise.profile import AxisNoise, Profile, ProfileError, load_profile
+from bmg160_emu.noise.profile_writer import write_profile
 from bmg160_emu.noise.sensor_noise import profile_noise
 
 # a two-sample average (lag-1 1/2 / (1/4 + 1/4 + ...)): |H|^2 = 1/2 + 2 (1/4) cos w

@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from bmg160_emu.noise.identify import identify_axis
-from bmg160_emu.noise.profile import AxisNoise, Profile, ProfileError, load_profile, write_profile
+from bmg160_emu.noise.profile import AxisNoise, Profile, ProfileError, load_profile
+from bmg160_emu.noise.profile_writer import write_profile
 from bmg160_emu.noise.sensor_noise import profile_noise
 
 RATE = 100.0

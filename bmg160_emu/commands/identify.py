@@ -466,7 +466,7 @@ def _output_jobs(args: argparse.Namespace, result) -> list[tuple[Path, Any]]:
 
     jobs: list[tuple[Path, Any]] = []
     if args.profile_out is not None:
-        from bmg160_emu.noise.profile import write_profile
+        from bmg160_emu.noise.profile_writer import write_profile
 
         jobs.append((args.profile_out, lambda temp: write_profile(
             result.to_profile(args.profile_out.stem), temp,

@@ -139,15 +139,18 @@ def run(args: argparse.Namespace) -> int:
                                    block_s=block_s, noise=noise)
     except (ThermalFitError, IdentificationError) as exc:  # the residuals' noise fit too
         raise CommandError(f"{args.file}: {exc}") from None
-    outputs = [(path, text) for path, text in (
-        (args.px4_params, lambda: fit.px4_params_file(instance=args.px4_instance)),
-        (args.errors_out, lambda: _errors_toml(fit.to_errors(), args.file)))
-        if path is not None]
+    try:  # made before any file is opened: a value TOML cannot hold is refused here
+        outputs = [(path, text()) for path, text in (
+            (args.px4_params, lambda: fit.px4_params_file(instance=args.px4_instance)),
+            (args.errors_out, lambda: _errors_toml(fit.to_errors(), args.file)))
+            if path is not None]
+    except ValueError as exc:
+        raise CommandError(f"{args.file}: {exc}") from None
     try:  # both or neither (io.atomic.atomic_paths), each named by its own error
         with atomic_paths([path for path, _ in outputs]) as temps:
             for (path, text), temp in zip(outputs, temps):
                 try:
-                    temp.write_text(text(), encoding="utf-8")
+                    temp.write_text(text, encoding="utf-8")
                 except OSError as exc:  # named by the output, not by its temporary file
                     raise CommandError(f"cannot write {path}: {exc.strerror or exc}") \
                         from None
@@ -224,13 +227,9 @@ def _to_place(value: float, place: int, sign: str = "") -> str:
 
 
 def _errors_toml(errors: dict[str, Any], source: Path) -> str:
-    def number(v: float) -> str:
-        return repr(float(v)) if math.isfinite(v) else "0.0"
+    """The fit as a profile's ``[errors]`` table (noise.profile_writer), under a comment
+    naming the log it came from."""
+    from bmg160_emu.noise.profile_writer import errors_table_lines, toml_comment
 
-    rows = ", ".join("[" + ", ".join(number(v) for v in row) + "]"
-                     for row in errors["bias_tc_dps_per_k"])
-    return (f"# bmg160-emu thermal fit of {source}\n[errors]\n"
-            f"reference_temperature_c = {number(errors['reference_temperature_c'])}\n"
-            f"zero_rate_offset_dps = [{', '.join(number(v) for v in errors['zero_rate_offset_dps'])}]\n"
-            f"bias_tc_dps_per_k = [{rows}]\n"
-            f"source = {json.dumps(errors['source'])}\n")
+    lines = toml_comment(f"bmg160-emu thermal fit of {source}") + errors_table_lines(errors)
+    return "\n".join(lines) + "\n"
