@@ -14,6 +14,7 @@ import atexit
 import importlib
 import os
 import pkgutil
+import re
 import signal
 import sys
 import threading
@@ -63,6 +64,13 @@ def _signals_ignored_at_the_end() -> None:
 _AS_COMMAND = startup.AS_COMMAND
 if _AS_COMMAND:
     atexit.register(_signals_ignored_at_the_end)
+    # A file name is bytes on Linux, and one that is not UTF-8 reaches Python as lone
+    # surrogates (PEP 383). Under a UTF-8 locale stdout refused them ("wrote k\udcff.yaml":
+    # a UnicodeEncodeError after the files were written); written back as the bytes they
+    # stand for, the name is the one the user typed, as ls prints it. (Under the C locale
+    # Python does this itself; stderr already shows them as \udcff.)
+    if getattr(sys.stdout, "errors", None) == "strict" and hasattr(sys.stdout, "reconfigure"):
+        sys.stdout.reconfigure(errors="surrogateescape")
 
 __all__ = ["build_parser", "main"]
 
@@ -161,18 +169,19 @@ def main(argv: Sequence[str] | None = None) -> int:
                 signal.signal(number, _stopped_while_exiting if _AS_COMMAND
                               else _restorable(previous[number]))
     except CommandError as exc:
-        print(f"bmg160-emu {command}: error: {exc}", file=sys.stderr)
+        print(_one_line(f"bmg160-emu {command}: error: {exc}"), file=sys.stderr)
         return 2
     except ModuleNotFoundError as exc:  # an optional package: the extra that brings it
         message = missing_message(args.command, exc.name or "")
         if message is None:
             raise
-        print(f"bmg160-emu {args.command}: error: {message}", file=sys.stderr)
+        print(_one_line(f"bmg160-emu {args.command}: error: {message}"), file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:
         name = getattr(exc, "signal_name", "SIGINT")
         kept = getattr(exc, "kept", None) or _what_was_kept(before)
-        print(f"bmg160-emu {command}: interrupted by {name}; {kept}", file=sys.stderr)
+        print(_one_line(f"bmg160-emu {command}: interrupted by {name}; {kept}"),
+              file=sys.stderr)
         return 143 if name == "SIGTERM" else 130
     except BrokenPipeError:
         # The reader of our output went away (`bmg160-emu dump | head`): stop quietly, as
@@ -189,13 +198,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         from bmg160_emu.io.atomic import name_problem, shown_path
 
         why = name_problem(exc.filename) or exc.strerror or type(exc).__name__
-        print(f"bmg160-emu {command}: error: cannot use {shown_path(exc.filename)}: {why}",
-              file=sys.stderr)
+        print(_one_line(f"bmg160-emu {command}: error: cannot use {shown_path(exc.filename)}: "
+                        f"{why}"), file=sys.stderr)
         return 2
     finally:
         if not _AS_COMMAND:
             for number, handler in previous.items():
                 signal.signal(number, _restorable(handler))
+
+
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f]")
+
+
+def _one_line(text: str) -> str:
+    """An error for stderr as one line: a control character a file name may hold (a newline,
+    a CR that would send the terminal back over the line) shown as \\xNN."""
+    return _CONTROL.sub(lambda m: f"\\x{ord(m[0]):02x}", text)
 
 
 def _what_was_kept(before: tuple[list[Path], list[Path]]) -> str:
