@@ -7,13 +7,15 @@ profile never clobbers another's.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 import os
+import re
 import shutil
 import subprocess
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -86,8 +88,36 @@ def _check_sources() -> None:
         )
 
 
+# GNU make splits targets and prerequisites at white space, reads : # $ % = ; and \ itself,
+# and hands its recipes to /bin/sh, which reads quotes and the rest: a build folder whose
+# path holds any of them (a home folder "/home/Ann Lee", ``--out "fw 2"``) made the build
+# fail with make's own words. Such a folder is built in a temporary one and the products
+# copied over (_make_folder).
+_MAKE_SAFE = re.compile(r"[\w./+,@-]+")
+
+
+@contextlib.contextmanager
+def _make_folder(directory: Path) -> Iterator[Path]:
+    """The folder make builds in for ``directory``: itself when make can name it, else a
+    temporary folder whose files are copied into ``directory`` when the build succeeds."""
+    resolved = directory.resolve()
+    if _MAKE_SAFE.fullmatch(str(resolved)):
+        yield resolved
+        return
+    with tempfile.TemporaryDirectory(prefix="bmg160-firmware-") as temp:
+        if not _MAKE_SAFE.fullmatch(temp):
+            raise FirmwareToolError(
+                f"make cannot build in {directory} (a space or a character make or the shell "
+                f"reads itself), nor in the temporary folder {temp}: set TMPDIR to a plain path")
+        yield Path(temp)
+        for product in Path(temp).iterdir():
+            if product.is_file():
+                shutil.copy2(product, directory / product.name)
+
+
 def _run(cmd: list[str], what: str) -> str:
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    # text as make prints it, a file name's undecodable bytes included
+    proc = subprocess.run(cmd, capture_output=True, text=True, errors="replace", check=False)
     if proc.returncode != 0:
         tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-15:])
         raise FirmwareToolError(f"{what} failed (exit {proc.returncode}):\n{tail}")
@@ -128,18 +158,20 @@ def build_firmware(
                  else default_build_dir(header_text + registers_text, normal))
     directory.mkdir(parents=True, exist_ok=True)
     header = directory / "bmg160_params.h"
-    for path, text in ((header, header_text), (directory / REGISTERS_HEADER, registers_text)):
-        if not path.is_file() or path.read_text(encoding="utf-8") != text:
-            path.write_text(text, encoding="utf-8")  # unchanged header: no rebuild
     flags = NORMAL_FLAGS[normal]
-    _run(
-        [
-            "make", "--no-print-directory", "-C", str(FIRMWARE_DIR),
-            f"BUILD_DIR={directory.resolve()}", f"PARAMS_DIR={directory.resolve()}",
-            f"NORMAL={flags}", f"{directory.resolve()}/bmg160.hex",
-        ],
-        "firmware build",
-    )  # fmt: skip
+    with _make_folder(directory) as build:
+        for path, text in ((build / header.name, header_text),
+                           (build / REGISTERS_HEADER, registers_text)):
+            if not path.is_file() or path.read_text(encoding="utf-8") != text:
+                path.write_text(text, encoding="utf-8")  # unchanged header: no rebuild
+        _run(
+            [
+                "make", "--no-print-directory", "-C", str(FIRMWARE_DIR),
+                f"BUILD_DIR={build}", f"PARAMS_DIR={build}", f"NORMAL={flags}",
+                f"{build}/bmg160.hex",
+            ],
+            "firmware build",
+        )  # fmt: skip
     elf = directory / "bmg160.elf"
     flash, ram = elf_memory_use(elf)
     return FirmwareBuild(directory, header, elf, directory / "bmg160.hex", flash, ram)
@@ -167,13 +199,13 @@ def build_simulator(out_dir: str | Path | None = None) -> Path:
     _check_sources()
     directory = Path(out_dir) if out_dir is not None else BUILD_ROOT / "sim"
     directory.mkdir(parents=True, exist_ok=True)
-    target = directory.resolve() / "bmg160_sim"
-    _run(
-        ["make", "--no-print-directory", "-C", str(FIRMWARE_DIR),
-         f"BUILD_DIR={directory.resolve()}", str(target)],
-        "simavr harness build",
-    )  # fmt: skip
-    return target
+    with _make_folder(directory) as build:
+        _run(
+            ["make", "--no-print-directory", "-C", str(FIRMWARE_DIR),
+             f"BUILD_DIR={build}", f"{build}/bmg160_sim"],
+            "simavr harness build",
+        )  # fmt: skip
+    return directory.resolve() / "bmg160_sim"
 
 
 def elf_symbols(elf: str | Path) -> dict[str, tuple[int, int]]:
