@@ -72,7 +72,7 @@ def test_confidence_intervals_cover_the_truth():
 def test_identified_profile_loads_back_into_the_generator(tmp_path, six_hours_physical):
     result = identify(six_hours_physical[: HOUR * 200], 200.0, source="test")
     profile = result.to_profile("back")
-    from bmg160_emu.noise.profile import write_profile
+    from bmg160_emu.noise.profile_writer import write_profile
 
     path = tmp_path / "back.toml"
     write_profile(profile, path)
@@ -127,7 +127,7 @@ def test_rate_ramp_is_fitted_on_request():
 
 
 def test_white_noise_only_gives_intervals_reaching_zero_and_a_loadable_profile(tmp_path):
-    from bmg160_emu.noise.profile import write_profile
+    from bmg160_emu.noise.profile_writer import write_profile
 
     x = np.random.default_rng(8).standard_normal(200_000) * 0.02 * math.sqrt(200.0)
     axis = identify(x, 200.0).axes[0]

@@ -26,7 +26,8 @@ import numpy as np
 from bmg160_emu.firmware.build import build_firmware, capture_uart
 from bmg160_emu.io.uart_stream import read_uart_stream
 from bmg160_emu.noise.identify import identify
-from bmg160_emu.noise.profile import AxisNoise, Profile, load_profile, write_profile
+from bmg160_emu.noise.profile import AxisNoise, Profile, load_profile
+from bmg160_emu.noise.profile_writer import write_profile
 
 ODR_HZ = 200
 TABLE3_STD_DPS = 0.251  # paper Table 3 (sensor 0.251087, model 0.251072 deg/s)

@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
         took = time.perf_counter() - started
         profile = result.to_profile(path.stem)
         if args.profile_dir is not None:
-            from bmg160_emu.noise.profile import write_profile
+            from bmg160_emu.noise.profile_writer import write_profile
 
             args.profile_dir.mkdir(parents=True, exist_ok=True)
             write_profile(profile, args.profile_dir / f"{path.stem}.toml")
