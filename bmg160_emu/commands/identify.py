@@ -4,7 +4,6 @@ an Allan deviation curve), with plots, a profile and exports for Kalibr and MATL
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import sys
 from functools import partial
@@ -243,6 +242,7 @@ def _options(args: argparse.Namespace) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from bmg160_emu.commands._common import CommandError
+    from bmg160_emu.io.atomic import OutputError, write_together
     from bmg160_emu.io.rate_table import RateFileError
     from bmg160_emu.noise.identify import IdentificationError
     from bmg160_emu.noise.interop import InteropError
@@ -290,7 +290,10 @@ def run(args: argparse.Namespace) -> int:
         jobs += _figure_jobs(args, record, result)
         if verdict is not None and args.compare:
             jobs += _verdict_figure_jobs(args, verdict)
-    written = _write_all(args, jobs)  # all together, or none (issue 35)
+    try:  # all together, or none (issue 35)
+        written = write_together(jobs, args.figures)
+    except OutputError as exc:
+        raise CommandError(str(exc)) from None
     if args.json:
         out = result.as_dict(args.units)
         if verdict is not None:
@@ -486,41 +489,6 @@ def _output_jobs(args: argparse.Namespace, result) -> list[tuple[Path, Any]]:
 
         jobs.append((args.plot, lambda temp: plots.save(plots.adev_figure(result.axes), temp)))
     return jobs
-
-
-def _write_all(args: argparse.Namespace, jobs: list[tuple[Path, Any]]) -> list[Path]:
-    """Every output written under a temporary name, then all renamed into place together
-    (io.atomic.atomic_paths): all of them, or none and the old files as they were. A full
-    disk or a signal part way used to leave some written, and a --figures folder half
-    full (issue 35). A --figures folder this run made is removed again when nothing could
-    be written into it."""
-    from bmg160_emu.commands._common import CommandError
-    from bmg160_emu.io.atomic import atomic_paths
-
-    if not jobs:
-        return []
-    folder: Path | None = args.figures
-    made = folder is not None and not folder.exists()
-    try:
-        if made:
-            assert folder is not None
-            folder.mkdir(parents=True)
-        with atomic_paths([target for target, _ in jobs]) as temps:
-            for (target, write), temp in zip(jobs, temps):
-                try:
-                    write(temp)
-                except OSError as exc:  # named by the output, not by its temporary file
-                    raise CommandError(f"cannot write {target}: {exc.strerror or exc}; "
-                                       "no output written") from None
-    except (CommandError, OSError, KeyboardInterrupt) as exc:
-        if made and folder is not None:
-            with contextlib.suppress(OSError):
-                folder.rmdir()  # only when empty: the run wrote nothing into it
-        if isinstance(exc, OSError):
-            raise CommandError(f"cannot write {exc.filename or folder}: "
-                               f"{exc.strerror or exc}; no output written") from None
-        raise
-    return [target for target, _ in jobs]
 
 
 def _save_figure(fig: Any, temp: Path) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -90,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
 
     from bmg160_emu.commands._common import CommandError, check_writable
     from bmg160_emu.durations import parse_duration
-    from bmg160_emu.io.atomic import atomic_paths
+    from bmg160_emu.io.atomic import OutputError, write_together
     from bmg160_emu.io.csv_table import read_csv_table
     from bmg160_emu.io.rate_table import RateFileError
     from bmg160_emu.io.time_column import check_time_column
@@ -146,16 +147,10 @@ def run(args: argparse.Namespace) -> int:
             if path is not None]
     except ValueError as exc:
         raise CommandError(f"{args.file}: {exc}") from None
-    try:  # both or neither (io.atomic.atomic_paths), each named by its own error
-        with atomic_paths([path for path, _ in outputs]) as temps:
-            for (path, text), temp in zip(outputs, temps):
-                try:
-                    temp.write_text(text, encoding="utf-8")
-                except OSError as exc:  # named by the output, not by its temporary file
-                    raise CommandError(f"cannot write {path}: {exc.strerror or exc}") \
-                        from None
-    except OSError as exc:  # making a temporary file, or /dev/full at the end: the output
-        raise CommandError(f"cannot write {exc.filename}: {exc.strerror or exc}") from None
+    try:  # both or neither (io.atomic.write_together), each named by its own error
+        write_together([(path, partial(_write_text, text)) for path, text in outputs])
+    except OutputError as exc:
+        raise CommandError(str(exc)) from None
     print(json.dumps(_as_dict(fit), indent=1) if args.json else _summary(fit, args.file))
     return 0
 
@@ -233,3 +228,7 @@ def _errors_toml(errors: dict[str, Any], source: Path) -> str:
 
     lines = toml_comment(f"bmg160-emu thermal fit of {source}") + errors_table_lines(errors)
     return "\n".join(lines) + "\n"
+
+
+def _write_text(text: str, path: Path) -> None:
+    path.write_text(text, encoding="utf-8")

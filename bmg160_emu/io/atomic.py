@@ -23,14 +23,14 @@ import signal
 import stat
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
 __all__ = [
     "AtomicFile", "OutputError", "atomic_open", "atomic_path", "atomic_paths", "check_free_space",
     "check_writable",
-    "held_signals", "name_problem", "outputs_so_far", "shown_path", "size_text",
+    "held_signals", "name_problem", "outputs_so_far", "shown_path", "size_text", "write_together",
 ]
 
 # every target this process put in place, and every one whose temporary file was removed
@@ -230,6 +230,38 @@ def atomic_paths(paths: list[Path]) -> Iterator[list[Path]]:
     finally:
         if held is not None:
             held.__exit__(None, None, None)  # then acts: every target is in place
+
+
+def write_together(jobs: Sequence[tuple[Path, Callable[[Path], None]]],
+                   folder: Path | None = None) -> list[Path]:
+    """Run each ``(target, write(temporary path))`` job and put every target in place together
+    (:func:`atomic_paths`): all of them, or none and the old files as they were; the targets
+    are returned. ``folder``: the folder they go into, made here when missing and removed
+    again when nothing could be written into it (a half-full --figures folder, issue 35).
+    Raises OutputError naming the output that could not be written."""
+    if not jobs:
+        return []
+    made = folder is not None and not folder.exists()
+    try:
+        if made:
+            assert folder is not None
+            folder.mkdir(parents=True)
+        with atomic_paths([target for target, _ in jobs]) as temps:
+            for (target, write), temp in zip(jobs, temps):
+                try:
+                    write(temp)
+                except OSError as exc:  # named by the output, not by its temporary file
+                    raise OutputError(f"cannot write {target}: {exc.strerror or exc}; "
+                                      "no output written") from None
+    except (OSError, KeyboardInterrupt) as exc:
+        if made and folder is not None:
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only when empty: the run wrote nothing into it
+        if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+            raise OutputError(f"cannot write {exc.filename or folder}: "
+                              f"{exc.strerror or exc}; no output written") from None
+        raise
+    return [target for target, _ in jobs]
 
 
 @contextlib.contextmanager
