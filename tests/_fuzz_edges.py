@@ -225,6 +225,134 @@ def fuzz_path(label: str, kind: str, path: str, tmp: Path,
     return f"bmg160-emu {label} {kind} {shown}", outcome
 
 
+# ---------------------------------------------------------------------------- names
+
+# For each path option, the seed file it reads (copied to the odd name) or None for one it
+# writes, and the suffix it expects: so that a name with odd characters reaches the code that
+# opens, prints and writes it, not a suffix check.
+ODD_NAME_FILES: dict[str, tuple[str | None, str]] = {
+    "diff A": ("dump.json", ".json"), "diff B": ("dump.json", ".json"),
+    "dump --after": ("short.script", ".script"), "dump -o": (None, ".json"),
+    "dump --profile": ("profile.toml", ".toml"), "dump --device": ("standin.toml", ".toml"),
+    "firmware build --profile": ("profile.toml", ".toml"), "firmware build --out": (None, ""),
+    "firmware capture --profile": ("profile.toml", ".toml"),
+    "firmware capture --out": (None, ""), "firmware capture -o": (None, ".txt"),
+    "generate --profile": ("profile.toml", ".toml"), "generate -o": (None, ".csv"),
+    "compare RECORDING": ("stream.txt", ".txt"), "compare PROFILE": ("profile.toml", ".toml"),
+    "compare --figure": (None, ".png"), "identify FILE": ("long/noise.csv", ".csv"),
+    "identify --plot": (None, ".png"), "identify --figures": (None, ""),
+    "identify --profile-out": (None, ".toml"), "identify --adev-out": (None, ".csv"),
+    "identify --kalibr-out": (None, ".yaml"), "identify --matlab-out": (None, ".m"),
+    "kernel run --module": (None, ".ko"), "kernel run --results": (None, ".json"),
+    "kernel run --console": (None, ".log"), "kernel run --profile": ("profile.toml", ".toml"),
+    "micropython PROGRAM": ("main.py", ".py"), "micropython --profile": ("profile.toml", ".toml"),
+    "micropython --device": ("standin.toml", ".toml"),
+    "montecarlo SCENARIO": ("mc-short.toml", ".toml"), "montecarlo -o": (None, ".csv"),
+    "record --truth": ("scenario.toml", ".toml"), "record -o": (None, ".csv"),
+    "record --profile": ("profile.toml", ".toml"), "replay DATA": ("recording.csv", ".csv"),
+    "replay -o": (None, ".npz"), "replay --script": ("short.script", ".script"),
+    "replay --profile": ("profile.toml", ".toml"), "run --log": (None, ".log"),
+    "run --trace": (None, ".jsonl"), "run --profile": ("profile.toml", ".toml"),
+    "run --device": ("standin.toml", ".toml"), "script FILE": ("short.script", ".script"),
+    "script --trace": (None, ".jsonl"), "script --device": ("standin.toml", ".toml"),
+    "script --profile": ("profile.toml", ".toml"), "serve --socket": (None, ".sock"),
+    "serve --trace": (None, ".jsonl"), "serve --log": (None, ".log"),
+    "serve --stats": (None, ".json"), "serve --ready-file": (None, ".ready"),
+    "serve --profile": ("profile.toml", ".toml"), "serve --device": ("standin.toml", ".toml"),
+    "stub --stats": (None, ".json"), "stub --ready-file": (None, ".ready"),
+    "stub --profile": ("profile.toml", ".toml"), "stub --device": ("standin.toml", ".toml"),
+    "thermal FILE": ("thermal.csv", ".csv"), "thermal --noise-profile": ("profile.toml", ".toml"),
+    "thermal --px4-params": (None, ".params"), "thermal --errors-out": (None, ".toml"),
+    "trace FILE": ("session.jsonl", ".jsonl"), "demo --profile": ("profile.toml", ".toml"),
+    "vhost-user-i2c --socket": (None, ".sock"), "vhost-user-i2c --gpio-socket": (None, ".sock"),
+    "vhost-user-i2c --trace": (None, ".jsonl"), "vhost-user-i2c --log": (None, ".log"),
+    "vhost-user-i2c --stats": (None, ".json"), "vhost-user-i2c --ready-file": (None, ".ready"),
+    "vhost-user-i2c --true-rate-file": ("rate.txt", ".txt"),
+    "vhost-user-i2c --profile": ("profile.toml", ".toml"), "watch --socket": (None, ".sock"),
+}
+
+# Bytes a Linux file name may hold that a program may mishandle: C0 controls (TOML forbids
+# them in strings and comments; a newline splits a one-line error), DEL, a C1 control in
+# UTF-8, what a shell or make reads itself, and bytes that are not UTF-8 (Python holds them
+# as lone surrogates, PEP 383; a strict UTF-8 stdout cannot print them).
+ODD_BYTES = ([bytes([c]) for c in range(1, 32)] + [b"\x7f", b"\xc2\x85", b"\xff", b"\xc3",
+             b"\x80", b"\xed\xa0\x80"] + [c.encode() for c in " \"'$#:%;=\\`*?[](){}|&<>~!"]
+             + ["é".encode(), "😀".encode()])
+# The profile and [errors] table outputs, read back after a run (label -> the output, and
+# whether it is an [errors] table): an odd output name reaches the profile's name, an odd
+# input name its header comment (for which the input options also write one).
+READ_BACK = {"identify --profile-out": ("{p}", False), "thermal --errors-out": ("{p}", True),
+             "identify FILE": ("{tmp}/out.toml", False), "thermal FILE": ("{tmp}/e.toml", True)}
+ODD_NAME_EXTRA = {"identify FILE": ("--no-verdict", "--profile-out", "{tmp}/out.toml"),
+                  "thermal FILE": ("--errors-out", "{tmp}/e.toml")}
+NAME_LIMIT_S = 120.0  # a hang, not a speed (identify --figures with its figures: ~10 s)
+
+
+def odd_stem(rng: random.Random) -> bytes:
+    """A file name stem of plain letters with one to four odd bytes among them."""
+    parts = [rng.choice(string.ascii_letters).encode() for _ in range(rng.randint(1, 4))]
+    for _ in range(rng.randint(1, 4)):
+        parts.insert(rng.randint(0, len(parts)), rng.choice(ODD_BYTES))
+    return b"".join(parts)
+
+
+def fuzz_odd_name(label: str, stem: bytes, tmp: Path) -> tuple[str, Outcome]:
+    """One path option given the name ``stem`` + its suffix (the seed it reads copied there),
+    run as a person runs it (a child process under a strict UTF-8 locale's stdout). Beside
+    the CLI invariant: an error line holds no raw control character, and a profile or
+    ``[errors]`` table that was written reads back."""
+    import shutil
+
+    seed, suffix = ODD_NAME_FILES[label]
+    seeds = cli_seed_folder()
+    root = os.fsencode(tmp)
+    for folder in (root, root + b"/nodir", root + b"/cwd"):
+        os.makedirs(folder, exist_ok=True)
+        os.chmod(folder, 0o700)  # serve and watch want a private folder for their sockets
+    (tmp / "main.py").write_text(MAIN_PY)
+    path = root + b"/" + stem + suffix.encode()
+    if seed is not None:
+        shutil.copy(seeds / seed if seed != "main.py" else tmp / "main.py", path)
+    argv = [a.encode().replace(b"{p}", path).replace(b"{seeds}", os.fsencode(seeds))
+            .replace(b"{tmp}", root) for a in PATH_OPTIONS[label] + ODD_NAME_EXTRA.get(label, ())]
+    env = dict(os.environ, PYTHONIOENCODING="utf-8:strict", PYTHONPATH=str(REPO))
+    shown = f"bmg160-emu {label} {stem!r}"
+    try:
+        proc = subprocess.run([sys.executable, "-m", "bmg160_emu", *argv], capture_output=True,
+                              timeout=NAME_LIMIT_S, env=env, cwd=root + b"/cwd",
+                              stdin=subprocess.DEVNULL, check=False)
+    except subprocess.TimeoutExpired:
+        return shown, Outcome("hang", None, f"no exit after {NAME_LIMIT_S:g} s")
+    finally:
+        for folder in (root + b"/nodir", root + b"/cwd"):
+            shutil.rmtree(folder, ignore_errors=True)
+    stderr = proc.stderr.decode("utf-8", "backslashreplace")
+    outcome = classify(proc.returncode, stderr)
+    if outcome.broken:
+        return shown, outcome
+    raw = [line for line in stderr.splitlines() if ": error:" in line
+           and re.search("[\x00-\x08\x0b-\x1f\x7f]", line)]
+    if raw:
+        return shown, Outcome("bad message", proc.returncode, f"raw control character: {raw[0]!r}"[:300])
+    written = READ_BACK.get(label)
+    if proc.returncode == 0 and written is not None:
+        from bmg160_emu.noise.profile import load_profile
+        from bmg160_emu.noise.profile_writer import format_profile
+
+        out, table = written
+        out_path = os.fsdecode(path if out == "{p}" else out.replace("{tmp}", str(tmp)).encode())
+        text = Path(out_path).read_text(encoding="utf-8")
+        if table:  # an [errors] table, which a user adds to a profile
+            text = format_profile(load_profile("paper")) + text
+        check = tmp / "read-back.toml"
+        check.write_text(text, encoding="utf-8")
+        try:
+            load_profile(check)
+        except ValueError as exc:
+            return shown, Outcome("unreadable output", 0, str(exc)[:300])
+    return shown, outcome
+
+
 # ---------------------------------------------------------------------------- schedulers
 
 

@@ -4,8 +4,9 @@ under a memory cap, and Dask's shut-down under a signal. Each run ends in exit 0
 error line, never a traceback or a hang (tests/_fuzz_edges.py has the harness; ``python
 tools/fuzz.py --edges`` runs a campaign with new seeds).
 
-CI budget: every path option with every hostile path (one seed), 400 scheduler strings, 12
-block sizes, the memory-cap commands for 15 s each under 1 GiB (slow), one Dask trial."""
+CI budget: every path option with every hostile path (one seed), every path option with an odd
+name (one seed, each a child process: slow), 400 scheduler strings, 12 block sizes, the
+memory-cap commands for 15 s each under 1 GiB (slow), one Dask trial."""
 
 from __future__ import annotations
 
@@ -17,10 +18,13 @@ import pytest
 from _fuzz_cli import run_in_process
 from _fuzz_edges import (
     CAPPED,
+    ODD_NAME_FILES,
     PATH_OPTIONS,
     fuzz_block,
+    fuzz_odd_name,
     fuzz_path,
     judge_scheduler,
+    odd_stem,
     path_actions,
     path_values,
     run_capped,
@@ -49,6 +53,19 @@ def test_a_path_past_the_file_system_limits_is_one_line(label, tmp_path):
     # thermal --noise-profile and firmware capture --output
     for kind, path in path_values(tmp_path, random.Random(label)):
         _assert_fine(*fuzz_path(label, kind, path, tmp_path))
+
+
+def test_every_path_option_has_an_odd_name_entry():
+    assert set(ODD_NAME_FILES) == set(PATH_OPTIONS)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("label", sorted(ODD_NAME_FILES))
+def test_an_odd_file_name_is_read_written_and_printed_or_refused_in_one_line(label, tmp_path):
+    # control characters, DEL, C1, bytes that are not UTF-8, shell and make characters: a
+    # profile's TOML its reader refused, UnicodeEncodeError tracebacks in identify and thermal,
+    # make failing on a folder with a space (tests/test_odd_file_names.py has each)
+    _assert_fine(*fuzz_odd_name(label, odd_stem(random.Random(label)), tmp_path))
 
 
 def test_scheduler_strings_are_refused_in_one_line_or_are_addresses_dask_can_parse():

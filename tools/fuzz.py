@@ -4,7 +4,7 @@
     python tools/fuzz.py --examples 500 --format trace --save failures/
     python tools/fuzz.py --cli --examples 200      # the command line (tests/_fuzz_cli.py)
     python tools/fuzz.py --signals --trials 50      # signals at random moments (issue 24)
-    python tools/fuzz.py --edges --examples 20      # paths, schedulers, blocks, memory (35)
+    python tools/fuzz.py --edges --examples 20      # paths, names, schedulers, blocks, memory (35)
     python tools/fuzz.py --full-disk /mnt/small --trials 5   # every writer on a full disk
 
 Each example is a valid file (made by the project's own CLI) with 1-3 random mutations (bit
@@ -111,17 +111,21 @@ def signals_main(argv: list[str]) -> int:
 
 def edges_main(argv: list[str]) -> int:
     """``--edges``: the command line at its edges (tests/_fuzz_edges.py), ``--examples``
-    seeds each: hostile paths on every path option, scheduler strings (1,000 a seed),
-    thermal blocks, and the memory-cap commands (``--cap-gib``, 20 s each) once."""
+    seeds each: hostile paths on every path option, an odd name on each (a child process),
+    scheduler strings (1,000 a seed), thermal blocks, and the memory-cap commands
+    (``--cap-gib``, 20 s each) once."""
     import random
     import shutil
 
     from _fuzz_edges import (
         CAPPED,
+        ODD_NAME_FILES,
         PATH_OPTIONS,
         fuzz_block,
+        fuzz_odd_name,
         fuzz_path,
         judge_scheduler,
+        odd_stem,
         path_values,
         run_capped,
         scheduler_strings,
@@ -132,10 +136,10 @@ def edges_main(argv: list[str]) -> int:
     parser.add_argument("--examples", type=int, default=10, help="seeds per kind")
     parser.add_argument("--first-seed", type=int, default=0, help="the first seed")
     parser.add_argument("--cap-gib", type=float, default=1.0, help="address-space cap")
-    parser.add_argument("--only", choices=("paths", "schedulers", "blocks", "memory"),
+    parser.add_argument("--only", choices=("paths", "names", "schedulers", "blocks", "memory"),
                         action="append", help="only these kinds (default all)")
     args = parser.parse_args(argv)
-    kinds = args.only or ["paths", "schedulers", "blocks", "memory"]
+    kinds = args.only or ["paths", "names", "schedulers", "blocks", "memory"]
     seeds = range(args.first_seed, args.first_seed + args.examples)
     broken: list[str] = []
     counts: Counter[str] = Counter()
@@ -158,6 +162,12 @@ def edges_main(argv: list[str]) -> int:
                         what, outcome = fuzz_path(label, kind, path, work)
                         tally("paths", what, f"{outcome.kind}: {outcome.detail}"
                               if outcome.broken else None)
+            if "names" in kinds:  # every path option with an odd name, in a child process
+                for label in ODD_NAME_FILES:
+                    stem = odd_stem(random.Random(f"{label}{seed}"))
+                    what, outcome = fuzz_odd_name(label, stem, tmp / f"n{seed}")
+                    tally("names", what, f"{outcome.kind}: {outcome.detail}"
+                          if outcome.broken else None)
             if "schedulers" in kinds:
                 for text in scheduler_strings(random.Random(seed), 1000):
                     tally("schedulers", repr(text), judge_scheduler(text))
