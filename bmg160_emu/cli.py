@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import errno
 import importlib
 import os
 import pkgutil
 import re
 import signal
+import stat
 import sys
 import threading
 from collections.abc import Sequence
@@ -194,7 +196,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         # (issue 35: path options were checked one by one, and a 300-character name slipped
         # through four of them). An OSError without a file name is a defect: its traceback.
         if exc.filename is None:
-            raise
+            if not _stdout_refused(exc):
+                raise
+            print(_one_line(f"bmg160-emu {command}: error: cannot write standard output: "
+                            f"{exc.strerror or exc}"), file=sys.stderr)
+            return 2
         from bmg160_emu.io.atomic import name_problem, shown_path
 
         why = name_problem(exc.filename) or exc.strerror or type(exc).__name__
@@ -205,6 +211,29 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not _AS_COMMAND:
             for number, handler in previous.items():
                 signal.signal(number, _restorable(handler))
+
+
+def _stdout_refused(exc: OSError) -> bool:
+    """Whether ``exc`` is standard output refusing what the command printed: no room where
+    it goes (``> /dev/full``, a full disk). A write to stdout fails without a file name, so
+    the error is matched to stdout by its errno and stdout's own state. Stdout then goes to
+    /dev/null, so that Python's flush at exit does not fail once more (as after a
+    BrokenPipeError)."""
+    if exc.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+        return False
+    try:
+        fd = sys.stdout.fileno()
+        st = os.fstat(fd)
+        if stat.S_ISCHR(st.st_mode):  # Linux's /dev/full is character device 1, 7
+            full = (os.major(st.st_rdev), os.minor(st.st_rdev)) == (1, 7)
+        else:
+            room = os.fstatvfs(fd)
+            full = room.f_bavail == 0 or room.f_bfree == 0 or exc.errno == errno.EFBIG
+    except (OSError, ValueError, AttributeError):  # no file behind stdout (a test's StringIO)
+        return False
+    if full:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), fd)
+    return full
 
 
 _CONTROL = re.compile("[\x00-\x1f\x7f-\x9f]")
