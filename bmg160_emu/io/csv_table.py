@@ -2,7 +2,8 @@
 (identify's records, recordings, replay data, a scenario's rate table).
 
 ``#`` lines and blank lines are skipped; the first other line is a header when any of its
-cells is not a number; the caller chooses the columns (``ColumnChoice``). Errors name the
+cells is not a number (or, in the EuRoC layout, the ``#`` line right above the first row,
+when it names a time column); the caller chooses the columns (``ColumnChoice``). Errors name the
 file and the line.
 
 Memory: a CSV file is parsed in chunks of about 1 MiB of text straight into arrays sized
@@ -22,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from bmg160_emu.io.rate_table import ColumnChoice, RateFileError, RateTable
+from bmg160_emu.io.time_column import time_column_scale_s
 
 CHUNK_BYTES = 1 << 20  # text parsed per np.loadtxt call: bounds the reader's working memory
 
@@ -82,15 +84,18 @@ def read_csv_table(path: str | Path, choose: ColumnChoice) -> RateTable:
         except csv.Error as exc:  # a field over csv's 131,072-character limit, a stray quote
             raise RateFileError(f"not a CSV row: {exc}", path=path, place=lineno) from None
         header = None if all(is_number(c) for c in cells) else cells
+        first_is_data = header is None
         width = len(cells)
+        if header is None and comments and comments[-1][0] == lineno - 1:
+            header = _commented_header(comments[-1][1], width)
         t_index, use = choose(header, width, f"{path}:{lineno}")
         usecols = ([t_index] if t_index is not None else []) + list(use)
         t = np.empty(bound) if t_index is not None else None
         values = np.empty((bound, len(use)))
         table = RateTable(path, header, t, values, comments)
         n = 0
-        pending = [] if header is not None else [first]
-        next_line = lineno + 1 if header is not None else lineno
+        pending = [first] if first_is_data else []
+        next_line = lineno if first_is_data else lineno + 1
         while True:
             lines = pending + handle.readlines(CHUNK_BYTES)
             pending = []
@@ -103,6 +108,20 @@ def read_csv_table(path: str | Path, choose: ColumnChoice) -> RateTable:
     table.values = values[:n]
     table.t_s = None if t is None else t[:n]
     return table
+
+
+def _commented_header(text: str, width: int) -> list[str] | None:
+    """The header of a file whose header line is a comment: the EuRoC MAV and TUM-VI
+    datasets' ``#timestamp [ns],w_RS_S_x [rad s^-1],...`` right above the first row. Taken
+    only when it has a cell for each column and names a time column, so that a comment
+    with commas above headerless rows is still a comment."""
+    try:
+        cells = [c.strip() for c in next(csv.reader([text]))]
+    except (csv.Error, StopIteration):
+        return None
+    if len(cells) != width or not any(time_column_scale_s(c) is not None for c in cells):
+        return None
+    return cells
 
 
 def _parse_chunk(table: RateTable, lines: list[str], first_line: int, row: int, width: int,
