@@ -46,6 +46,8 @@ def register(subparsers: Subparsers) -> None:
                         "column)")
     parser.add_argument("--columns", default=None, metavar="A,B,C",
                         help="CSV columns holding the axes, by header name")
+    parser.add_argument("--record-units", choices=("deg/s", "rad/s"), default=None,
+                        help="unit of a recording that states none (as identify's)")
     parser.add_argument("--seeds", type=bounded_option(limits.RUNS), default=20, metavar="N",
                         help="emulated records (default 20)")
     parser.add_argument("--figure", type=Path, default=None, metavar="FILE.png",
@@ -71,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         raise CommandError(str(exc)) from None
     columns = [c.strip() for c in args.columns.split(",")] if args.columns else None
     try:
-        record = load_rate_record(args.recording, args.rate, columns)
+        record = load_rate_record(args.recording, args.rate, columns, args.record_units)
     except RateFileError as exc:
         text = str(exc)
         raise CommandError(text if text.startswith(str(args.recording))

@@ -28,7 +28,7 @@ examples:
   bmg160-emu identify adev.csv --curve --rate 100 --duration 2.8h --profile-out mine.toml
 
 Inputs: CSV (one column per axis, optional time column t/t_s/time, '#' comments, the layout
-of `bmg160-emu record` and `generate`), .npy (n or n x k array), .npz, .resd (Renode, channel
+of `bmg160-emu record` and `generate`, the EuRoC/TUM-VI data.csv; rad/s columns converted), .npy (n or n x k array), .npz, .resd (Renode, channel
 0), the firmware's UART stream (.txt from `firmware capture` or a board's serial port, whose
 ODR --rate gives); with --curve, an Allan deviation CSV (tau, then adev [low high] per
 axis; allan_variance_ros's 7 columns, non-overlapping, in deg/s) and the record's --samples
@@ -68,7 +68,13 @@ def register(subparsers: Subparsers) -> None:
         "--columns",
         default=None,
         metavar="A,B,C",
-        help="CSV columns holding the axes, by header name (default: x_dps,y_dps,z_dps or all)",
+        help="CSV columns holding the axes, by header name (default: x_dps,y_dps,z_dps, x,y,z, "
+        "gx,gy,gz, else those whose names carry a rate unit, else all)",
+    )
+    parser.add_argument(
+        "--record-units", choices=("deg/s", "rad/s"), default=None,
+        help="unit of a record that states none (ROS and PX4 log rad/s); a CSV column named "
+        "with its unit (w_x [rad s^-1], gx_rad_s, x_dps) is converted by itself",
     )
     parser.add_argument("--json", action="store_true", help="print a JSON result instead")
     parser.add_argument(
@@ -402,11 +408,14 @@ def _identify_record(args: argparse.Namespace, options: dict):
     if size >= READING_NOTE_BYTES:  # a large text file takes 10-20 s: say so, then how long
         print(f"bmg160-emu identify: reading {args.file} ({size / 1e6:.0f} MB) ...",
               file=sys.stderr, flush=True)
-    record = load_rate_record(args.file, args.rate, columns)
+    record = load_rate_record(args.file, args.rate, columns, args.record_units)
     if size >= READING_NOTE_BYTES:
         print(f"bmg160-emu identify: read {record.rate_dps.shape[0]:,} samples x "
               f"{record.rate_dps.shape[1]} axes in {time.perf_counter() - started:.1f} s",
               file=sys.stderr, flush=True)
+    if record.unit != "deg/s":  # said, since every figure below is in deg/s
+        print(f"bmg160-emu identify: {args.file}: rates in {record.unit}, read as deg/s",
+              file=sys.stderr)
     from bmg160_emu.io.partial import partial_note
 
     cut = partial_note(args.file)

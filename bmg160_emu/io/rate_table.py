@@ -42,6 +42,9 @@ class RateTable:
     row_starts: list[int] = field(default_factory=list)
     row_lines: list[int | np.ndarray] = field(default_factory=list)
     rate_hz: float | None = None  # the sample rate the file itself states (an NPZ's rate_hz)
+    # the unit the file states for its rates, already converted to deg/s (a CSV column's
+    # name, io/rate_units.py; "deg/s" for formats defined in it); None: the file says none
+    stated_unit: str | None = None
 
     def where(self, row: int) -> str:
         """``path:LINE`` of CSV data row ``row`` (0-based), or ``path: row N`` for arrays."""

@@ -39,6 +39,7 @@ from bmg160_emu.io.formats import (
     register_format,
 )
 from bmg160_emu.io.rate_table import RateFileError, RateTable
+from bmg160_emu.io.rate_units import RECORD_UNITS, rate_unit
 from bmg160_emu.io.time_column import (
     check_time_column,
     in_seconds,
@@ -56,6 +57,7 @@ class RateRecord:
     rate_hz: float
     axis_names: tuple[str, ...]
     source: str
+    unit: str = "deg/s"  # the unit the rates were in before they were read as deg/s
 
 
 RATE_COLUMN_SETS = (("x_dps", "y_dps", "z_dps"), ("x", "y", "z"), ("gx", "gy", "gz"))
@@ -75,14 +77,26 @@ class RateFileReader(FileReader):
     @abstractmethod
     def table(self, rate_hz: float | None, columns: list[str] | None) -> RateTable: ...
 
-    def read(self, rate_hz: float | None = None, columns: list[str] | None = None
-             ) -> RateRecord:
+    def read(self, rate_hz: float | None = None, columns: list[str] | None = None,
+             record_units: str | None = None) -> RateRecord:
+        """The record; ``record_units`` ("deg/s" or "rad/s") is the unit of rates whose file
+        states none (io/rate_units.py), refused where it states another."""
         self.check_path()
         if columns and not self.takes_columns:
             raise RateFileError("--columns applies to CSV files with a header row",
                                 path=self.path)
+        if record_units is not None and record_units not in RECORD_UNITS:
+            raise RateFileError(f"record units must be one of {', '.join(RECORD_UNITS)}, "
+                                f"not {record_units!r}", path=self.path)
         table = self.table(rate_hz, columns)
         data = table.values
+        stated = table.stated_unit
+        if record_units is not None and stated is not None and stated != record_units:
+            raise RateFileError(f"the file states its rates in {stated}; --record-units "
+                                f"{record_units} applies to a record that states none",
+                                path=self.path)
+        if stated is None and record_units is not None and RECORD_UNITS[record_units] != 1.0:
+            data = data * RECORD_UNITS[record_units]
         if data.ndim == 1:
             data = data[:, None]
         if data.ndim != 2 or not 1 <= data.shape[1] <= 3:
@@ -102,13 +116,16 @@ class RateFileReader(FileReader):
         names = table.header or ("x", "y", "z")[: data.shape[1]]
         rate = _resolve_rate(table, rate_hz, data.shape[0])
         return RateRecord(data, rate, tuple(n.removesuffix("_dps") for n in names),
-                          str(self.path))
+                          str(self.path), stated or record_units or "deg/s")
 
 
 def load_rate_record(
-    path: str | Path, rate_hz: float | None = None, columns: list[str] | None = None
+    path: str | Path, rate_hz: float | None = None, columns: list[str] | None = None,
+    record_units: str | None = None,
 ) -> RateRecord:
     """Read a static record (deg/s); ``rate_hz`` overrides (and is checked against) a time column.
+    ``record_units`` ("rad/s") is the unit of a record that states none (a CSV column's
+    name may: ``w_RS_S_x [rad s^-1]``, ``gx_rad_s``, ``x_dps``; io/rate_units.py).
 
     - CSV: one column per axis, optionally a time column (t, time or timestamp in
       seconds, or with its unit: time_ms, timestamp_us, t_ns, ``timestamp [ns]``); an
@@ -122,7 +139,7 @@ def load_rate_record(
     """
     check_file(path, RateFileReader.noun, RateFileError)  # before the suffix: one message
     fmt = format_for("rates", path, RateFileError, reading=True, what="record file")
-    return fmt.read(path, rate_hz, columns)
+    return fmt.read(path, rate_hz, columns, record_units)
 
 
 _SAMPLES_COMMENT = re.compile(r"\bbmg160-emu generate:.*\bsamples=(\d+)\b")
@@ -221,7 +238,8 @@ class NpzRates(RateFileReader):
             t = numeric(npz_array(archive, t_key, path), path, f"key {t_key}")
             t = in_seconds(t, time_column_scale_s(t_key))
         if "rate_dps" in keys:
-            return RateTable(path, None, t, numeric(npz_array(archive, "rate_dps", path), path))
+            return RateTable(path, None, t, numeric(npz_array(archive, "rate_dps", path), path),
+                             stated_unit="deg/s")
         if "counts" in keys:
             lsb = _npz_scalar(archive, "lsb_dps", path)
             if lsb is None:
@@ -231,11 +249,13 @@ class NpzRates(RateFileReader):
             with np.errstate(over="ignore"):  # an inf is refused by row below
                 values = counts * lsb
             width = values.shape[1] if values.ndim == 2 else 1
-            return RateTable(path, _npz_axis_names(archive, width, path), t, values)
+            return RateTable(path, _npz_axis_names(archive, width, path), t, values,
+                             stated_unit="deg/s")
         for names in RATE_COLUMN_SETS:
             present = [k for k in names if k in keys]
             if present:
-                return RateTable(path, present, t, npz_columns(archive, present, path))
+                return RateTable(path, present, t, npz_columns(archive, present, path),
+                                 stated_unit="deg/s" if present[0].endswith("_dps") else None)
         others = [k for k in keys if time_column_scale_s(k) is None]
         numbers = [k for k in others if k not in ("rate_hz", "lsb_dps")
                    and npz_array(archive, k, path).dtype.kind in "fiu"]
@@ -274,10 +294,12 @@ class CsvRates(RateFileReader):
                     raise RateFileError(f"{where}: no column(s) {missing[:8]}; the header has "
                                         f"{names[:12]}{' ...' if len(names) > 12 else ''}")
                 rate_names = wanted
-            else:
+            else:  # a known set, else the columns whose names carry a rate unit, else all
+                others = [n for i, n in enumerate(names) if i != time_index]
+                labelled = [n for n in others if rate_unit(n) is not None]
                 rate_names = next(
                     ([n for n in s if n in names] for s in RATE_COLUMN_SETS if s[0] in names),
-                    [n for i, n in enumerate(names) if i != time_index],
+                    labelled if 1 <= len(labelled) <= 3 else others,
                 )
             if len(rate_names) > 3:
                 shown = ", ".join(rate_names[:8]) + (", ..." if len(rate_names) > 8 else "")
@@ -291,6 +313,15 @@ class CsvRates(RateFileReader):
         table = read_csv_table(path, choose)
         if table.header is not None:
             table.header = chosen
+            units = [rate_unit(n) for n in chosen]
+            if any(units):  # deg/s by the column's own unit; the name without it
+                stated = {u[1] for u in units if u is not None}
+                table.stated_unit = stated.pop() if len(stated) == 1 else "mixed units"
+                for i, unit in enumerate(units):
+                    if unit is not None:
+                        if unit[2] != 1.0:
+                            table.values[:, i] *= unit[2]
+                        table.header[i] = unit[0]
         if table.t_s is not None:
             table.t_s = in_seconds(table.t_s, time_scale_s[0])
         return table
@@ -300,20 +331,22 @@ class TextRates(CsvRates):
     """A .txt or .log file: the firmware's UART stream when its first lines say so (the ODR
     from the capture's line, else ``rate_hz``), else a CSV file."""
 
-    def read(self, rate_hz: float | None = None, columns: list[str] | None = None
-             ) -> RateRecord:
+    def read(self, rate_hz: float | None = None, columns: list[str] | None = None,
+             record_units: str | None = None) -> RateRecord:
         from bmg160_emu.io.uart_stream import looks_like_uart_stream
 
         self.check_path()
         self.takes_columns = not looks_like_uart_stream(self.path)
-        return super().read(rate_hz, columns)
+        return super().read(rate_hz, columns, record_units)
 
     def table(self, rate_hz: float | None, columns: list[str] | None) -> RateTable:
         if self.takes_columns:
             return super().table(rate_hz, columns)
         from bmg160_emu.io.uart_stream import uart_rate_table
 
-        return uart_rate_table(self.path, rate_hz)
+        table = uart_rate_table(self.path, rate_hz)
+        table.stated_unit = "deg/s"  # the firmware's lines are in deg/s
+        return table
 
 
 class ResdRates(RateFileReader):
@@ -322,7 +355,9 @@ class ResdRates(RateFileReader):
     def table(self, rate_hz: float | None, columns: list[str] | None) -> RateTable:
         from bmg160_emu.io.resd import resd_rate_table
 
-        return resd_rate_table(self.path)
+        table = resd_rate_table(self.path)
+        table.stated_unit = "deg/s"  # converted from the format's 1e-5 rad/s
+        return table
 
 
 class RatesWriter(FileWriter):
