@@ -213,6 +213,18 @@ def test_a_time_column_in_any_unit_its_name_says_gives_the_rate(tmp_path, sample
     assert load_rate_record(archive).rate_hz == pytest.approx(250.0, rel=1e-9)
 
 
+def test_a_time_column_in_another_unit_than_its_name_says_is_refused(tmp_path, samples):
+    # PX4's CSV export stamps in us under a bare "timestamp", which reads as seconds: a
+    # 250 Hz log became 0.00025 Hz, and identify fitted 20,000 hours without a word
+    path = tmp_path / "px4.csv"
+    path.write_text("timestamp,x,y,z\n" + "".join(
+        f"{4000 * i}," + ",".join(repr(float(v)) for v in row) + "\n"
+        for i, row in enumerate(samples)))
+    with pytest.raises(RecordError, match=r"gives 0.00025 Hz, outside 0.001 to 1e\+06 Hz: "
+                                          r"are its stamps in ms, us or ns\?"):
+        load_rate_record(path)
+
+
 def test_a_file_without_a_time_column_names_the_ones_that_work(tmp_path, samples):
     path = tmp_path / "stamped.csv"
     write_csv(path, samples, ["stamp", "gx", "gy"])

@@ -39,6 +39,7 @@ from bmg160_emu.io.formats import (
     register_format,
 )
 from bmg160_emu.io.rate_table import RateFileError, RateTable
+from bmg160_emu.limits import SAMPLE_RATE_HZ
 from bmg160_emu.io.rate_units import RECORD_UNITS, rate_unit
 from bmg160_emu.io.time_column import (
     check_time_column,
@@ -179,6 +180,13 @@ def _resolve_rate(table: RateTable, rate_hz: float | None, n: int) -> float:
             raise RateFileError("too few samples to read the rate from the time column", path=path)
         return float(rate_hz)
     from_time = (n - 1) / float(t[-1] - t[0])
+    bounds = SAMPLE_RATE_HZ
+    if rate_hz is None and not bounds.low <= from_time <= bounds.high:
+        # a bare "timestamp" is seconds: PX4's CSV export stamps in us under that name
+        raise RateFileError(
+            f"the time column gives {from_time:.4g} Hz, outside {bounds.low:g} to "
+            f"{bounds.high:g} Hz: are its stamps in ms, us or ns? Name the column with its "
+            f"unit ({time_column_help()})", path=path)
     if rate_hz is not None:
         if abs(from_time / rate_hz - 1.0) > 0.01:
             raise RateFileError(
