@@ -39,7 +39,6 @@ from bmg160_emu.io.formats import (
     register_format,
 )
 from bmg160_emu.io.rate_table import RateFileError, RateTable
-from bmg160_emu.limits import SAMPLE_RATE_HZ
 from bmg160_emu.io.rate_units import RECORD_UNITS, rate_unit
 from bmg160_emu.io.time_column import (
     check_time_column,
@@ -48,6 +47,7 @@ from bmg160_emu.io.time_column import (
     time_column_index,
     time_column_scale_s,
 )
+from bmg160_emu.limits import SAMPLE_RATE_HZ
 
 
 @dataclass(frozen=True)
