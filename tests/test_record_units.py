@@ -30,6 +30,7 @@ RAD = math.degrees(1.0)
     ("x_dps", ("x", "deg/s", 1.0)),
     ("y_mdps", ("y", "mdeg/s", 1e-3)),
     ("z (mrad/s)", ("z", "mrad/s", RAD * 1e-3)),
+    ("field.angular_velocity.x", ("x", "rad/s", RAD)),  # sensor_msgs/Imu: rad/s by definition
 ])
 def test_a_column_name_with_a_rate_unit(name, expected):
     base, unit, scale = rate_unit(name)
@@ -60,6 +61,21 @@ def test_the_euroc_layout_gives_its_three_gyro_columns_in_deg_s_and_every_row(tm
     np.testing.assert_array_equal(record.rate_dps, rows * RAD)
     assert record.axis_names == ("w_rs_s_x", "w_rs_s_y", "w_rs_s_z")
     assert record.unit == "rad/s" and record.rate_hz == pytest.approx(200.0)
+
+
+def test_a_rostopic_csv_of_an_imu_topic_gives_its_angular_velocity_in_deg_s(tmp_path):
+    rows = np.random.default_rng(4).normal(0, 0.003, (1000, 3))
+    path = tmp_path / "imu.csv"
+    with open(path, "w") as f:  # rostopic echo -p /imu: %time in ns, then the fields
+        f.write("%time,field.header.seq,field.header.stamp,field.header.frame_id,"
+                "field.angular_velocity.x,field.angular_velocity.y,field.angular_velocity.z,"
+                "field.linear_acceleration.z\n")
+        for i, (x, y, z) in enumerate(rows.tolist()):
+            stamp = 1_600_000_000_000_000_000 + 5_000_000 * i
+            f.write(f"{stamp},{i},{stamp},imu_link,{x!r},{y!r},{z!r},9.81\n")
+    record = load_rate_record(path)
+    np.testing.assert_array_equal(record.rate_dps, rows * RAD)
+    assert record.axis_names == ("x", "y", "z") and record.rate_hz == pytest.approx(200.0)
 
 
 def test_a_comment_with_commas_above_headerless_rows_stays_a_comment(tmp_path):

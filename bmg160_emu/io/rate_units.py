@@ -4,9 +4,10 @@ too quiet that still passes its own verdict (both sides in the same wrong unit).
 
 Public IMU logs name their gyro columns with the unit: the EuRoC MAV and TUM-VI datasets
 ``w_RS_S_x [rad s^-1]`` (their ``data.csv``), others ``gx_rad_s``, ``gyro_x (deg/s)``,
-``x_dps``, ``x_mdps`` (ST's LSM6DS drivers report mdps). ROS (REP 103) and PX4 log rad/s with
-bare names (``angular_velocity.x``, ``x``): for those the user says it
-(``identify --record-units rad/s``).
+``x_dps``, ``x_mdps`` (ST's LSM6DS drivers report mdps). A ROS sensor_msgs/Imu message's
+``angular_velocity`` is rad/s by its definition, so ``rostopic echo -p``'s
+``field.angular_velocity.x`` carries it too. PX4 logs rad/s under bare names (``x``): for
+those the user says it (``identify --record-units rad/s``).
 """
 
 from __future__ import annotations
@@ -32,12 +33,17 @@ _SUFFIXES = {
     "_rads": ("rad/s", DEG_S_PER_RAD_S), "_radps": ("rad/s", DEG_S_PER_RAD_S),
 }
 _UNIT_IN_BRACKETS = re.compile(r"^(.*?)\s*[\[(]([^\[\]()]*)[\])]$")
+# sensor_msgs/Imu's angular_velocity (rad/s), as a ROS CSV export names its fields
+_ROS_IMU = re.compile(r"^(?:.*\.)?angular_velocity\.([xyz])$")
 
 
 def rate_unit(name: str) -> tuple[str, str, float] | None:
     """(the name without its unit, the unit, deg/s per unit) when ``name`` carries an
     angular-rate unit, else None."""
     text = name.strip().lower().lstrip("#").strip()
+    ros = _ROS_IMU.match(text)
+    if ros:
+        return ros[1], "rad/s", DEG_S_PER_RAD_S
     found = _UNIT_IN_BRACKETS.match(text)
     if found:
         unit = _BRACKETED.get(found[2].replace(" ", ""))

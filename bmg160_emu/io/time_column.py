@@ -17,7 +17,8 @@ from bmg160_emu.io.rate_table import RateFileError
 
 # A unit on a time column's name: seconds per unit. Logs stamp in other units: ROS and the
 # EuRoC/TUM-VI datasets in ns ("timestamp [ns]"), PX4's ulog CSV export in us
-# ("timestamp", left to mean seconds here: a bare name is seconds, as t and time are).
+# ("timestamp", left to mean seconds here: a bare name is seconds, as t and time are);
+# rostopic echo -p's "%time" in ns.
 TIME_UNITS_S = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 _TIME_BASES = ("t", "time", "timestamp")
 
@@ -27,6 +28,8 @@ def time_column_scale_s(name: str) -> float | None:
     None: t, time or timestamp, bare (seconds) or with a unit as a suffix (``time_ms``,
     ``timestamp_ns``) or in brackets (``timestamp [ns]``)."""
     text = name.strip().lower().lstrip("#").strip()
+    if text == "%time":  # rostopic echo -p: the receive time in ns from the epoch
+        return 1e-9
     if text.endswith("]") and "[" in text:
         base, _, unit = text[:-1].partition("[")
         text = f"{base.strip()}_{unit.strip()}"
