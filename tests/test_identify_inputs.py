@@ -225,6 +225,28 @@ def test_a_time_column_in_another_unit_than_its_name_says_is_refused(tmp_path, s
         load_rate_record(path)
 
 
+@pytest.mark.parametrize(("header", "message"), [
+    ("t,a,a,a", r"data.csv:1: column 'a' appears 3 times in the header; name each axis once"),
+    ("t,x,y,x", r"data.csv:1: column 'x' appears 2 times"),
+    ("t,,,", r"data.csv:1: column 2 of the header has no name"),
+])
+def test_axes_named_twice_or_not_at_all_are_refused(tmp_path, samples, header, message):
+    # the reader looked each name up by its first place: the same column read as every axis
+    path = tmp_path / "data.csv"
+    path.write_text(header + "\n" + "".join(
+        f"{i * 0.004!r}," + ",".join(repr(float(v)) for v in row) + "\n"
+        for i, row in enumerate(samples)))
+    with pytest.raises(RecordError, match=message):
+        load_rate_record(path)
+
+
+def test_columns_naming_an_axis_twice_is_refused(tmp_path, samples):
+    path = tmp_path / "data.csv"
+    write_csv(path, samples, ["gx", "gy", "gz"])
+    with pytest.raises(RecordError, match="--columns names 'gx' more than once"):
+        load_rate_record(path, 250.0, ["gx", "gx"])
+
+
 def test_a_file_without_a_time_column_names_the_ones_that_work(tmp_path, samples):
     path = tmp_path / "stamped.csv"
     write_csv(path, samples, ["stamp", "gx", "gy"])

@@ -297,6 +297,9 @@ class CsvRates(RateFileReader):
                 time_scale_s[0] = found[1]
             if columns:
                 wanted = [c.lower() for c in columns]
+                twice = sorted({c for c in wanted if wanted.count(c) > 1})
+                if twice:
+                    raise RateFileError(f"{where}: --columns names {twice[0]!r} more than once")
                 missing = [c for c in wanted if c not in names]
                 if missing:
                     raise RateFileError(f"{where}: no column(s) {missing[:8]}; the header has "
@@ -309,6 +312,13 @@ class CsvRates(RateFileReader):
                     ([n for n in s if n in names] for s in RATE_COLUMN_SETS if s[0] in names),
                     labelled if 1 <= len(labelled) <= 3 else others,
                 )
+            for name in rate_names:  # names.index would read the first of them each time
+                if not name:
+                    raise RateFileError(f"{where}: column {names.index(name) + 1} of the header "
+                                        "has no name; name each axis")
+                if names.count(name) > 1:
+                    raise RateFileError(f"{where}: column {name!r} appears {names.count(name)} "
+                                        "times in the header; name each axis once")
             if len(rate_names) > 3:
                 shown = ", ".join(rate_names[:8]) + (", ..." if len(rate_names) > 8 else "")
                 raise RateFileError(
