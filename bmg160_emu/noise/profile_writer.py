@@ -30,7 +30,7 @@ from bmg160_emu.noise.profile import (
 
 # TOML 1.0.0: the characters a basic string must escape, and those a comment may not hold
 _CONTROL = re.compile("[\x00-\x08\x0a-\x1f\x7f]")
-_SHORT_ESCAPES = {"\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}
+_SHORT_ESCAPES = {"\b": "\\b", "\n": "\\n", "\f": "\\f", "\r": "\\r"}  # (tab is allowed as it is)
 
 
 def format_profile(profile: Profile, header: str = "") -> str:
