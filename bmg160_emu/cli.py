@@ -172,6 +172,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                               else _restorable(previous[number]))
     except CommandError as exc:
         print(_one_line(f"bmg160-emu {command}: error: {exc}"), file=sys.stderr)
+        for line in exc.details:
+            print(_one_line(line), file=sys.stderr)
         return 2
     except ModuleNotFoundError as exc:  # an optional package: the extra that brings it
         message = missing_message(args.command, exc.name or "")

@@ -107,6 +107,18 @@ def test_an_error_naming_a_file_with_a_newline_stays_on_one_line(tmp_path):
     assert err.count("\n") == 1 and "no\\x0asuch\\x0d.csv" in err, err
 
 
+def test_a_scripts_list_of_mistakes_stays_one_per_line(tmp_path):
+    """The one-line rule escapes a name's newline, not the lines a list of mistakes is
+    printed on (CI caught docs/script-format.md's example run together with \\x0a)."""
+    script = tmp_path / "b\nroken.script"
+    script.write_text("write RANGEE 1\nsleep 10\n")
+    for argv in (["script", str(script), "-q"], ["dump", "--seed", "1", "--after", str(script)]):
+        status, _, err = _run(argv)
+        lines = err.splitlines()
+        assert status == 2 and len(lines) == (3 if argv[0] == "script" else 2), err
+        assert all("b\\x0aroken.script" in line for line in lines[-2:]), err
+
+
 def test_a_name_that_is_not_utf8_is_printed_as_its_bytes_under_a_strict_utf8_locale(tmp_path):
     """A UTF-8 locale's stdout is strict (the C locale's is not): the summary and "wrote"
     lines named the file and raised UnicodeEncodeError after the outputs were written."""

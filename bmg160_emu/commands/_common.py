@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -18,7 +18,13 @@ class Subparsers(Protocol):
 
 
 class CommandError(Exception):
-    """A user-facing error: printed as one line, exit status 2, never a traceback."""
+    """A user-facing error: printed as one line, exit status 2, never a traceback;
+    ``details``, lines printed under it (a script's list of mistakes, one per line, as a
+    compiler lists them)."""
+
+    def __init__(self, message: str, details: Sequence[str] = ()) -> None:
+        super().__init__(message)
+        self.details = tuple(details)
 
 
 def integer_at_least(minimum: int, what: str) -> Callable[[str], int]:
@@ -159,8 +165,10 @@ def run_script_file(
         run_script(text, chip, log, str(path), bus=I2CBus(1, chips))
     except OSError as exc:
         raise CommandError(f"cannot read {path}: {exc.strerror}") from None
-    except ScriptSyntaxError as exc:
-        raise CommandError(str(exc)) from None
+    except ScriptSyntaxError as exc:  # the first mistake, then the others a line each
+        first, *others = [f"{exc.source}:{line}:{col}: {msg}"
+                          for line, col, msg in exc.errors] or [str(exc)]
+        raise CommandError(first, others) from None
     except ScriptFailure as exc:
         print(f"{failed_prefix}{exc}", file=sys.stderr)
         return 1
