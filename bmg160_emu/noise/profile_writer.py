@@ -21,7 +21,9 @@ from typing import Any
 
 from bmg160_emu.noise.profile import (
     AXES,
+    BAND_KEYS,
     GM_KEYS,
+    SINE_KEYS,
     UNITS,
     AxisNoise,
     Profile,
@@ -31,6 +33,14 @@ from bmg160_emu.noise.profile import (
 # TOML 1.0.0: the characters a basic string must escape, and those a comment may not hold
 _CONTROL = re.compile("[\x00-\x08\x0a-\x1f\x7f]")
 _SHORT_ESCAPES = {"\b": "\\b", "\n": "\\n", "\f": "\\f", "\r": "\\r"}  # (tab is allowed as it is)
+# an axis's lists of terms: what the comment says, and the keys of each inline table
+_TERM_LISTS = {
+    "gm": ("Gauss-Markov terms: B deg/s, T s", GM_KEYS),
+    "sine": ("sinusoidal terms (IEEE 952): A deg/s, f Hz", SINE_KEYS),
+    "band": ("resonant band: resonators f Hz, width Hz, B deg/s", BAND_KEYS),
+    "slow_band": ("slow band (below the response): resonators f Hz, width Hz, B deg/s",
+                  BAND_KEYS),
+}
 
 
 def format_profile(profile: Profile, header: str = "") -> str:
@@ -43,14 +53,8 @@ def format_profile(profile: Profile, header: str = "") -> str:
         lines.append(f"[{axis_name}]")
         for f in fields(AxisNoise):
             value = getattr(axis, f.name)
-            if f.name == "gm":
-                lines += _gm_lines(value)
-                continue
-            if f.name == "sine":
-                lines += _sine_lines(value)
-                continue
-            if f.name in ("band", "slow_band"):
-                lines += _band_lines(value, f.name)
+            if f.name in _TERM_LISTS:
+                lines += _inline_tables(f.name, *_TERM_LISTS[f.name], value)
                 continue
             if f.name == "response":
                 if value:
@@ -141,30 +145,13 @@ def _toml_value(value: Any) -> str:
     return repr(number)
 
 
-def _gm_lines(terms: tuple[tuple[float, float], ...]) -> list[str]:
+def _inline_tables(key: str, what: str, keys: tuple[str, ...],
+                   terms: tuple[tuple[float, ...], ...]) -> list[str]:
+    """A list of inline tables (an axis's gm, sine, band or slow_band terms), one a line."""
     if not terms:
         return []
-    lines = ["gm = [                  # Gauss-Markov terms: B deg/s, T s"]
-    for B, T in terms:
-        lines.append(f"  {{ B = {toml_float(B, 'B')}, T = {toml_float(T, 'T')} }},")
-    return lines + ["]"]
-
-
-def _sine_lines(terms: tuple[tuple[float, float], ...]) -> list[str]:
-    if not terms:
-        return []
-    lines = ["sine = [                # sinusoidal terms (IEEE 952): A deg/s, f Hz"]
-    for A, f in terms:
-        lines.append(f"  {{ A = {toml_float(A, 'A')}, f = {toml_float(f, 'f')} }},")
-    return lines + ["]"]
-
-
-def _band_lines(terms: tuple[tuple[float, float, float], ...], key: str = "band") -> list[str]:
-    if not terms:
-        return []
-    what = "resonant band" if key == "band" else "slow band (below the response)"
-    lines = [f"{key} = [".ljust(24) + f"# {what}: resonators f Hz, width Hz, B deg/s"]
-    for f, w, B in terms:
-        lines.append(f"  {{ f = {toml_float(f, 'f')}, width = {toml_float(w, 'width')}, "
-                     f"B = {toml_float(B, 'B')} }},")
+    lines = [f"{key} = [".ljust(24) + f"# {what}"]
+    for term in terms:
+        cells = ", ".join(f"{k} = {toml_float(v, k)}" for k, v in zip(keys, term))
+        lines.append(f"  {{ {cells} }},")
     return lines + ["]"]
