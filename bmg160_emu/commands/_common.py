@@ -166,8 +166,7 @@ def run_script_file(
     except OSError as exc:
         raise CommandError(f"cannot read {path}: {exc.strerror}") from None
     except ScriptSyntaxError as exc:  # the first mistake, then the others a line each
-        first, *others = [f"{exc.source}:{line}:{col}: {msg}"
-                          for line, col, msg in exc.errors] or [str(exc)]
+        first, *others = exc.lines or [str(exc)]
         raise CommandError(first, others) from None
     except ScriptFailure as exc:
         print(f"{failed_prefix}{exc}", file=sys.stderr)

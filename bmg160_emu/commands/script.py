@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     except ScriptSyntaxError as exc:
         raise CommandError(
             f"{len(exc.errors)} error(s) in the script, nothing was run:",
-            [f"{exc.source}:{line}:{col}: {msg}" for line, col, msg in exc.errors],
+            exc.lines,
         ) from None
     if args.trace is not None and getattr(args, "realtime", False):
         raise CommandError("--trace needs virtual time (a real-time session cannot be replayed)")

@@ -35,7 +35,9 @@ class ScriptSyntaxError(ValueError):
     def __init__(self, source: str, errors: list[tuple[int, int, str]]):
         self.source = source
         self.errors = errors
-        super().__init__("\n".join(f"{source}:{line}:{col}: {msg}" for line, col, msg in errors))
+        # one ``source:line:column: message`` a mistake, as a compiler lists them
+        self.lines = [f"{source}:{line}:{col}: {msg}" for line, col, msg in errors]
+        super().__init__("\n".join(self.lines))
 
 
 class ScriptFailure(AssertionError):
