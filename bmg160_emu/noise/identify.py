@@ -322,8 +322,9 @@ def spectra_beside(x: np.ndarray, rate_hz: float, psd_segment: int | None, stage
                    ) -> Iterator[Callable[[], tuple[Any, Any]]]:
     """The record's long-segment PSD and (``stage``) the PSD the output stage is read on,
     computed beside the block: on a second thread when the record is long and the process
-    may run on a second CPU (worker_thread.usable_cpus: its affinity), else when asked. Yields the function that returns both (staged is None
-    without ``stage``); the numbers are the same either way."""
+    may run on a second CPU (worker_thread.usable_cpus: its affinity), else in the caller's
+    thread when asked for. Yields the function that returns both (staged is None without
+    ``stage``); the numbers are the same either way."""
     from bmg160_emu.noise.stage_identification import stage_spectrum
     from bmg160_emu.noise.worker_thread import usable_cpus
 

@@ -147,7 +147,7 @@ class SensorNoise:
         flt = self.filter
         held = self.end - self.k0
         if (self.sequential and held == 0 and flt is not None and self.worker is not None
-                and self.worker.threads > 1 and total >= 2 * PIECE):  # (else one call: no copies)
+                and self.worker.splits(total, PIECE)):  # (else one call: no copies)
             self._draw_beside(total)
             return
         if self.sequential and held == 0:  # generate: one call, one pass of the recursion

@@ -48,6 +48,11 @@ class WorkerThread:
         2 threads)."""
         return self._pool is not None and self._pid == os.getpid()
 
+    def splits(self, total: int, piece: int) -> bool:
+        """Whether ``total`` rows in pieces of ``piece`` go to the worker: 2 threads, and 2
+        pieces or more."""
+        return self.threads > 1 and total >= 2 * piece
+
     def run_pieces(self, total: int, piece: int, draw: Callable[[int, int], Any],
                    work: Callable[[int, Any], None]) -> None:
         """For the pieces of ``total`` rows, ``piece`` rows each (the last one shorter), in
@@ -56,7 +61,7 @@ class WorkerThread:
         Returns when every piece's work is done (an error in ``draw``: after the pieces sent
         finish)."""
         starts = range(0, total, piece)
-        if self.threads < 2 or total < 2 * piece:
+        if not self.splits(total, piece):
             for start in starts:
                 work(start, draw(start, min(piece, total - start)))
             return
